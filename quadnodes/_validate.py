@@ -1,0 +1,268 @@
+"""All input checking lives here: shapes, dtypes, indices, finiteness, parameters.
+
+Functions return clean arrays (copies, never views of the caller's data) or raise
+:class:`~quadnodes.errors.InputError` with a message that names what was received.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .errors import InputError
+
+__all__ = [
+    "vertices_array",
+    "faces_array",
+    "check_quad_mesh",
+    "vertex_mask",
+    "positive_number",
+    "nonnegative_number",
+    "positive_int",
+    "schedule",
+]
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+def vertices_array(vertices: ArrayLike, name: str = "vertices") -> np.ndarray:
+    """Return ``vertices`` as a fresh read-only ``(n, 3) float64`` array.
+
+    Raises
+    ------
+    InputError
+        If the array is not ``(n, 3)``, is empty, or holds a non-finite coordinate
+        (the message names the first such vertex).
+    """
+    try:
+        v = np.array(vertices, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: cannot convert to a float array ({exc})") from None
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise InputError(f"{name}: expected shape (n, 3), got {v.shape}")
+    if v.shape[0] == 0:
+        raise InputError(f"{name}: the mesh is empty (0 vertices)")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{name}: vertex {i} has a non-finite coordinate {v[i].tolist()} "
+            f"({int(bad.sum())} such vertices)"
+        )
+    return _readonly(v)
+
+
+def faces_array(faces: ArrayLike, n_vertices: int, name: str = "faces") -> np.ndarray:
+    """Return ``faces`` as a fresh read-only ``(m, 4) int64`` array of valid indices.
+
+    Raises
+    ------
+    InputError
+        On a wrong shape, non-integer values, an empty face list, an index out of
+        ``[0, n_vertices)``, or a face that repeats a vertex.
+    """
+    raw = np.asarray(faces)
+    if raw.dtype.kind == "f":
+        if not np.all(np.isfinite(raw)) or not np.all(raw == np.round(raw)):
+            raise InputError(f"{name}: indices must be integers, got dtype {raw.dtype}")
+    elif raw.dtype.kind not in "iu" and raw.size:
+        raise InputError(f"{name}: indices must be integers, got dtype {raw.dtype}")
+    f = np.array(raw, dtype=np.int64, copy=True)
+    if f.ndim != 2 or f.shape[1] != 4:
+        raise InputError(f"{name}: expected shape (m, 4) for quads, got {f.shape}")
+    if f.shape[0] == 0:
+        raise InputError(f"{name}: the mesh is empty (0 faces)")
+    out = (f < 0) | (f >= n_vertices)
+    if out.any():
+        fi, k = (int(x) for x in np.argwhere(out)[0])
+        raise InputError(
+            f"{name}: face {fi} refers to vertex {int(f[fi, k])}, "
+            f"outside 0..{n_vertices - 1}"
+        )
+    s = np.sort(f, axis=1)
+    rep = (s[:, 1:] == s[:, :-1]).any(axis=1)
+    if rep.any():
+        fi = int(np.flatnonzero(rep)[0])
+        raise InputError(f"{name}: face {fi} repeats a vertex: {f[fi].tolist()}")
+    return _readonly(f)
+
+
+def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Check the combinatorics and geometry that single arrays cannot show.
+
+    Zero-length edges, edges shared by more than two faces, and neighbouring faces
+    with inconsistent orientation (an edge walked the same way by both faces).
+
+    Raises
+    ------
+    InputError
+        Naming the first offending face(s) and edge.
+    """
+    m = faces.shape[0]
+    start = faces.reshape(-1)
+    end = np.roll(faces, -1, axis=1).reshape(-1)
+    face_of = np.repeat(np.arange(m), 4)
+    length = np.linalg.norm(vertices[end] - vertices[start], axis=1)
+    zero = length == 0.0
+    if zero.any():
+        h = int(np.flatnonzero(zero)[0])
+        raise InputError(
+            f"faces: face {h // 4} has a zero-length edge between vertices "
+            f"{int(start[h])} and {int(end[h])}"
+        )
+    n = int(vertices.shape[0])
+    # undirected edge key, then how many faces hold it
+    lo = np.minimum(start, end)
+    hi = np.maximum(start, end)
+    key = lo * n + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    uniq, first, counts = np.unique(ks, return_index=True, return_counts=True)
+    many = counts > 2
+    if many.any():
+        j = int(np.flatnonzero(many)[0])
+        hs = order[first[j] : first[j] + counts[j]]
+        raise InputError(
+            f"faces: edge ({int(lo[hs[0]])}, {int(hi[hs[0]])}) is shared by "
+            f"{int(counts[j])} faces {sorted(int(face_of[h]) for h in hs)}; "
+            "at most two faces may share an edge"
+        )
+    # a directed edge used twice means two faces walk a shared edge the same way
+    dkey = start * n + end
+    dsorted = np.sort(dkey)
+    dup = dsorted[1:] == dsorted[:-1]
+    if dup.any():
+        dk = int(dsorted[1:][dup][0])
+        hs = np.flatnonzero(dkey == dk)
+        a, b = divmod(dk, n)
+        raise InputError(
+            f"faces: faces {int(face_of[hs[0]])} and {int(face_of[hs[1]])} both run "
+            f"along edge {a}->{b} in the same direction (inconsistent orientation); "
+            "flip one of them"
+        )
+
+
+def vertex_mask(mask: ArrayLike | None, n: int, name: str = "fixed") -> np.ndarray:
+    """Return a boolean ``(n,)`` mask from a boolean mask or an index list.
+
+    ``None`` gives all False. Integer input is read as vertex indices.
+
+    Raises
+    ------
+    InputError
+        On a wrong length, an index out of range, or an unusable dtype.
+    """
+    out = np.zeros(n, dtype=bool)
+    if mask is None:
+        return out
+    a = np.asarray(mask)
+    if a.dtype == bool:
+        if a.shape != (n,):
+            raise InputError(f"{name}: boolean mask must have shape ({n},), got {a.shape}")
+        out[:] = a
+        return out
+    if a.size == 0:
+        return out
+    if a.dtype.kind not in "iu":
+        raise InputError(f"{name}: expected a boolean mask or vertex indices, got dtype {a.dtype}")
+    a = a.reshape(-1).astype(np.int64)
+    bad = (a < 0) | (a >= n)
+    if bad.any():
+        raise InputError(f"{name}: vertex index {int(a[bad][0])} is outside 0..{n - 1}")
+    out[a] = True
+    return out
+
+
+def _number(value: Any, name: str) -> float:
+    if isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name}: expected a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(x):
+        raise InputError(f"{name}: must be finite, got {value!r}")
+    return x
+
+
+def positive_number(value: Any, name: str) -> float:
+    """Return ``value`` as a finite float > 0, or raise :class:`InputError`."""
+    x = _number(value, name)
+    if x <= 0:
+        raise InputError(f"{name}: must be > 0, got {value!r}")
+    return x
+
+
+def nonnegative_number(value: Any, name: str) -> float:
+    """Return ``value`` as a finite float >= 0, or raise :class:`InputError`."""
+    x = _number(value, name)
+    if x < 0:
+        raise InputError(f"{name}: must be >= 0, got {value!r}")
+    return x
+
+
+def positive_int(value: Any, name: str, *, minimum: int = 1) -> int:
+    """Return ``value`` as an int >= ``minimum``, or raise :class:`InputError`."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name}: expected an integer, got {value!r}")
+    if value < minimum:
+        raise InputError(f"{name}: must be >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def schedule(
+    value: float | Sequence[float],
+    iterations: int,
+    name: str,
+    *,
+    decay: float = 1.0,
+    positive: bool = False,
+) -> np.ndarray:
+    """Expand a per-iteration parameter into an ``(iterations,)`` float array.
+
+    Parameters
+    ----------
+    value : float or sequence of float
+        One number (used every iteration, multiplied by ``decay**k`` in iteration
+        ``k``) or one value per iteration (longer lists are cut to ``iterations``).
+    iterations : int
+        Number of iterations.
+    name : str
+        Parameter name for error messages.
+    decay : float
+        Factor applied per iteration to a single number; must be > 0.
+    positive : bool
+        Require every value to be > 0 (otherwise >= 0).
+
+    Raises
+    ------
+    InputError
+        On a list shorter than ``iterations``, or a negative, zero (when
+        ``positive``) or non-finite value.
+
+    Examples
+    --------
+    >>> schedule(1.0, 3, "deviation", decay=0.5).tolist()
+    [1.0, 0.5, 0.25]
+    """
+    check = positive_number if positive else nonnegative_number
+    if isinstance(value, (str, bytes)):
+        raise InputError(f"{name}: expected a number or a list of numbers, got {value!r}")
+    if np.ndim(value) == 0:
+        base = check(value, name)
+        d = positive_number(decay, f"{name} decay")
+        return base * d ** np.arange(iterations, dtype=np.float64)
+    seq = list(value)  # type: ignore[arg-type]
+    if decay != 1.0:
+        raise InputError(f"{name}: a decay factor applies to a single number, not to a list")
+    if len(seq) < iterations:
+        raise InputError(
+            f"{name}: the schedule has {len(seq)} values but {iterations} iterations were asked for"
+        )
+    return np.array([check(v, f"{name}[{k}]") for k, v in enumerate(seq[:iterations])])

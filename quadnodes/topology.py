@@ -1,0 +1,422 @@
+"""Combinatorics of a quad mesh: edges, boundary, valence, structure lines, windows.
+
+Everything here depends on the faces only and is computed with NumPy and
+scipy.sparse in a handful of vectorized passes (no Python loop over vertices).
+
+Tracing convention (see ``DESIGN.md``): an edge is a boundary edge when it lies in
+one face. A line arriving at an interior vertex of valence 4 continues along the
+edge that shares no face with the arriving edge; at a boundary vertex of valence 3
+a boundary line continues along the other boundary edge and the interior line
+ends; at every other vertex (corners, reflex and hole corners, extraordinary
+vertices) every line ends. A line is closed when its walk comes back to its first
+edge in the same direction; its windows wrap. Every edge lies in exactly one line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+if TYPE_CHECKING:
+    from .mesh import QuadMesh
+
+__all__ = [
+    "Topology",
+    "StructureLines",
+    "structure_lines",
+    "windows",
+    "boundary_vertices",
+    "corner_vertices",
+    "adjacency",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class StructureLines:
+    """Polylines through a quad mesh, stored flat (CSR style).
+
+    Attributes
+    ----------
+    indices : (k,) int64
+        Vertex indices of all lines, one after the other.
+    offsets : (L + 1,) int64
+        Line ``i`` is ``indices[offsets[i]:offsets[i+1]]``.
+    closed : (L,) bool
+        Whether line ``i`` is a closed loop (its last vertex connects to its first;
+        the first vertex is not repeated).
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> lines = structure_lines(grid(2, 3))
+    >>> [l.tolist() for l in lines]
+    [[0, 1, 2], [0, 3], [1, 4], [2, 5], [3, 4, 5]]
+    """
+
+    indices: np.ndarray
+    offsets: np.ndarray
+    closed: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.closed.shape[0])
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"line {i} out of range for {len(self)} lines")
+        i %= len(self)
+        return self.indices[self.offsets[i] : self.offsets[i + 1]]
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return (self[i] for i in range(len(self)))
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Number of vertices of every line, ``(L,) int64``."""
+        return np.diff(self.offsets)
+
+
+@dataclass(frozen=True, eq=False)
+class Topology:
+    """Connectivity of a quad mesh. Build it with :meth:`from_faces`.
+
+    Half-edge ``h = 4*f + k`` runs from ``faces[f, k]`` to ``faces[f, (k+1) % 4]``.
+    """
+
+    faces: np.ndarray
+    n_vertices: int
+
+    @classmethod
+    def from_faces(cls, faces: np.ndarray, n_vertices: int) -> Topology:
+        """Topology of an already validated ``(m, 4)`` face array."""
+        return cls(np.asarray(faces, dtype=np.int64), int(n_vertices))
+
+    # --- half-edges -------------------------------------------------------------
+    @cached_property
+    def he_start(self) -> np.ndarray:
+        """Start vertex of every half-edge, ``(4m,)``."""
+        return self.faces.reshape(-1)
+
+    @cached_property
+    def he_end(self) -> np.ndarray:
+        """End vertex of every half-edge, ``(4m,)``."""
+        return np.roll(self.faces, -1, axis=1).reshape(-1)
+
+    @cached_property
+    def he_next(self) -> np.ndarray:
+        """Next half-edge in the same face, ``(4m,)``."""
+        h = np.arange(self.faces.size)
+        return (h // 4) * 4 + (h + 1) % 4
+
+    @cached_property
+    def he_twin(self) -> np.ndarray:
+        """Opposite half-edge in the neighbouring face, or -1 on the boundary."""
+        n = self.n_vertices
+        key = self.he_start * n + self.he_end
+        order = np.argsort(key)
+        sk = key[order]
+        want = self.he_end * n + self.he_start
+        pos = np.clip(np.searchsorted(sk, want), 0, sk.size - 1)
+        return np.where(sk[pos] == want, order[pos], -1)
+
+    @cached_property
+    def _edge_data(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.minimum(self.he_start, self.he_end)
+        hi = np.maximum(self.he_start, self.he_end)
+        keys, inv = np.unique(lo * self.n_vertices + hi, return_inverse=True)
+        edges = np.stack(np.divmod(keys, self.n_vertices), axis=1)
+        return edges, inv.reshape(-1)
+
+    @property
+    def edges(self) -> np.ndarray:
+        """Undirected edges ``(E, 2) int64``, each as ``(low, high)`` vertex index, sorted."""
+        return self._edge_data[0]
+
+    @property
+    def he_edge(self) -> np.ndarray:
+        """Undirected edge id of every half-edge, ``(4m,)``."""
+        return self._edge_data[1]
+
+    @cached_property
+    def edge_face_count(self) -> np.ndarray:
+        """Number of faces (1 or 2) holding each edge, ``(E,)``."""
+        return np.bincount(self.he_edge, minlength=len(self.edges))
+
+    @cached_property
+    def boundary_edges(self) -> np.ndarray:
+        """Mask of edges that lie in one face only, ``(E,) bool``."""
+        return self.edge_face_count == 1
+
+    # --- vertices ---------------------------------------------------------------
+    @cached_property
+    def valence(self) -> np.ndarray:
+        """Number of edges at every vertex, ``(n,)``."""
+        return np.bincount(self.edges.reshape(-1), minlength=self.n_vertices)
+
+    @cached_property
+    def vertex_face_count(self) -> np.ndarray:
+        """Number of faces at every vertex, ``(n,)``."""
+        return np.bincount(self.faces.reshape(-1), minlength=self.n_vertices)
+
+    @cached_property
+    def boundary_vertices(self) -> np.ndarray:
+        """Mask of vertices on a boundary edge, ``(n,) bool``."""
+        mask = np.zeros(self.n_vertices, dtype=bool)
+        mask[self.edges[self.boundary_edges].reshape(-1)] = True
+        return mask
+
+    @cached_property
+    def corner_vertices(self) -> np.ndarray:
+        """Boundary vertices that are not regular boundary points, ``(n,) bool``.
+
+        Convex corners (one face), reflex and hole corners (three or more faces)
+        and boundary vertices where two boundary arcs touch.
+        """
+        return self.boundary_vertices & ~self.regular_boundary
+
+    @cached_property
+    def _boundary_count(self) -> np.ndarray:
+        return np.bincount(
+            self.edges[self.boundary_edges].reshape(-1), minlength=self.n_vertices
+        )
+
+    @cached_property
+    def regular_interior(self) -> np.ndarray:
+        """Interior vertices of valence 4 with four faces, ``(n,) bool``."""
+        return (self.valence == 4) & (self._boundary_count == 0) & (self.vertex_face_count == 4)
+
+    @cached_property
+    def regular_boundary(self) -> np.ndarray:
+        """Boundary vertices of valence 3 with two faces and two boundary edges."""
+        return (self.valence == 3) & (self._boundary_count == 2) & (self.vertex_face_count == 2)
+
+    @cached_property
+    def extraordinary(self) -> np.ndarray:
+        """Interior vertices whose valence is not 4, ``(n,) bool``."""
+        return ~self.boundary_vertices & ~self.regular_interior
+
+    # --- structure lines --------------------------------------------------------
+    @cached_property
+    def _successor(self) -> np.ndarray:
+        """Successor of every directed edge along its structure line, or -1.
+
+        Directed edge ``2e`` runs ``edges[e, 0] -> edges[e, 1]``, ``2e + 1`` back.
+        """
+        E = len(self.edges)
+        he_dir = 2 * self.he_edge + (self.he_start > self.he_end)
+        dir_he = np.full(2 * E, -1, dtype=np.int64)
+        dir_he[he_dir] = np.arange(he_dir.size)
+        d = np.arange(2 * E)
+        e = d // 2
+        end = np.where(d % 2 == 0, self.edges[e, 1], self.edges[e, 0])
+        succ = np.full(2 * E, -1, dtype=np.int64)
+
+        inner = self.regular_interior[end]
+        h = dir_he[d[inner]]  # exists: every edge at an interior vertex has two faces
+        succ[inner] = he_dir[self.he_next[self.he_twin[self.he_next[h]]]]
+
+        bnd_he = np.flatnonzero(self.he_twin < 0)
+        b_in = np.full(self.n_vertices, -1, dtype=np.int64)
+        b_out = np.full(self.n_vertices, -1, dtype=np.int64)
+        b_in[self.he_end[bnd_he]] = bnd_he
+        b_out[self.he_start[bnd_he]] = bnd_he
+        along = self.regular_boundary[end] & self.boundary_edges[e]
+        da, va = d[along], end[along]
+        same = dir_he[da] >= 0  # walking with the boundary half-edge
+        succ[da[same]] = he_dir[b_out[va[same]]]
+        succ[da[~same]] = he_dir[b_in[va[~same]]] ^ 1
+        return succ
+
+    @cached_property
+    def structure_lines(self) -> StructureLines:
+        """All structure lines, canonically ordered and oriented.
+
+        Open lines run from their smaller end vertex; closed lines start at their
+        smallest vertex and go towards its smaller neighbour. Lines are sorted by
+        their first two vertices.
+        """
+        return _trace_lines(self.edges, self._successor)
+
+    @cached_property
+    def windows(self) -> np.ndarray:
+        """``(w, 4)`` consecutive vertex quadruples of all structure lines."""
+        return windows(self.structure_lines)
+
+    @cached_property
+    def window_middle(self) -> np.ndarray:
+        """Mask of vertices that are a middle point of at least one window."""
+        mask = np.zeros(self.n_vertices, dtype=bool)
+        mask[self.windows[:, 1:3].reshape(-1)] = True
+        return mask
+
+
+def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
+    D = succ.size
+    dstart = edges.reshape(-1)  # directed edge 2e starts at edges[e,0], 2e+1 at edges[e,1]
+    dend = edges[:, ::-1].reshape(-1)
+    has = succ >= 0
+    pred = np.full(D, -1, dtype=np.int64)
+    pred[succ[has]] = np.flatnonzero(has)
+
+    g = sp.coo_matrix((np.ones(has.sum()), (np.flatnonzero(has), succ[has])), shape=(D, D))
+    _, comp = connected_components(g, directed=True, connection="weak")
+    ids = np.arange(D)
+    keep = comp < comp[ids ^ 1]  # one of each line and its reverse
+    # break each cycle at its smallest directed edge
+    n_comp = int(comp.max()) + 1
+    heads = np.zeros(n_comp, dtype=bool)
+    heads[comp[keep & (pred < 0)]] = True
+    cut = np.full(n_comp, D, dtype=np.int64)
+    np.minimum.at(cut, comp[keep], ids[keep])
+    closed_comp = ~heads & (cut < D)
+    p = np.where(keep, pred, -1)
+    p[cut[closed_comp]] = -1
+
+    # list ranking by pointer jumping: rank = distance from the line's head
+    rank = (p >= 0).astype(np.int64)
+    q = p.copy()
+    act = np.flatnonzero(q >= 0)
+    while act.size:
+        rank[act] = rank[act] + rank[q[act]]
+        q[act] = q[q[act]]
+        act = act[q[act] >= 0]
+
+    kd = ids[keep]
+    order = kd[np.lexsort((rank[kd], comp[kd]))]
+    c_sorted = comp[order]
+    starts = np.flatnonzero(np.r_[True, c_sorted[1:] != c_sorted[:-1]])
+    n_edges = np.diff(np.r_[starts, order.size])
+    closed = closed_comp[c_sorted[starts]]
+    n_vert = n_edges + (~closed)
+    offsets = np.r_[0, np.cumsum(n_vert)].astype(np.int64)
+    flat = np.empty(offsets[-1], dtype=np.int64)
+    line_of_edge = np.repeat(np.arange(starts.size), n_edges)
+    local = np.arange(order.size) - starts[line_of_edge]
+    flat[offsets[line_of_edge] + local] = dstart[order]
+    last = starts + n_edges - 1
+    flat[offsets[1:][~closed] - 1] = dend[order[last[~closed]]]
+    return _canonical(flat, offsets, closed)
+
+
+def _canonical(flat: np.ndarray, offsets: np.ndarray, closed: np.ndarray) -> StructureLines:
+    """Orient and order lines deterministically, independent of edge numbering."""
+    L = closed.size
+    if L == 0:
+        return StructureLines(flat, offsets, closed)
+    lengths = np.diff(offsets)
+    line = np.repeat(np.arange(L), lengths)
+    local = np.arange(flat.size) - offsets[line]
+    first, last = flat[offsets[:-1]], flat[offsets[1:] - 1]
+    # closed: rotate to the smallest vertex, then go towards its smaller neighbour
+    seg_min = np.minimum.reduceat(flat, offsets[:-1])
+    is_min = flat == seg_min[line]
+    shift = np.zeros(L, dtype=np.int64)
+    # first position of the minimum in each line
+    pos_min = np.where(is_min, local, np.iinfo(np.int64).max)
+    shift = np.minimum.reduceat(pos_min, offsets[:-1])
+    shift = np.where(closed, shift, 0)
+    n = lengths
+    nxt = flat[offsets[:-1] + (shift + 1) % n]
+    prv = flat[offsets[:-1] + (shift - 1) % n]
+    flip = np.where(closed, prv < nxt, first > last)
+    # source position: flipped open lines read backwards; closed read from shift
+    src_local = np.where(
+        closed[line],
+        np.where(flip[line], shift[line] - local, shift[line] + local) % n[line],
+        np.where(flip[line], n[line] - 1 - local, local),
+    )
+    flat = flat[offsets[line] + src_local]
+    # sort lines by their first two vertices
+    second = flat[offsets[:-1] + np.minimum(1, n - 1)]
+    order = np.lexsort((second, flat[offsets[:-1]]))
+    new_len = n[order]
+    new_off = np.r_[0, np.cumsum(new_len)].astype(np.int64)
+    new_line = np.repeat(np.arange(L), new_len)
+    new_local = np.arange(flat.size) - new_off[new_line]
+    flat = flat[offsets[order][new_line] + new_local]
+    for a in (flat, new_off):
+        a.setflags(write=False)
+    closed = closed[order].copy()
+    closed.setflags(write=False)
+    return StructureLines(flat, new_off, closed)
+
+
+def windows(lines: StructureLines, *, return_line: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Consecutive vertex quadruples ``(p0, p1, p2, p3)`` of every structure line.
+
+    An open line of ``L`` vertices gives ``L - 3`` windows; a closed line of ``L``
+    vertices gives ``L`` windows that wrap around.
+
+    Parameters
+    ----------
+    lines : StructureLines
+        From :func:`structure_lines`.
+    return_line : bool
+        Also return the line index of every window.
+
+    Returns
+    -------
+    windows : (w, 4) int64
+    line : (w,) int64, only if ``return_line``
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> windows(structure_lines(grid(1 + 1, 5))).tolist()
+    [[0, 1, 2, 3], [1, 2, 3, 4], [5, 6, 7, 8], [6, 7, 8, 9]]
+    """
+    n = lines.lengths
+    closed = lines.closed
+    count = np.where(closed, np.where(n >= 3, n, 0), np.maximum(n - 3, 0))
+    line = np.repeat(np.arange(len(n)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    pos = k[:, None] + np.arange(4)
+    pos = np.where(closed[line][:, None], pos % n[line][:, None], pos)
+    w = lines.indices[lines.offsets[:-1][line][:, None] + pos]
+    return (w, line) if return_line else w
+
+
+def structure_lines(mesh: QuadMesh) -> StructureLines:
+    """Structure lines of both families through a quad mesh.
+
+    See the module docstring for the tracing convention. Cached on the mesh's
+    topology, so calling it again is free.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import cylinder
+    >>> lines = structure_lines(cylinder(3, 5))
+    >>> int(lines.closed.sum()), len(lines)
+    (3, 8)
+    """
+    return mesh.topology.structure_lines
+
+
+def boundary_vertices(mesh: QuadMesh) -> np.ndarray:
+    """Mask of vertices on the boundary, ``(n,) bool``."""
+    return mesh.topology.boundary_vertices.copy()
+
+
+def corner_vertices(mesh: QuadMesh) -> np.ndarray:
+    """Mask of boundary corners (convex, reflex and hole corners), ``(n,) bool``.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> np.flatnonzero(corner_vertices(grid(3, 3))).tolist()
+    [0, 2, 6, 8]
+    """
+    return mesh.topology.corner_vertices.copy()
+
+
+def adjacency(mesh: QuadMesh) -> sp.csr_matrix:
+    """Symmetric vertex adjacency along mesh edges (no quad diagonals), ``(n, n)``."""
+    e = mesh.topology.edges
+    n = mesh.n_vertices
+    a = sp.coo_matrix((np.ones(2 * len(e)), (e.reshape(-1), e[:, ::-1].reshape(-1))), shape=(n, n))
+    return a.tocsr()
