@@ -39,7 +39,7 @@ def diagonal_distance(mesh: QuadMesh, *, relative: bool = True) -> np.ndarray:
     0.0
     >>> m = grid(2, 2, height=[[0, 0], [0, 1]])
     >>> round(float(diagonal_distance(m)[0]), 4)  # one lifted corner
-    0.3333
+    0.2595
     """
     p0, p1, p2, p3 = _corners(mesh)
     d1, d2 = p2 - p0, p3 - p1
