@@ -1,0 +1,166 @@
+"""Zigzag measures along structure lines (thesis eq. 30) and detection of free vertices."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from . import _validate
+from .mesh import QuadMesh
+
+__all__ = ["window_deviation", "vertex_deviation", "ZigzagReport", "detect"]
+
+
+def window_deviation(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
+    """Deviation ``||(u0 + u2)/2 − u1||²`` of every window (thesis eq. 30).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    windows : (w, 4) int64
+        Consecutive vertex quadruples ``p0..p3`` of structure lines.
+
+    Returns
+    -------
+    (w,) float64
+        0 for a straight (or evenly turning) run; at most 4 (a full reversal).
+
+    Examples
+    --------
+    >>> v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [1, 1, 0], [2, -1, 0.]])
+    >>> window_deviation(v, np.array([[0, 1, 2, 3], [0, 4, 5, 3]])).round(3).tolist()
+    [0.0, 2.632]
+    """
+    p = vertices[windows]
+    d = np.diff(p, axis=1)
+    u = d / np.linalg.norm(d, axis=2, keepdims=True)
+    r = 0.5 * (u[:, 0] + u[:, 2]) - u[:, 1]
+    return np.einsum("ij,ij->i", r, r)
+
+
+def vertex_deviation(deviation: np.ndarray, windows: np.ndarray, n: int) -> np.ndarray:
+    """Per-vertex maximum of the deviation over windows where it is a middle point.
+
+    Parameters
+    ----------
+    deviation : (w,) float64
+        From :func:`window_deviation`.
+    windows : (w, 4) int64
+    n : int
+        Number of vertices.
+
+    Returns
+    -------
+    (n,) float64
+        0 for vertices that are a middle point of no window.
+
+    Examples
+    --------
+    >>> vertex_deviation(np.array([0.5, 2.0]), np.array([[0, 1, 2, 3], [1, 2, 3, 4]]), 5).tolist()
+    [0.0, 0.5, 2.0, 2.0, 0.0]
+    """
+    out = np.zeros(n)
+    mid = windows[:, 1:3].reshape(-1)
+    np.maximum.at(out, mid, np.repeat(deviation, 2))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ZigzagReport:
+    """What :func:`detect` found.
+
+    Attributes
+    ----------
+    threshold : float
+        A vertex is free when its deviation is strictly greater.
+    window_deviation : (w,) float64
+        Deviation of every window of ``windows``.
+    windows : (w, 4) int64
+        The windows of the mesh's structure lines.
+    vertex_deviation : (n,) float64
+        Max deviation over the windows in which the vertex is a middle point.
+    fixed : (n,) bool
+        Vertices held in place: on no window's middle, user-fixed, or boundary
+        when asked.
+    free : (n,) bool
+        ``(vertex_deviation > threshold) & ~fixed`` — the zigzag vertices to fair.
+    """
+
+    threshold: float
+    windows: np.ndarray
+    window_deviation: np.ndarray
+    vertex_deviation: np.ndarray
+    fixed: np.ndarray
+    free: np.ndarray
+
+    @property
+    def n_free(self) -> int:
+        """Number of free (zigzag) vertices."""
+        return int(self.free.sum())
+
+    def summary(self) -> dict[str, float]:
+        """Mean and max window deviation and the number of free vertices."""
+        wd = self.window_deviation
+        return {
+            "deviation_mean": float(wd.mean()) if wd.size else 0.0,
+            "deviation_max": float(wd.max()) if wd.size else 0.0,
+            "n_free": float(self.n_free),
+        }
+
+
+def detect(
+    mesh: QuadMesh,
+    threshold: float = 0.1,
+    *,
+    fixed: ArrayLike | None = None,
+    fix_boundary: bool = False,
+) -> ZigzagReport:
+    """Find the zigzag vertices of a quad mesh.
+
+    A vertex is free ("to be faired") when the deviation of some window in which
+    it is one of the two middle points is strictly greater than ``threshold``.
+    Vertices on no window's middle (corners, line ends at extraordinary vertices)
+    are always fixed.
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+    threshold : float
+        Deviation threshold (>= 0); the thesis uses 0.1 and, for strong noise, 1.
+    fixed : (n,) bool or int indices, optional
+        More vertices to hold in place.
+    fix_boundary : bool
+        Hold every boundary vertex in place.
+
+    Returns
+    -------
+    ZigzagReport
+
+    Raises
+    ------
+    InputError
+        On a negative or non-finite threshold or a malformed ``fixed``.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> m = grid(3, 6, height=[[0, 0, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0], [0] * 6])
+    >>> detect(m, 0.1).free.reshape(3, 6).astype(int).tolist()
+    [[0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 1, 0], [0, 0, 0, 0, 0, 0]]
+    """
+    threshold = _validate.nonnegative_number(threshold, "threshold")
+    n = mesh.n_vertices
+    user = _validate.vertex_mask(fixed, n, "fixed")
+    topo = mesh.topology
+    w = topo.windows
+    wd = window_deviation(mesh.vertices, w)
+    vd = vertex_deviation(wd, w, n)
+    fix = user | ~topo.window_middle
+    if fix_boundary:
+        fix |= topo.boundary_vertices
+    free = (vd > threshold) & ~fix
+    for a in (wd, vd, fix, free):
+        a.setflags(write=False)
+    return ZigzagReport(float(threshold), w, wd, vd, fix, free)
