@@ -1,0 +1,165 @@
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from quadnodes.errors import InputError
+from quadnodes.fairing import FairingSystem, fair, fairing_energy, fairing_matrix
+from quadnodes.mesh import cylinder, grid
+from quadnodes.perturb import perturb
+from quadnodes.zigzag import detect, window_deviation
+from meshes import extraordinary_mesh, l_shape_with_hole
+from strategies import meshes
+
+SETTINGS = dict(iterations=2, deviation=0.01)
+
+
+def _dense_solve(vertices, windows, free, weight, anchor):
+    """Least squares on the stacked dense system [A_free; sqrt(ω) I] x = [-A_fixed P; sqrt(ω) anchor]."""
+    A = fairing_matrix(vertices, windows).toarray()
+    Af, Ax = A[:, free], A[:, ~free]
+    k = int(free.sum())
+    lhs = np.vstack([Af, np.sqrt(weight) * np.eye(k)])
+    rhs = np.vstack([-Ax @ vertices[~free], np.sqrt(weight) * anchor])
+    return np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+
+
+@pytest.mark.parametrize("make", [lambda: perturb(grid(6, 7), tangential=0.3, normal=0.1, seed=1),
+                                  lambda: perturb(extraordinary_mesh(), tangential=0.2, seed=2),
+                                  lambda: perturb(l_shape_with_hole(), tangential=0.2, seed=3),
+                                  lambda: perturb(cylinder(5, 9), tangential=0.2, seed=4)])
+@pytest.mark.parametrize("weight", [0.01, 1.0])
+def test_sparse_system_equals_dense_least_squares(make, weight):
+    m = make()
+    w = m.topology.windows
+    free = detect(m, 0.0).free
+    s = FairingSystem(m.vertices, w, free, weight)
+    anchor = m.vertices[free] + 0.01
+    np.testing.assert_allclose(s.solve(anchor), _dense_solve(m.vertices, w, free, weight, anchor), rtol=1e-9, atol=1e-12)
+
+
+@given(meshes(), st.tuples(*[st.floats(-50, 50)] * 3))
+def test_translation_equivariance(mesh, t):
+    a, _ = fair(mesh, **SETTINGS)
+    b, _ = fair(mesh.with_vertices(mesh.vertices + t), **SETTINGS)
+    np.testing.assert_allclose(b.vertices - t, a.vertices, atol=1e-9 * (1 + np.abs(t).max()))
+
+
+@given(meshes(), st.sampled_from([1e-3, 0.37, 25.0, 1e3]))
+def test_normalized_weight_is_scale_invariant(mesh, s):
+    a, _ = fair(mesh, **SETTINGS)
+    b, _ = fair(mesh.with_vertices(mesh.vertices * s), **SETTINGS)
+    np.testing.assert_allclose(b.vertices, s * a.vertices, rtol=1e-9, atol=1e-9 * s * np.abs(a.vertices).max())
+
+
+def test_raw_weight_depends_on_scale():
+    m = perturb(grid(8, 8), tangential=0.3, seed=0)
+    a, _ = fair(m, weight=0.01, weight_scale="raw")
+    b, _ = fair(m.with_vertices(m.vertices * 1000), weight=0.01, weight_scale="raw")
+    assert np.abs(b.vertices / 1000 - a.vertices).max() > 1e-3
+    c, rep = fair(m, weight=0.01, weight_scale="normalized")
+    assert rep.iterations[0].weight_effective == pytest.approx(0.01 / m.mean_edge_length**2)
+
+
+@given(meshes(), st.booleans())
+def test_fixed_vertices_never_move(mesh, fix_boundary):
+    user = np.zeros(mesh.n_vertices, bool)
+    user[:: max(1, mesh.n_vertices // 7)] = True
+    out, _ = fair(mesh, iterations=3, deviation=0.0, fixed=user, fix_boundary=fix_boundary)
+    still = user | ~mesh.topology.window_middle
+    if fix_boundary:
+        still |= mesh.topology.boundary_vertices
+    assert np.array_equal(out.vertices[still], mesh.vertices[still])
+
+
+@given(meshes(), st.sampled_from([0.001, 0.3, 10.0]))
+def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight):
+    out, rep = fair(mesh, iterations=3, deviation=0.0, weight=weight)
+    assert np.isfinite(out.vertices).all()
+    for r in rep.iterations:
+        assert r.energy_after <= r.energy_before * (1 + 1e-12) + 1e-15
+    # against the input's own (exact, eq. 30) energy with lengths frozen at the input
+    w = mesh.topology.windows
+    e_in = fairing_energy(mesh.vertices, w)
+    assert rep.iterations[0].energy_before == pytest.approx(e_in)
+    assert fairing_energy(out.vertices, w, lengths_from=mesh.vertices) <= e_in * (1 + 1e-9) + 1e-15 or len(rep.iterations) > 1
+
+
+def test_straight_lines_are_unchanged():
+    m = grid(7, 9, spacing=(0.5, 2.0))
+    out, rep = fair(m, iterations=3, deviation=0.0)
+    assert out is m and [r.n_free for r in rep.iterations] == [0, 0, 0]
+
+
+def test_removes_zigzag_and_keeps_boundary_close():
+    m = perturb(grid(22, 41, height=np.outer(np.sin(np.linspace(0, 3, 22)), np.ones(41))),
+                tangential=0.3, normal=0.1, seed=7, fix="corners")
+    out, rep = fair(m, iterations=10, deviation=1.0, deviation_decay=0.5)
+    before = window_deviation(m.vertices, m.topology.windows)
+    after = window_deviation(out.vertices, m.topology.windows)
+    assert after.mean() < 0.05 * before.mean()
+    assert [r.threshold for r in rep.iterations][:3] == [1.0, 0.5, 0.25]
+    assert max(r.max_displacement for r in rep.iterations) < m.mean_edge_length
+
+
+def test_anchor_input_vs_current():
+    m = perturb(grid(10, 10), tangential=0.4, seed=5)
+    a, _ = fair(m, iterations=4, deviation=0.0, weight=0.05, anchor="current")
+    b, _ = fair(m, iterations=4, deviation=0.0, weight=0.05, anchor="input")
+    da = np.linalg.norm(a.vertices - m.vertices, axis=1).max()
+    db = np.linalg.norm(b.vertices - m.vertices, axis=1).max()
+    assert db < da  # anchoring to the input holds vertices closer to it
+
+
+def test_schedules():
+    m = perturb(grid(8, 8), tangential=0.3, seed=0)
+    _, rep = fair(m, iterations=3, deviation=[0.5, 0.1, 0.0], weight=[1.0, 0.5, 0.25])
+    assert [r.threshold for r in rep.iterations] == [0.5, 0.1, 0.0]
+    assert [r.weight for r in rep.iterations] == [1.0, 0.5, 0.25]
+    _, rep = fair(m, iterations=3, weight=1.0, weight_decay=0.1)
+    assert [r.weight for r in rep.iterations] == pytest.approx([1.0, 0.1, 0.01])
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(weight=-1.0), "weight: must be > 0"),
+        (dict(weight=float("nan")), "weight: must be finite"),
+        (dict(weight=0.0), "weight: must be > 0"),
+        (dict(iterations=3, weight=[1.0, 2.0]), "weight: the schedule has 2 values but 3 iterations"),
+        (dict(iterations=2, deviation=[0.1]), "deviation: the schedule has 1 values"),
+        (dict(deviation=-0.1), "deviation: must be >= 0"),
+        (dict(iterations=0), "iterations: must be >= 1"),
+        (dict(anchor="origin"), "anchor"),
+        (dict(weight_scale="metres"), "weight_scale"),
+        (dict(fix_boundary=True, fixed=np.ones(64, bool)), "every vertex .* is fixed"),
+        (dict(deviation=[0.1], deviation_decay=0.5), "decay factor applies to a single number"),
+    ],
+)
+def test_bad_parameters(kwargs, message):
+    with pytest.raises(InputError, match=message):
+        fair(perturb(grid(8, 8), tangential=0.3, seed=0), **kwargs)
+
+
+def test_every_interior_vertex_fixed_by_boundary_is_an_error():
+    m = perturb(grid(2, 5), tangential=0.3, seed=0)  # every window middle is on the boundary
+    with pytest.raises(InputError, match="nothing can be faired"):
+        fair(m, fix_boundary=True)
+
+
+def test_no_zigzag_returns_input_unchanged():
+    m = grid(5, 5, height=np.outer(np.arange(5.0), np.ones(5)) * 0.1)
+    out, rep = fair(m, deviation=0.1)
+    assert out is m and rep.iterations[0].n_free == 0
+
+
+def test_system_reuses_factorization_for_new_anchors():
+    m = perturb(grid(6, 6), tangential=0.3, seed=1)
+    free = detect(m, 0.0).free
+    s = FairingSystem(m.vertices, m.topology.windows, free, 0.5)
+    x1 = s.solve(m.vertices[free])
+    x2 = s.solve(m.vertices[free] + 1.0)
+    # the energy part is translation invariant: shifting the anchor shifts the result less than fully
+    assert s.objective(x1, m.vertices[free]) <= s.objective(m.vertices[free], m.vertices[free])
+    assert not np.allclose(x1, x2)
+    with pytest.raises(InputError, match="anchor"):
+        s.solve(np.zeros((2, 3)))

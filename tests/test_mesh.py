@@ -1,0 +1,91 @@
+import numpy as np
+import pytest
+
+from quadnodes.errors import InputError
+from quadnodes.mesh import QuadMesh, cylinder, from_grid_points, grid, grid_faces, torus
+
+
+def test_grid_constructor_shapes_and_orientation():
+    m = grid(3, 4, spacing=(2.0, 1.0))
+    assert m.vertices.shape == (12, 3) and m.faces.shape == (6, 4)
+    assert m.grid_shape == (3, 4)
+    assert m.vertices[4 * 2 + 3].tolist() == [6.0, 2.0, 0.0]
+    p = m.vertices[m.faces]
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 3] - p[:, 0])
+    assert (normal[:, 2] > 0).all()  # counter-clockwise seen from +z
+
+
+def test_arrays_are_readonly_copies():
+    v = np.zeros((4, 3)); v[1, 0] = v[2, :2] = v[3, 1] = 1
+    f = np.array([[0, 1, 2, 3]])
+    m = QuadMesh(v, f)
+    v[0, 0] = 99.0
+    assert m.vertices[0, 0] == 0.0
+    with pytest.raises(ValueError):
+        m.vertices[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        m.faces[0, 0] = 1
+
+
+def test_with_vertices_shares_topology():
+    m = grid(4, 4)
+    lines = m.topology.structure_lines
+    m2 = m.with_vertices(m.vertices * 2)
+    assert m2.topology.structure_lines is lines
+    assert m2.grid_shape == (4, 4)
+    with pytest.raises(InputError, match="shape"):
+        m.with_vertices(np.zeros((3, 3)))
+
+
+def test_closed_constructors():
+    assert cylinder(4, 6).n_faces == 18
+    t = torus(5, 7)
+    assert t.n_faces == 35 and not t.topology.boundary_vertices.any()
+    with pytest.raises(InputError, match="cols"):
+        grid_faces(3, 2, wrap_cols=True)
+
+
+def _square():
+    return np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]])
+
+
+@pytest.mark.parametrize(
+    "vertices, faces, message",
+    [
+        ([[0, 0, 0], [1, 0, np.nan], [1, 1, 0], [0, 1, 0]], [[0, 1, 2, 3]], "vertex 1 has a non-finite"),
+        (_square(), [[0, 1, 2, 4]], "face 0 refers to vertex 4"),
+        (_square(), [[0, 1, 1, 3]], "face 0 repeats a vertex"),
+        (_square(), np.zeros((0, 4), int), "empty"),
+        (np.zeros((0, 3)), [[0, 1, 2, 3]], "empty"),
+        (_square(), [[0, 1, 2]], r"shape \(m, 4\)"),
+        (_square()[:, :2], [[0, 1, 2, 3]], r"shape \(n, 3\)"),
+        ([[0, 0, 0], [1, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2, 3]], "face 0 has a zero-length edge"),
+        (_square(), [[0, 1, 2, 3.5]], "integers"),
+    ],
+)
+def test_validation_errors_name_the_culprit(vertices, faces, message):
+    with pytest.raises(InputError, match=message):
+        QuadMesh(vertices, faces)
+
+
+def test_edge_in_three_faces_is_rejected():
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, -1, 0], [0, -1, 0], [1, 0, 1], [0, 0, 1.0]])
+    faces = [[0, 1, 2, 3], [1, 0, 5, 4], [0, 1, 6, 7]]
+    with pytest.raises(InputError, match=r"edge \(0, 1\) is shared by 3 faces \[0, 1, 2\]"):
+        QuadMesh(v, faces)
+
+
+def test_inconsistent_orientation_is_rejected():
+    v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0], [1, 1, 0], [2, 1, 0.0]])
+    with pytest.raises(InputError, match="faces 0 and 1 .*same direction"):
+        QuadMesh(v, [[0, 1, 4, 3], [1, 4, 5, 2]])
+
+
+def test_grid_shape_must_match():
+    with pytest.raises(InputError, match="grid_shape"):
+        QuadMesh(_square(), [[0, 1, 2, 3]], grid_shape=(3, 3))
+
+
+def test_from_grid_points_checks_shape():
+    with pytest.raises(InputError, match="rows, cols, 3"):
+        from_grid_points(np.zeros((4, 3)))

@@ -1,0 +1,109 @@
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given, strategies as st
+
+from quadnodes.errors import InputError
+from quadnodes.mesh import grid
+from quadnodes.perturb import perturb
+from quadnodes.smoothing import fixed_mask, laplacian, laplacian_operator, taubin, taubin_lambda
+from meshes import l_shape_with_hole
+from strategies import meshes
+
+
+def _dense_laplacian(mesh, weights="uniform", fixed=None):
+    n = mesh.n_vertices
+    L = np.zeros((n, n))
+    for a, b in mesh.topology.edges:
+        c = 1.0 if weights == "uniform" else 1.0 / np.linalg.norm(mesh.vertices[a] - mesh.vertices[b])
+        L[a, b] = L[b, a] = c
+    if fixed is not None:
+        L[fixed] = 0.0
+    s = L.sum(axis=1)
+    L[s > 0] /= s[s > 0, None]
+    L[np.diag_indices(n)] = np.where(s > 0, -1.0, 0.0)
+    return L
+
+
+@pytest.mark.parametrize("weights", ["uniform", "inverse_length"])
+def test_operator_equals_dense_reference(weights):
+    m = perturb(l_shape_with_hole(), tangential=0.2, seed=0)
+    fixed = m.topology.corner_vertices
+    np.testing.assert_allclose(laplacian_operator(m, weights=weights, fixed=fixed).toarray(),
+                               _dense_laplacian(m, weights, fixed), atol=1e-15)
+
+
+@given(meshes(), st.sampled_from(["uniform", "inverse_length"]))
+def test_rows_sum_to_zero(mesh, weights):
+    L = laplacian_operator(mesh, weights=weights)
+    np.testing.assert_allclose(np.asarray(L.sum(axis=1)).ravel(), 0.0, atol=1e-12)
+
+
+def test_quad_diagonals_are_not_neighbours():
+    L = laplacian_operator(grid(3, 3))
+    assert set(L[4].indices.tolist()) == {1, 3, 4, 5, 7}
+    # trimesh's filters smooth over the triangulation, where a diagonal is a neighbour
+    tm = trimesh.Trimesh(grid(3, 3).vertices, [[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4],
+                                               [3, 4, 7], [3, 7, 6], [4, 5, 8], [4, 8, 7]], process=False)
+    assert len(tm.vertex_neighbors[4]) > 4
+
+
+def test_one_step_matches_formula():
+    m = perturb(grid(5, 6), tangential=0.3, normal=0.2, seed=1)
+    L = _dense_laplacian(m)
+    np.testing.assert_allclose(laplacian(m, lam=0.4).vertices, m.vertices + 0.4 * L @ m.vertices, atol=1e-14)
+    lam, kpb = 0.5, 0.1
+    mu = 1 / (kpb - 1 / lam)
+    x = m.vertices + lam * L @ m.vertices
+    x = x + mu * L @ x
+    np.testing.assert_allclose(taubin(m, lam=lam, k_pb=kpb).vertices, x, atol=1e-14)
+
+
+def test_fujiwara_weights_are_recomputed_each_step():
+    m = perturb(grid(5, 6), tangential=0.3, normal=0.2, seed=1)
+    x = m.vertices
+    for _ in range(2):
+        x = x + 0.5 * _dense_laplacian(m.with_vertices(x), "inverse_length") @ x
+    np.testing.assert_allclose(laplacian(m, iterations=2, weights="inverse_length").vertices, x, atol=1e-13)
+
+
+@given(meshes(), st.sampled_from(["corners", "boundary"]))
+def test_fixed_vertices_never_move(mesh, fix):
+    mask = fixed_mask(mesh, fix)
+    for out in (laplacian(mesh, iterations=3, fix=fix), taubin(mesh, iterations=3, fix=fix)):
+        assert np.array_equal(out.vertices[mask], mesh.vertices[mask])
+
+
+def test_laplacian_shrinks_and_taubin_does_not_as_much():
+    y, x = np.meshgrid(np.arange(12.0), np.arange(12.0), indexing="ij")
+    m = grid(12, 12, height=0.05 * ((x - 5.5) ** 2 + (y - 5.5) ** 2))
+    d0 = np.ptp(m.vertices, axis=0)
+    dl = np.ptp(laplacian(m, iterations=10).vertices, axis=0)
+    dt = np.ptp(taubin(m, iterations=10).vertices, axis=0)
+    assert (dl < 0.9 * d0).all()
+    assert np.abs(dt / d0 - 1).max() < np.abs(dl / d0 - 1).max()
+
+
+def test_taubin_lambda_rule():
+    for k in (0.05, 0.1, 0.3):
+        lam = taubin_lambda(k)
+        mu = 1 / (k - 1 / lam)
+        f = lambda t: (1 - lam * t) * (1 - mu * t)
+        assert f(1) == pytest.approx(-f(2)) and mu < -lam
+
+
+def test_mask_fixing_and_errors():
+    m = grid(4, 4)
+    assert fixed_mask(m, [0, 5]).sum() == 2
+    with pytest.raises(InputError, match="fix"):
+        fixed_mask(m, "edges")
+    with pytest.raises(InputError, match="lam"):
+        laplacian(m, lam=1.5)
+    with pytest.raises(InputError, match="mu"):
+        taubin(m, lam=0.5, mu=-0.2)
+    with pytest.raises(InputError, match="k_pb"):
+        taubin(m, lam=0.5, k_pb=3.0)
+    with pytest.raises(InputError, match="weights"):
+        laplacian(m, weights="cotan")
+    with pytest.raises(InputError, match="iterations"):
+        taubin(m, iterations=0)

@@ -1,0 +1,123 @@
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from quadnodes.mesh import QuadMesh, cylinder, grid, torus
+from quadnodes.topology import adjacency, corner_vertices, structure_lines, windows
+from meshes import extraordinary_mesh, l_shape_with_hole
+
+
+def _line_edges(lines) -> list[tuple[int, int]]:
+    out = []
+    for line, closed in zip(lines, lines.closed):
+        seq = np.r_[line, line[:1]] if closed else line
+        out += [tuple(sorted(map(int, p))) for p in zip(seq[:-1], seq[1:])]
+    return out
+
+
+def _every_edge_once(mesh):
+    got = _line_edges(structure_lines(mesh))
+    want = [tuple(e) for e in mesh.topology.edges.tolist()]
+    assert sorted(got) == sorted(want)
+
+
+def test_grid_lines_are_rows_and_columns():
+    m = grid(4, 6)
+    lines = structure_lines(m)
+    assert len(lines) == 4 + 6 and not lines.closed.any()
+    as_lists = sorted(l.tolist() for l in lines)
+    rows = [list(range(i * 6, i * 6 + 6)) for i in range(4)]
+    cols = [list(range(j, 24, 6)) for j in range(6)]
+    assert as_lists == sorted(rows + cols)
+    w = windows(lines)
+    assert w.shape == (4 * 3 + 6 * 1, 4)
+    _every_edge_once(m)
+
+
+def test_cylinder_rings_are_closed_and_windows_wrap():
+    m = cylinder(4, 7)
+    lines = structure_lines(m)
+    assert int(lines.closed.sum()) == 4 and len(lines) == 4 + 7
+    w, line = windows(lines, return_line=True)
+    closed_w = w[lines.closed[line]]
+    assert len(closed_w) == 4 * 7
+    # every ring vertex is a middle point of two windows of its ring
+    assert m.topology.window_middle[:7].all()
+    _every_edge_once(m)
+
+
+def test_torus_all_lines_closed():
+    m = torus(5, 8)
+    lines = structure_lines(m)
+    assert lines.closed.all() and len(lines) == 5 + 8
+    assert len(windows(lines)) == 5 * 8 * 2
+    assert m.topology.window_middle.all()
+    _every_edge_once(m)
+
+
+def test_extraordinary_vertices_end_lines():
+    m = extraordinary_mesh()
+    t = m.topology
+    ext = np.flatnonzero(t.extraordinary)
+    assert sorted(t.valence[ext].tolist()) == [3, 5]
+    lines = structure_lines(m)
+    for line, closed in zip(lines, lines.closed):
+        inner = line if closed else line[1:-1]
+        assert not np.isin(inner, ext).any(), "a line passes through an extraordinary vertex"
+    # every edge at an extraordinary vertex starts or ends a line there
+    ends = np.r_[[l[0] for l in lines], [l[-1] for l in lines]]
+    for v in ext:
+        assert (ends == v).sum() == t.valence[v]
+    assert not t.window_middle[ext].any()
+    _every_edge_once(m)
+
+
+def test_l_shape_with_hole_lines_end_at_corners():
+    m = l_shape_with_hole(9)
+    t = m.topology
+    corners = np.flatnonzero(t.corner_vertices)
+    assert len(corners) == 10  # 5 convex + 1 reflex outer corners, 4 hole corners
+    counts = np.bincount(t.vertex_face_count[corners])
+    assert counts[1] == 5 and counts[3] == 5  # reflex outer corner and 4 hole corners have 3 faces
+    lines = structure_lines(m)
+    assert not lines.closed.any()
+    for line in lines:
+        assert not np.isin(line[1:-1], corners).any()
+    # the bottom boundary row runs straight through, 9 vertices long
+    assert any(l.tolist() == list(range(9)) for l in lines)
+    _every_edge_once(m)
+
+
+def test_corner_vertices_of_grid():
+    assert np.flatnonzero(corner_vertices(grid(3, 4))).tolist() == [0, 3, 8, 11]
+
+
+def test_adjacency_has_no_diagonals():
+    a = adjacency(grid(3, 3))
+    assert a[4].indices.tolist() == [1, 3, 5, 7]
+
+
+@given(st.sampled_from(["grid", "cylinder", "torus", "extraordinary", "lhole"]), st.integers(0, 10_000))
+def test_lines_do_not_depend_on_face_order(kind, seed):
+    m = {"grid": grid(5, 7), "cylinder": cylinder(4, 6), "torus": torus(4, 5),
+         "extraordinary": extraordinary_mesh(), "lhole": l_shape_with_hole()}[kind]
+    rng = np.random.default_rng(seed)
+    f = m.faces[rng.permutation(m.n_faces)]
+    shift = rng.integers(0, 4, len(f))
+    f = np.take_along_axis(f, (np.arange(4) + shift[:, None]) % 4, axis=1)
+    m2 = QuadMesh(m.vertices, f)
+    a, b = structure_lines(m), structure_lines(m2)
+    assert np.array_equal(a.indices, b.indices) and np.array_equal(a.offsets, b.offsets)
+    assert np.array_equal(a.closed, b.closed)
+
+
+def test_windows_of_short_lines():
+    lines = structure_lines(grid(3, 3))
+    assert windows(lines).shape == (0, 4)
+
+
+def test_line_indexing():
+    lines = structure_lines(grid(2, 3))
+    assert lines[-1].tolist() == [3, 4, 5]
+    with pytest.raises(IndexError):
+        lines[5]
