@@ -9,7 +9,7 @@ import numpy as np
 from . import planarity as _planarity
 from .errors import InputError
 from .mesh import QuadMesh
-from .zigzag import window_deviation
+from .zigzag import vertex_deviation, window_deviation
 
 __all__ = ["zigzag_stats", "distance_to_mesh", "compare"]
 
@@ -28,8 +28,7 @@ def zigzag_stats(mesh: QuadMesh, thresholds: Sequence[float] = (0.1, 0.01)) -> d
     """
     w = mesh.topology.windows
     wd = window_deviation(mesh.vertices, w)
-    vd = np.zeros(mesh.n_vertices)
-    np.maximum.at(vd, w[:, 1:3].reshape(-1), np.repeat(wd, 2))
+    vd = vertex_deviation(wd, w, mesh.n_vertices)
     out: dict[str, float] = {
         "zigzag_mean": float(wd.mean()) if wd.size else 0.0,
         "zigzag_max": float(wd.max()) if wd.size else 0.0,
