@@ -18,6 +18,7 @@ __all__ = [
     "vertices_array",
     "faces_array",
     "check_quad_mesh",
+    "check_edge_lengths",
     "vertex_mask",
     "positive_number",
     "nonnegative_number",
@@ -93,6 +94,25 @@ def faces_array(faces: ArrayLike, n_vertices: int, name: str = "faces") -> np.nd
     return _readonly(f)
 
 
+def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Reject a face with a zero-length edge (two corners at the same position).
+
+    Raises
+    ------
+    InputError
+        Naming the face and the two vertices.
+    """
+    start = faces.reshape(-1)
+    end = np.roll(faces, -1, axis=1).reshape(-1)
+    zero = (vertices[end] == vertices[start]).all(axis=1)
+    if zero.any():
+        h = int(np.flatnonzero(zero)[0])
+        raise InputError(
+            f"faces: face {h // 4} has a zero-length edge between vertices "
+            f"{int(start[h])} and {int(end[h])}"
+        )
+
+
 def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
     """Check the combinatorics and geometry that single arrays cannot show.
 
@@ -104,18 +124,11 @@ def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
     InputError
         Naming the first offending face(s) and edge.
     """
+    check_edge_lengths(vertices, faces)
     m = faces.shape[0]
     start = faces.reshape(-1)
     end = np.roll(faces, -1, axis=1).reshape(-1)
     face_of = np.repeat(np.arange(m), 4)
-    length = np.linalg.norm(vertices[end] - vertices[start], axis=1)
-    zero = length == 0.0
-    if zero.any():
-        h = int(np.flatnonzero(zero)[0])
-        raise InputError(
-            f"faces: face {h // 4} has a zero-length edge between vertices "
-            f"{int(start[h])} and {int(end[h])}"
-        )
     n = int(vertices.shape[0])
     # undirected edge key, then how many faces hold it
     lo = np.minimum(start, end)
