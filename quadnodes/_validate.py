@@ -24,6 +24,9 @@ __all__ = [
     "nonnegative_number",
     "positive_int",
     "schedule",
+    "finite_number",
+    "point_grid",
+    "unit_parameters",
 ]
 
 
@@ -192,7 +195,8 @@ def vertex_mask(mask: ArrayLike | None, n: int, name: str = "fixed") -> np.ndarr
     return out
 
 
-def _number(value: Any, name: str) -> float:
+def finite_number(value: Any, name: str) -> float:
+    """Return ``value`` as a finite float of any sign, or raise :class:`InputError`."""
     if isinstance(value, (bool, np.bool_)):
         raise InputError(f"{name}: expected a number, got {value!r}")
     try:
@@ -206,7 +210,7 @@ def _number(value: Any, name: str) -> float:
 
 def positive_number(value: Any, name: str) -> float:
     """Return ``value`` as a finite float > 0, or raise :class:`InputError`."""
-    x = _number(value, name)
+    x = finite_number(value, name)
     if x <= 0:
         raise InputError(f"{name}: must be > 0, got {value!r}")
     return x
@@ -214,7 +218,7 @@ def positive_number(value: Any, name: str) -> float:
 
 def nonnegative_number(value: Any, name: str) -> float:
     """Return ``value`` as a finite float >= 0, or raise :class:`InputError`."""
-    x = _number(value, name)
+    x = finite_number(value, name)
     if x < 0:
         raise InputError(f"{name}: must be >= 0, got {value!r}")
     return x
@@ -279,3 +283,53 @@ def schedule(
             f"{name}: the schedule has {len(seq)} values but {iterations} iterations were asked for"
         )
     return np.array([check(v, f"{name}[{k}]") for k, v in enumerate(seq[:iterations])])
+
+
+def point_grid(points: ArrayLike) -> np.ndarray:
+    """Return a fresh ``(rows, cols, 3)`` float grid of finite points, rows and cols >= 2.
+
+    Raises
+    ------
+    InputError
+        On a wrong shape or a non-finite coordinate (naming the point).
+    """
+    try:
+        p = np.array(points, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"points: cannot convert to a float array ({exc})") from None
+    if p.ndim != 3 or p.shape[2] != 3 or p.shape[0] < 2 or p.shape[1] < 2:
+        raise InputError(f"points: expected shape (rows, cols, 3) with rows, cols >= 2, got {p.shape}")
+    bad = ~np.isfinite(p).all(axis=2)
+    if bad.any():
+        i, j = (int(k) for k in np.argwhere(bad)[0])
+        raise InputError(f"points: point [{i}, {j}] has a non-finite coordinate {p[i, j].tolist()}")
+    return p
+
+
+def unit_parameters(values: ArrayLike, name: str) -> np.ndarray:
+    """Return a strictly increasing 1-D float array in [0, 1] with at least 2 entries.
+
+    Raises
+    ------
+    InputError
+        On a wrong shape, values outside [0, 1], or a non-increasing step.
+    """
+    try:
+        a = np.array(values, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: cannot convert to a float array ({exc})") from None
+    if a.ndim != 1 or a.size < 2:
+        raise InputError(f"{name}: expected a 1-D array of at least 2 parameters, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise InputError(f"{name}: parameters must be finite")
+    if a.min() < 0.0 or a.max() > 1.0:
+        raise InputError(
+            f"{name}: normalized parameters must lie in [0, 1], got range [{a.min():g}, {a.max():g}]"
+        )
+    step = np.diff(a)
+    if (step <= 0).any():
+        k = int(np.flatnonzero(step <= 0)[0])
+        raise InputError(
+            f"{name}: parameters must be strictly increasing, got {a[k]!r} then {a[k + 1]!r} at index {k}"
+        )
+    return a

@@ -506,44 +506,17 @@ def torus_patch(
     for name, rng in (("u_range", u_range), ("v_range", v_range)):
         if np.ndim(rng) != 1 or len(rng) != 2:
             raise InputError(f"{name}: expected (start, end) in degrees, got {rng!r}")
-        a0 = _number(rng[0], f"{name}[0]")
-        a1 = _number(rng[1], f"{name}[1]")
+        a0 = _validate.finite_number(rng[0], f"{name}[0]")
+        a1 = _validate.finite_number(rng[1], f"{name}[1]")
         if not a0 < a1 <= a0 + 360.0:
             raise InputError(f"{name}: expected start < end <= start + 360 degrees, got {rng!r}")
         bounds += [math.radians(a0), math.radians(a1)]
     return _face_from_geom(Geom_ToroidalSurface(gp_Ax3(), big, small), tuple(bounds))  # type: ignore[arg-type]
 
 
-def _number(value: Any, name: str) -> float:
-    """A finite float of any sign (``_validate`` has only signed variants publicly)."""
-    if isinstance(value, (bool, np.bool_)):
-        raise InputError(f"{name}: expected a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name}: expected a number, got {value!r}") from None
-    if not math.isfinite(x):
-        raise InputError(f"{name}: must be finite, got {value!r}")
-    return x
-
-
 # ----------------------------------------------------------------------------
 # From points and from STEP
 # ----------------------------------------------------------------------------
-
-
-def _points_grid(points: ArrayLike) -> np.ndarray:
-    try:
-        p = np.array(points, dtype=np.float64, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"points: cannot convert to a float array ({exc})") from None
-    if p.ndim != 3 or p.shape[2] != 3 or p.shape[0] < 2 or p.shape[1] < 2:
-        raise InputError(f"points: expected shape (rows, cols, 3) with rows, cols >= 2, got {p.shape}")
-    bad = ~np.isfinite(p).all(axis=2)
-    if bad.any():
-        i, j = (int(k) for k in np.argwhere(bad)[0])
-        raise InputError(f"points: point [{i}, {j}] has a non-finite coordinate {p[i, j].tolist()}")
-    return p
 
 
 def _direction_parameters(p: np.ndarray, parametrization: str, name: str) -> np.ndarray:
@@ -603,7 +576,7 @@ def grid_parameters(
     >>> [a.tolist() for a in grid_parameters(p)]
     [[0.0, 0.25, 1.0], [0.0, 1.0]]
     """
-    p = _points_grid(points)
+    p = _validate.point_grid(points)
     if parametrization not in ("uniform", "chord", "centripetal"):
         raise InputError(
             f"parametrization: expected 'uniform', 'chord' or 'centripetal', got {parametrization!r}"
@@ -659,7 +632,7 @@ def from_points(
     deg = _validate.positive_int(degree, "degree")
     if deg > 5:
         raise InputError(f"degree: must be in 1..5, got {degree!r}")
-    p = _points_grid(points)
+    p = _validate.point_grid(points)
     pu, pv = grid_parameters(p, parametrization=parametrization)
     ku = min(deg, p.shape[0] - 1)
     kv = min(deg, p.shape[1] - 1)
@@ -731,35 +704,12 @@ def from_step(path: str | os.PathLike[str], *, face: int = 0) -> Face:
 # ----------------------------------------------------------------------------
 
 
-def _param_array(values: ArrayLike, name: str) -> np.ndarray:
-    """A strictly increasing 1-D float array in [0, 1] with at least 2 entries."""
-    try:
-        a = np.array(values, dtype=np.float64, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: cannot convert to a float array ({exc})") from None
-    if a.ndim != 1 or a.size < 2:
-        raise InputError(f"{name}: expected a 1-D array of at least 2 parameters, got shape {a.shape}")
-    if not np.isfinite(a).all():
-        raise InputError(f"{name}: parameters must be finite")
-    if a.min() < 0.0 or a.max() > 1.0:
-        raise InputError(
-            f"{name}: normalized parameters must lie in [0, 1], got range [{a.min():g}, {a.max():g}]"
-        )
-    step = np.diff(a)
-    if (step <= 0).any():
-        k = int(np.flatnonzero(step <= 0)[0])
-        raise InputError(
-            f"{name}: parameters must be strictly increasing, got {a[k]!r} then {a[k + 1]!r} at index {k}"
-        )
-    return a
-
-
 def _axis(n: int | None, given: ArrayLike | None, name: str, count: str) -> np.ndarray:
     if given is None:
         if n is None:
             raise InputError(f"{count}: give a vertex count or a parameter array {name}=")
         return np.linspace(0.0, 1.0, _validate.positive_int(n, count, minimum=2))
-    a = _param_array(given, name)
+    a = _validate.unit_parameters(given, name)
     if n is not None and _validate.positive_int(n, count, minimum=2) != a.size:
         raise InputError(f"{count}: {n} does not match the {a.size} parameters given in {name}=")
     return a
