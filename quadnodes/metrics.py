@@ -84,7 +84,10 @@ def compare(
         Same faces as ``original``.
     reference : QuadMesh, optional
         The clean design surface; adds ``reference_mean``/``reference_max`` (distance
-        of the result's vertices to it, see :func:`distance_to_mesh`).
+        of the result's vertices to its surface, see :func:`distance_to_mesh`). When it
+        has the same faces as ``result`` (e.g. the clean grid before noise was
+        added), also ``reference_vertex_mean``/``reference_vertex_max``: the distance
+        of each vertex to its counterpart, which also sees sliding within the surface.
     thresholds : sequence of float
         Zigzag thresholds for the vertex counts.
 
@@ -128,4 +131,8 @@ def compare(
         r = distance_to_mesh(result.vertices, reference)
         out["reference_mean"] = float(r.mean())
         out["reference_max"] = float(r.max())
+        if np.array_equal(reference.faces, result.faces):
+            dv = np.linalg.norm(result.vertices - reference.vertices, axis=1)
+            out["reference_vertex_mean"] = float(dv.mean())
+            out["reference_vertex_max"] = float(dv.max())
     return out

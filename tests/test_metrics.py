@@ -23,6 +23,9 @@ def test_compare_reports_everything():
     assert r["bbox_diagonal_change_pct"] < 0  # Laplacian shrinks
     # distance to the flat reference is |z|
     assert r["reference_max"] == pytest.approx(np.abs(out.vertices[:, 2]).max(), abs=1e-9)
+    # same connectivity: vertex-to-vertex distance too
+    assert r["reference_vertex_max"] == pytest.approx(np.linalg.norm(out.vertices - clean.vertices, axis=1).max())
+    assert "reference_vertex_mean" not in compare(noisy, out, reference=grid(3, 3))
 
 
 def test_distance_to_mesh_on_a_plane():
