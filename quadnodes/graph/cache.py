@@ -1,0 +1,312 @@
+"""Results of nodes by cache key: in memory, and optionally in a folder on disk.
+
+A :class:`Cache` maps a node's key (see :mod:`quadnodes.graph.run`) to a
+:class:`CacheEntry`: the node's outputs and, for nodes that write files, the
+digests of what they wrote.
+
+The disk format is not pickle. Each entry is one ``.npz`` file (loaded with
+``allow_pickle=False``): the arrays, plus a JSON description of the value tree
+that refers to them. It covers None, bool, int, float, str, lists, tuples,
+dicts, sets, paths, NumPy arrays and scalars, enums, and dataclasses (rebuilt by
+calling their constructor, so a :class:`~quadnodes.mesh.QuadMesh` comes back
+validated with read-only arrays). An output of any other type is kept in memory
+only. Reading an entry can therefore not run arbitrary code, only dataclass and
+enum constructors named in it.
+
+Writes are atomic (temporary file in the same folder, then ``os.replace``), so
+concurrent runs sharing a folder never see half an entry. A corrupt or
+unreadable entry is a miss (with a :class:`CacheWarning`), never an error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import importlib
+import io
+import json
+import os
+import pathlib
+import warnings
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ._util import write_atomic
+
+__all__ = ["CacheEntry", "Cache", "CacheWarning", "encode", "decode"]
+
+_DISK_FORMAT = "quadnodes-cache"
+_DISK_VERSION = 1
+
+
+class CacheWarning(UserWarning):
+    """The disk cache could not read or write an entry (the run goes on without it)."""
+
+
+@dataclass(frozen=True)
+class CacheEntry:
+    """A node's outputs by port name, and digests of the files it wrote (by setting)."""
+
+    outputs: Mapping[str, Any]
+    files: Mapping[str, list[str]] = field(default_factory=dict)
+
+
+class Cache:
+    """Node results by key, in memory and (optionally) in a folder.
+
+    Parameters
+    ----------
+    directory : path, optional
+        Folder of the disk cache (created if missing). None: memory only.
+    max_memory_entries : int, optional
+        Keep at most this many entries in memory, dropping the least recently
+        used (None: no limit). The disk cache is never trimmed automatically;
+        see :meth:`clear`.
+
+    Raises
+    ------
+    InputError
+        If ``directory`` cannot be created or is not a folder.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from quadnodes.mesh import grid
+    >>> d = tempfile.mkdtemp()
+    >>> Cache(d).put("k" * 64, CacheEntry({"mesh": grid(2, 3), "n": 6}))
+    True
+    >>> fresh = Cache(d)                       # e.g. another process
+    >>> entry = fresh.get("k" * 64)
+    >>> entry.outputs["mesh"].grid_shape, entry.outputs["n"], entry.outputs["mesh"].vertices.flags.writeable
+    ((2, 3), 6, False)
+    """
+
+    def __init__(
+        self,
+        directory: str | os.PathLike[str] | None = None,
+        *,
+        max_memory_entries: int | None = None,
+    ) -> None:
+        self._memory: OrderedDict[str, CacheEntry] = OrderedDict()
+        if max_memory_entries is not None and (isinstance(max_memory_entries, bool) or max_memory_entries < 0):
+            raise InputError(f"max_memory_entries: expected a non-negative int or None, got {max_memory_entries!r}")
+        self.max_memory_entries = max_memory_entries
+        self.directory: Path | None = None
+        if directory is not None:
+            d = Path(directory).expanduser()
+            try:
+                d.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise InputError(f"directory: cannot create cache folder {str(d)!r}: {exc}") from exc
+            if not d.is_dir():
+                raise InputError(f"directory: {str(d)!r} is not a folder")
+            self.directory = d
+
+    def __repr__(self) -> str:
+        where = f"directory={str(self.directory)!r}, " if self.directory else ""
+        return f"Cache({where}{len(self._memory)} in memory)"
+
+    def _path(self, key: str) -> Path:
+        assert self.directory is not None
+        return self.directory / key[:2] / f"{key}.npz"
+
+    def __contains__(self, key: str) -> bool:
+        return key in self._memory or (self.directory is not None and self._path(key).is_file())
+
+    def get(self, key: str) -> CacheEntry | None:
+        """The entry for ``key`` from memory, else from disk (then kept in memory), else None."""
+        entry = self._memory.get(key)
+        if entry is not None:
+            self._memory.move_to_end(key)
+            return entry
+        if self.directory is None:
+            return None
+        path = self._path(key)
+        if not path.is_file():
+            return None
+        try:
+            entry = _read_entry(path, key)
+        except Exception as exc:  # a corrupt, truncated or outdated entry is a miss
+            warnings.warn(f"cache entry {str(path)!r} is unreadable, recomputing: {exc}", CacheWarning,
+                          stacklevel=2)
+            return None
+        self._remember(key, entry)
+        return entry
+
+    def put(self, key: str, entry: CacheEntry) -> bool:
+        """Store ``entry``; return True when it also reached the disk cache.
+
+        An entry whose outputs cannot be encoded (see the module docstring) is kept
+        in memory only; so is one whose file cannot be written (a
+        :class:`CacheWarning` says why).
+        """
+        self._remember(key, entry)
+        if self.directory is None:
+            return False
+        try:
+            payload = _encode_entry(key, entry)
+        except _Unsupported:
+            return False
+        path = self._path(key)
+        try:
+            path.parent.mkdir(exist_ok=True)
+            write_atomic(path, lambda tmp: Path(tmp).write_bytes(payload))
+        except OSError as exc:
+            warnings.warn(f"cannot write cache entry {str(path)!r}: {exc}", CacheWarning, stacklevel=2)
+            return False
+        return True
+
+    def _remember(self, key: str, entry: CacheEntry) -> None:
+        self._memory[key] = entry
+        self._memory.move_to_end(key)
+        if self.max_memory_entries is not None:
+            while len(self._memory) > self.max_memory_entries:
+                self._memory.popitem(last=False)
+
+    def clear(self, *, disk: bool = False) -> None:
+        """Forget the memory entries, and with ``disk=True`` delete the disk entries too."""
+        self._memory.clear()
+        if disk and self.directory is not None:
+            for p in self.directory.glob("??/*.npz"):
+                p.unlink(missing_ok=True)
+
+
+# ------------------------------------------------------------------ the codec
+class _Unsupported(Exception):
+    pass
+
+
+def _encode_entry(key: str, entry: CacheEntry) -> bytes:
+    arrays: list[np.ndarray] = []
+    meta = {
+        "format": _DISK_FORMAT,
+        "version": _DISK_VERSION,
+        "key": key,
+        "outputs": encode(dict(entry.outputs), arrays),
+        "files": {k: list(v) for k, v in entry.files.items()},
+    }
+    buf = io.BytesIO()
+    blobs = {f"a{i}": a for i, a in enumerate(arrays)}
+    np.savez(buf, __meta__=np.frombuffer(json.dumps(meta, allow_nan=True).encode(), dtype=np.uint8), **blobs)
+    return buf.getvalue()
+
+
+def _read_entry(path: Path, key: str) -> CacheEntry:
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(z["__meta__"].tobytes().decode())
+        if meta.get("format") != _DISK_FORMAT or meta.get("version") != _DISK_VERSION or meta.get("key") != key:
+            raise ValueError("not an entry of this cache version")
+        arrays = [z[f"a{i}"] for i in range(len(z.files) - 1)]
+    outputs = decode(meta["outputs"], arrays)
+    return CacheEntry(outputs, {k: list(v) for k, v in meta["files"].items()})
+
+
+def _cls_name(cls: type) -> str:
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+def encode(value: Any, arrays: list[np.ndarray]) -> Any:
+    """The JSON tree of ``value``; arrays are appended to ``arrays`` and referred to by index.
+
+    Raises
+    ------
+    _Unsupported
+        For any value outside the supported types.
+
+    Examples
+    --------
+    >>> arrays = []
+    >>> encode({"n": 3, "p": (1.5, None)}, arrays), arrays
+    ({'$dict': [['n', 3], ['p', {'$tuple': [1.5, None]}]]}, [])
+    """
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, enum.Enum):
+        return {"$enum": _cls_name(type(value)), "value": encode(value.value, arrays)}
+    if type(value) is int or type(value) is float:
+        return value
+    if isinstance(value, (np.ndarray, np.generic)):
+        a = np.asarray(value)
+        if a.dtype.hasobject:
+            raise _Unsupported("object array")
+        arrays.append(np.array(a, copy=True))
+        return {"$array" if isinstance(value, np.ndarray) else "$scalar": len(arrays) - 1}
+    if type(value) is list:
+        return [encode(v, arrays) for v in value]
+    if type(value) is tuple:
+        return {"$tuple": [encode(v, arrays) for v in value]}
+    if type(value) is dict:
+        return {"$dict": [[encode(k, arrays), encode(v, arrays)] for k, v in value.items()]}
+    if type(value) in (set, frozenset):
+        return {"$set" if type(value) is set else "$frozenset": [encode(v, arrays) for v in value]}
+    if isinstance(value, pathlib.PurePath):
+        return {"$path": str(value), "cls": _cls_name(type(value))}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = dataclasses.fields(value)
+        if any(not f.init for f in fields):
+            raise _Unsupported(f"{type(value).__qualname__} has fields outside __init__")
+        return {
+            "$dataclass": _cls_name(type(value)),
+            "fields": [[f.name, encode(getattr(value, f.name), arrays)] for f in fields],
+        }
+    raise _Unsupported(type(value).__qualname__)
+
+
+def _find_class(name: str) -> Any:
+    module, _, qual = name.partition(":")
+    obj: Any = importlib.import_module(module)
+    for part in qual.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def decode(tree: Any, arrays: list[np.ndarray]) -> Any:
+    """Inverse of :func:`encode`.
+
+    Raises
+    ------
+    ValueError
+        On a malformed tree or a class that is not a dataclass, enum or path class.
+    """
+    if tree is None or isinstance(tree, (bool, int, float, str)):
+        return tree
+    if isinstance(tree, list):
+        return [decode(v, arrays) for v in tree]
+    if not isinstance(tree, dict) or len(tree) == 0:
+        raise ValueError(f"malformed entry: {tree!r}")
+    if "$array" in tree:
+        a = arrays[tree["$array"]]
+        a.setflags(write=False)  # cached values are shared between runs
+        return a
+    if "$scalar" in tree:
+        return arrays[tree["$scalar"]][()]
+    if "$tuple" in tree:
+        return tuple(decode(v, arrays) for v in tree["$tuple"])
+    if "$dict" in tree:
+        return {decode(k, arrays): decode(v, arrays) for k, v in tree["$dict"]}
+    if "$set" in tree:
+        return {decode(v, arrays) for v in tree["$set"]}
+    if "$frozenset" in tree:
+        return frozenset(decode(v, arrays) for v in tree["$frozenset"])
+    if "$path" in tree:
+        cls = _find_class(tree["cls"])
+        if not (isinstance(cls, type) and issubclass(cls, pathlib.PurePath)):
+            raise ValueError(f"{tree['cls']} is not a path class")
+        return cls(tree["$path"])
+    if "$enum" in tree:
+        cls = _find_class(tree["$enum"])
+        if not (isinstance(cls, type) and issubclass(cls, enum.Enum)):
+            raise ValueError(f"{tree['$enum']} is not an enum")
+        return cls(decode(tree["value"], arrays))
+    if "$dataclass" in tree:
+        cls = _find_class(tree["$dataclass"])
+        if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
+            raise ValueError(f"{tree['$dataclass']} is not a dataclass")
+        return cls(**{k: decode(v, arrays) for k, v in tree["fields"]})
+    raise ValueError(f"malformed entry: unknown tag in {sorted(tree)}")
