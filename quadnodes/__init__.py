@@ -19,8 +19,10 @@ True
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+__version__ = "0.1.0"
+
+import importlib  # noqa: E402
+from typing import Any  # noqa: E402
 
 from .errors import ExportError, GraphError, InputError, NodeError, QuadnodesError
 from .fairing import fair
@@ -31,8 +33,6 @@ from .planarity import planarity
 from .smoothing import laplacian, taubin
 from .topology import structure_lines, windows
 from .zigzag import detect
-
-__version__ = "0.1.0"
 
 __all__ = [
     "__version__",

@@ -27,6 +27,8 @@ __all__ = [
     "finite_number",
     "point_grid",
     "unit_parameters",
+    "quad_mesh",
+    "choice",
 ]
 
 
@@ -333,3 +335,24 @@ def unit_parameters(values: ArrayLike, name: str) -> np.ndarray:
             f"{name}: parameters must be strictly increasing, got {a[k]!r} then {a[k + 1]!r} at index {k}"
         )
     return a
+
+
+def _QuadMesh() -> type:
+    from .mesh import QuadMesh  # mesh imports this module
+
+    return QuadMesh
+
+
+def quad_mesh(mesh: Any, name: str = "mesh") -> Any:
+    """Return ``mesh`` if it is a :class:`QuadMesh`, else raise :class:`InputError`."""
+    if not isinstance(mesh, _QuadMesh()):
+        raise InputError(f"{name}: expected a QuadMesh, got {type(mesh).__name__}")
+    return mesh
+
+
+def choice(value: Any, options: Iterable[str], name: str) -> str:
+    """Return ``value`` lower-cased if it is one of ``options``, else raise :class:`InputError`."""
+    opts = tuple(options)
+    if isinstance(value, str) and value.lower() in opts:
+        return value.lower()
+    raise InputError(f"{name}: expected one of {', '.join(map(repr, opts))}, got {value!r}")

@@ -28,6 +28,7 @@ from scipy.sparse.linalg import splu
 
 from . import _validate
 from .errors import InputError
+from .progress import report_progress
 from .mesh import QuadMesh
 from .zigzag import detect, window_deviation
 
@@ -340,6 +341,7 @@ def fair(
                 IterationReport(it, float(thresholds[it]), float(weights[it]), float(weights[it] * scale),
                                 0, e_before, e_before, dev_before, dev_before, 0.0)
             )
+            report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: no zigzag above {thresholds[it]:g}")
             continue
         w_eff = float(weights[it] * scale)
         system = FairingSystem(x, w, zz.free, w_eff)
@@ -363,5 +365,6 @@ def fair(
             )
         )
         x = x_new
+        report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: {system.n_free} free vertices")
     out = mesh if x is x0 else mesh.with_vertices(x)
     return out, FairingReport(reports, length_scale=h, weight_scale=weight_scale)

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .errors import ExportError
+from .io._atomic import write_atomic
 from .mesh import QuadMesh
 from .zigzag import detect
 
@@ -110,16 +109,7 @@ def render_png(
     cax = fig.add_axes((0.3, 0.07, 0.4, 0.015))
     fig.colorbar(sm, cax=cax, orientation="horizontal",
                  label="zigzag deviation ||(u0+u2)/2 - u1||²")
-    out = Path(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=dpi)
-        os.replace(tmp, out)
-    except OSError as exc:
-        if "tmp" in locals() and os.path.exists(tmp):
-            os.unlink(tmp)
-        raise ExportError(f"render_png: cannot write {out}: {exc}") from None
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
     finally:
         plt.close(fig)
-    return out

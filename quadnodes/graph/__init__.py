@@ -30,7 +30,7 @@ from .files import FORMAT, VERSION, dumps, load, loads, parse_value, save
 from .fingerprint import code_fingerprint, file_digest, fingerprint
 from .graph import Constant, Graph, NodeHandle, NodeSpec, PortRef
 from .node import REGISTRY, NodeType, Registry, describe, node
-from .progress import report_progress
+from ..progress import report_progress
 from .run import ProgressEvent, RunRecord, RunResult, keys, run
 
 __all__ = [

@@ -48,37 +48,3 @@ def did_you_mean(name: str, choices: Iterable[str], *, kind: str = "") -> str:
     hint = f"; did you mean {close[0]!r}?" if close else ""
     listing = f" ({kind}: {', '.join(options)})" if kind else ""
     return hint + listing
-
-
-def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> Path:
-    """Write ``path`` through ``write(tmp)``: temporary file in the same folder, then ``os.replace``.
-
-    On any failure the temporary file is removed and the exception propagates;
-    an existing file at ``path`` is left as it was.
-
-    Examples
-    --------
-    >>> import pathlib, tempfile
-    >>> p = write_atomic(pathlib.Path(tempfile.mkdtemp()) / "a.txt",
-    ...                  lambda tmp: pathlib.Path(tmp).write_text("hi"))
-    >>> p.read_text()
-    'hi'
-    """
-    target = Path(os.fspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        mask = os.umask(0o022)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        write(tmp)
-        with open(tmp, "rb+") as f:
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return target

@@ -37,7 +37,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ._util import write_atomic
+from ..errors import ExportError
+from ..io._atomic import write_atomic
 
 __all__ = ["CacheEntry", "Cache", "CacheWarning", "encode", "decode"]
 
@@ -157,7 +158,7 @@ class Cache:
         try:
             path.parent.mkdir(exist_ok=True)
             write_atomic(path, lambda tmp: Path(tmp).write_bytes(payload))
-        except OSError as exc:
+        except (OSError, ExportError) as exc:
             warnings.warn(f"cannot write cache entry {str(path)!r}: {exc}", CacheWarning, stacklevel=2)
             return False
         return True

@@ -92,7 +92,8 @@ from typing import Any
 
 from ..errors import ExportError, GraphError
 from . import _types
-from ._util import did_you_mean, graph_error, label, write_atomic
+from ..io._atomic import write_atomic
+from ._util import did_you_mean, graph_error, label
 from .graph import Constant, Graph, PortRef, _ID_RE
 from .node import Registry
 
@@ -530,7 +531,7 @@ def save(graph: Graph, path: str | os.PathLike[str], *, fmt: str | None = None) 
 
     try:
         return write_atomic(p, _write)
-    except OSError as exc:
+    except ExportError as exc:
         raise ExportError(f"cannot write graph file {str(p)!r}: {exc}") from exc
 
 

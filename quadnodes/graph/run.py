@@ -37,7 +37,7 @@ from .cache import Cache, CacheEntry
 from .fingerprint import canonical_json, file_digest, fingerprint
 from .graph import Constant, Graph, NodeHandle, NodeSpec, PortRef
 from .node import NodeType
-from .progress import reporting
+from ..progress import reporting
 
 __all__ = ["RunRecord", "ProgressEvent", "RunResult", "run", "keys"]
 
@@ -63,7 +63,7 @@ class ProgressEvent:
     """A progress callback's argument.
 
     ``kind`` is ``"started"`` (before the cache lookup), ``"progress"`` (the
-    node's function called :func:`~quadnodes.graph.progress.report_progress`;
+    node's function called :func:`~quadnodes.progress.report_progress`;
     ``fraction`` and ``message`` set) or ``"finished"`` (``record`` set).
     ``index`` counts nodes in run order from 0, of ``total``.
     """
@@ -288,7 +288,7 @@ def run(
         ``{"node.setting": value}`` applied to a copy of the graph first.
     progress : callable, optional
         Called with a :class:`ProgressEvent` when a node starts and finishes, and
-        whenever its function calls :func:`~quadnodes.graph.progress.report_progress`.
+        whenever its function calls :func:`~quadnodes.progress.report_progress`.
 
     Returns
     -------

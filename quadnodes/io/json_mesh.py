@@ -29,7 +29,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..mesh import QuadMesh
-from . import _check
+from .. import _validate
 from ._atomic import write_text_atomic
 
 __all__ = ["JSON_FORMAT", "JSON_VERSION", "mesh_to_json", "save_json", "mesh_from_json", "load_json"]
@@ -67,7 +67,7 @@ def mesh_to_json(mesh: QuadMesh) -> str:
       ]
     }
     """
-    _check.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     gs = "null" if mesh.grid_shape is None else f"[{mesh.grid_shape[0]}, {mesh.grid_shape[1]}]"
     # The mesh guarantees finite floats, whose repr is valid JSON.
     verts = ",\n".join(("    [%r, %r, %r]",) * mesh.n_vertices) % tuple(mesh.vertices.ravel().tolist())

@@ -30,7 +30,7 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..mesh import QuadMesh, grid_faces
-from . import _check
+from .. import _validate
 from ._atomic import write_text_atomic
 
 __all__ = ["NON_QUAD_OPTIONS", "obj_text", "save_obj", "parse_obj", "load_obj"]
@@ -66,7 +66,7 @@ def obj_text(mesh: QuadMesh, *, header: bool = True) -> str:
     v 0.5 0.5 0.0
     f 1 2 4 3
     """
-    _check.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     parts = []
     if header:
         parts.append(f"# quadnodes {__version__}: {mesh.n_vertices} vertices, {mesh.n_faces} quads\n")
@@ -182,7 +182,7 @@ def parse_obj(
       ...
     quadnodes.errors.InputError: tri.obj, line 4: face with 3 corners; only quads are supported (non_quads='drop' skips such faces, 'split' splits even polygons)
     """
-    mode = _check.choice(non_quads, NON_QUAD_OPTIONS, "non_quads")
+    mode = _validate.choice(non_quads, NON_QUAD_OPTIONS, "non_quads")
     coords: list[tuple[str, str, str]] = []
     vertex_lines: list[int] = []
     faces: list[list[int]] = []

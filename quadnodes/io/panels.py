@@ -12,7 +12,7 @@ import numpy as np
 from .. import _validate
 from ..mesh import QuadMesh
 from ..planarity import diagonal_distance
-from . import _check
+from .. import _validate
 
 __all__ = [
     "DEFAULT_PLANAR_TOL",
@@ -48,7 +48,7 @@ def panel_rows_cols(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray] | None:
     >>> r.tolist(), c.tolist()
     ([0, 0, 1, 1], [0, 1, 0, 1])
     """
-    _check.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     if mesh.grid_shape is None:
         return None
     cols = mesh.grid_shape[1]
@@ -106,7 +106,7 @@ def planar_mask(mesh: QuadMesh, *, planar_tol: float = DEFAULT_PLANAR_TOL) -> np
     >>> planar_mask(grid(2, 3, height=[[0, 0, 0], [0, 0, 1]])).tolist()
     [True, False]
     """
-    _check.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     tol = _validate.nonnegative_number(planar_tol, "planar_tol")
     return diagonal_distance(mesh) <= tol
 
@@ -134,7 +134,7 @@ def bilinear_area(mesh: QuadMesh) -> np.ndarray:
     >>> bilinear_area(grid(2, 2, spacing=(2.0, 3.0))).tolist()
     [6.0]
     """
-    _check.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     p = mesh.vertices[mesh.faces]
     a = p[:, 1] - p[:, 0]  # S_u at v = 0
     b = p[:, 2] - p[:, 3]  # S_u at v = 1
@@ -164,6 +164,6 @@ def edge_lengths(mesh: QuadMesh) -> np.ndarray:
     >>> edge_lengths(grid(2, 2, spacing=(2.0, 3.0))).tolist()
     [[2.0, 3.0, 2.0, 3.0]]
     """
-    _check.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     p = mesh.vertices[mesh.faces]
     return np.linalg.norm(np.roll(p, -1, axis=1) - p, axis=2)

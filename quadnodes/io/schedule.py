@@ -41,7 +41,7 @@ import numpy as np
 from .. import _validate
 from ..mesh import QuadMesh
 from ..planarity import angle_defect, diagonal_distance
-from . import _check
+from .. import _validate
 from ._atomic import write_text_atomic
 from .panels import DEFAULT_PLANAR_TOL, bilinear_area, edge_lengths, panel_labels, panel_rows_cols
 
@@ -83,7 +83,7 @@ def panel_schedule(mesh: QuadMesh, *, planar_tol: float = DEFAULT_PLANAR_TOL) ->
     >>> s["panel"], s["area"][0], s["kind"]
     (['P_0_0', 'P_0_1'], 4.0, ['planar', 'bilinear'])
     """
-    _check.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     tol = _validate.nonnegative_number(planar_tol, "planar_tol")
     m = mesh.n_faces
     cols: dict[str, list] = {"panel": panel_labels(mesh), "face": list(range(m))}

@@ -65,7 +65,7 @@ from .. import _validate
 from ..errors import ExportError, InputError
 from ..mesh import QuadMesh
 from ..planarity import diagonal_distance
-from . import _check
+from .. import _validate
 from ._atomic import write_atomic
 from .panels import DEFAULT_PLANAR_TOL, panel_labels
 
@@ -234,8 +234,8 @@ def step_shape(
     >>> [(f.label, f.geom_type.name) for f in asm.children]
     [('P_0_0', 'PLANE'), ('P_0_1', 'BEZIER')]
     """
-    _check.quad_mesh(mesh)
-    mode = _check.choice(mode, STEP_MODES, "mode")  # type: ignore[assignment]
+    _validate.quad_mesh(mesh)
+    mode = _validate.choice(mode, STEP_MODES, "mode")  # type: ignore[assignment]
     tol = _validate.nonnegative_number(planar_tol, "planar_tol")
     if colors and mode != "assembly":
         raise InputError(f"colors: panel colours are written in mode='assembly' only, got mode={mode!r}")
@@ -363,6 +363,6 @@ def save_step(
     >>> out.read_text().startswith("ISO-10303-21;")
     True
     """
-    unit = _check.choice(mesh_unit, STEP_UNITS, "mesh_unit")
+    unit = _validate.choice(mesh_unit, STEP_UNITS, "mesh_unit")
     shape = step_shape(mesh, mode=mode, planar_tol=planar_tol, colors=colors, name=name, check=check)
     return write_atomic(path, lambda tmp: _write_step(shape, tmp, unit))

@@ -1,0 +1,82 @@
+import json
+
+import numpy as np
+import pytest
+
+import quadnodes.nodes  # noqa: F401
+from quadnodes.errors import NodeError
+from quadnodes.graph import REGISTRY, Cache, Graph, describe
+from quadnodes.io import load_obj
+
+EXPECTED = {
+    "saddle", "s_shape", "wavy", "dome", "cylinder_segment", "torus_patch", "read_step_surface", "sample",
+    "thesis_example", "grid", "read_mesh", "perturb", "detect", "select_fixed", "fair", "laplacian", "taubin",
+    "planarity", "compare", "export_step", "export_obj", "export_csv", "export_json", "export_report",
+    "render_png",
+}
+
+
+def test_every_built_in_node_is_registered_and_documented():
+    ops = {nt.op.split("@")[0] for nt in REGISTRY.latest()}
+    assert EXPECTED <= ops
+    for op in EXPECTED:
+        d = describe(op)
+        assert d["summary"], op
+
+
+def test_pipeline_from_surface_to_files(tmp_path):
+    g = Graph(base_dir=tmp_path)
+    face = g.add("saddle", id="surface", width=3000.0, depth=2000.0)
+    mesh = g.add("sample", face.face, id="mesh", nu=8, nv=9)
+    noisy = g.add("perturb", mesh.mesh, id="noisy", tangential=0.2, seed=2, fix="corners")
+    zz = g.add("detect", noisy.mesh, id="zz", threshold=0.05)
+    fixed = g.add("select_fixed", noisy.mesh, zz.report, id="fixed", boundary=True)
+    new = g.add("fair", noisy.mesh, fixed.fixed, id="fair", iterations=2)
+    lap = g.add("laplacian", noisy.mesh, fixed.fixed, id="lap", iterations=2)
+    tau = g.add("taubin", noisy.mesh, id="tau", iterations=2, fix="corners")
+    cmp_ = g.add("compare", noisy.mesh, new.mesh, mesh.mesh, id="cmp")
+    pl = g.add("planarity", new.mesh, id="pl")
+    g.add("export_obj", new.mesh, id="obj", path="a.obj")
+    g.add("export_json", new.mesh, id="json", path="a.json")
+    g.add("export_csv", new.mesh, id="csv", path="a.csv")
+    g.add("export_report", cmp_.metrics, pl.summary, id="rep", path="r.json", names=["metrics", "planarity"])
+    g.add("render_png", noisy.mesh, new.mesh, lap.mesh, tau.mesh, id="png", path="a.png", size_px=400)
+    res = g.run(cache=Cache())
+    out = res["fair.mesh"]
+    b = out.topology.boundary_vertices
+    assert np.array_equal(out.vertices[b], res["noisy.mesh"].vertices[b])
+    assert res["cmp.metrics"]["boundary_displacement_max"] == 0.0
+    assert np.array_equal(load_obj(tmp_path / "a.obj").faces, out.faces)
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert set(rep) == {"metrics", "planarity"}
+    # boundary lines are held (zigzag stays there); overall the zigzag drops
+    assert rep["metrics"]["zigzag_mean"] < 0.5 * res["zz.report"].window_deviation.mean()
+    assert (tmp_path / "a.png").stat().st_size > 10_000
+    assert len((tmp_path / "a.csv").read_text().splitlines()) == 1 + out.n_faces
+    # read the mesh back through the graph
+    g2 = Graph(base_dir=tmp_path)
+    g2.add("read_mesh", id="m", path="a.json")
+    assert np.array_equal(g2.run()["m.mesh"].vertices, out.vertices)
+
+
+def test_select_fixed_modes():
+    g = Graph()
+    m = g.add("grid", id="m", rows=4, cols=5)
+    g.add("select_fixed", m.mesh, id="c", corners=True)
+    g.add("select_fixed", m.mesh, id="i", indices=[1, 2], box=[-0.5, -0.5, -1, 0.5, 3.5, 1], invert=True)
+    r = g.run()
+    assert np.flatnonzero(r["c.fixed"]).tolist() == [0, 4, 15, 19]
+    held = ~r["i.fixed"]
+    assert np.flatnonzero(held).tolist() == [0, 1, 2, 5, 10, 15]
+
+
+def test_node_errors_name_the_node(tmp_path):
+    g = Graph(base_dir=tmp_path)
+    m = g.add("grid", id="m", rows=3, cols=3)
+    g.add("render_png", m.mesh, m.mesh, id="pic", path="x.png", titles=["one"])
+    with pytest.raises(NodeError, match="node 'pic'.*titles: 1 titles for 2"):
+        g.run()
+    g2 = Graph(base_dir=tmp_path)
+    g2.add("read_mesh", id="reader", path="missing.obj")
+    with pytest.raises(NodeError, match="reader.*path.*missing.obj"):
+        g2.run()
