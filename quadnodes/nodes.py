@@ -119,10 +119,11 @@ def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "erro
 
 
 @node("perturb", outputs=("mesh",))
-def perturb(mesh: QuadMesh, *, tangential: float = 0.0, normal: float = 0.0, jitter: float = 0.0,
-            seed: int = 0, fix: FixMode = "none") -> QuadMesh:
-    """Seeded zigzag noise; amplitudes in local edge lengths (tangential, normal, jitter)."""
-    return _perturb(mesh, tangential=tangential, normal=normal, jitter=jitter, seed=seed, fix=fix)
+def perturb(mesh: QuadMesh, region: np.ndarray | None = None, *, tangential: float = 0.0, normal: float = 0.0,
+            jitter: float = 0.0, seed: int = 0, fix: FixMode = "none") -> QuadMesh:
+    """Seeded zigzag noise; amplitudes in local edge lengths (tangential, normal, jitter);
+    only the vertices of an optional ``region`` mask move (e.g. from select_fixed with a box)."""
+    return _perturb(mesh, tangential=tangential, normal=normal, jitter=jitter, seed=seed, fix=fix, region=region)
 
 
 @node("detect", outputs=("report", "free"))

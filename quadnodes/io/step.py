@@ -62,10 +62,12 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from .. import _validate
+from ..progress import report_progress
 from ..errors import ExportError, InputError
 from ..mesh import QuadMesh
 from ..planarity import diagonal_distance
 from .. import _validate
+from ..progress import report_progress
 from ._atomic import write_atomic
 from .panels import DEFAULT_PLANAR_TOL, panel_labels
 
@@ -120,7 +122,10 @@ def _build_faces(
     normal_l = normal.tolist()
     centroid_l = centroid.tolist()
     faces: list[Any] = []
+    every = max(1, mesh.n_faces // 20)
     for k in range(mesh.n_faces):
+        if k % every == 0:
+            report_progress(0.8 * k / mesh.n_faces, f"building panel {k}/{mesh.n_faces}")
         c = corners[k]
         is_planar = bool(planar[k])
         kind = "planar" if is_planar else "bilinear"
@@ -365,4 +370,7 @@ def save_step(
     """
     unit = _validate.choice(mesh_unit, STEP_UNITS, "mesh_unit")
     shape = step_shape(mesh, mode=mode, planar_tol=planar_tol, colors=colors, name=name, check=check)
-    return write_atomic(path, lambda tmp: _write_step(shape, tmp, unit))
+    report_progress(0.8, f"writing {mesh.n_faces} panels to STEP")
+    out = write_atomic(path, lambda tmp: _write_step(shape, tmp, unit))
+    report_progress(1.0, f"wrote {out.name}")
+    return out
