@@ -29,6 +29,7 @@ __all__ = [
     "unit_parameters",
     "quad_mesh",
     "choice",
+    "grid_cells",
 ]
 
 
@@ -356,3 +357,30 @@ def choice(value: Any, options: Iterable[str], name: str) -> str:
     if isinstance(value, str) and value.lower() in opts:
         return value.lower()
     raise InputError(f"{name}: expected one of {', '.join(map(repr, opts))}, got {value!r}")
+
+
+def grid_cells(faces: np.ndarray, rows: int, cols: int) -> int:
+    """Index of the first face that is not a unit cell of a ``rows × cols`` vertex grid, or -1.
+
+    A unit cell has its four vertices at ``(i, j), (i, j+1), (i+1, j+1), (i+1, j)``
+    (vertex ``i*cols + j``), walked around the cell in either direction from any
+    corner.
+
+    Examples
+    --------
+    >>> grid_cells(np.array([[0, 1, 4, 3], [4, 5, 2, 1]]), 2, 3)
+    -1
+    >>> grid_cells(np.array([[0, 1, 4, 3], [0, 2, 5, 3]]), 2, 3)
+    1
+    >>> grid_cells(np.array([[0, 1, 3, 4]]), 2, 3)  # the cell's corners, crossed
+    0
+    """
+    r, c = np.divmod(faces, cols)
+    dr = r - r.min(axis=1, keepdims=True)
+    dc = c - c.min(axis=1, keepdims=True)
+    ok = (dr <= 1).all(axis=1) & (dc <= 1).all(axis=1) & (r.max(axis=1) < rows)
+    ok &= (np.sort(2 * dr + dc, axis=1) == np.arange(4)).all(axis=1)
+    step = np.abs(np.roll(dr, -1, axis=1) - dr) + np.abs(np.roll(dc, -1, axis=1) - dc)
+    ok &= (step == 1).all(axis=1)
+    bad = np.flatnonzero(~ok)
+    return int(bad[0]) if bad.size else -1

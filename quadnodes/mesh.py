@@ -62,6 +62,11 @@ class QuadMesh:
                 raise InputError(
                     f"grid_shape: {gs} holds {gs[0] * gs[1]} vertices, the mesh has {v.shape[0]}"
                 )
+            bad = _validate.grid_cells(f, *gs)
+            if bad >= 0:
+                raise InputError(
+                    f"grid_shape: face {bad} {f[bad].tolist()} is not a cell of a {gs[0]} x {gs[1]} vertex grid"
+                )
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
         object.__setattr__(self, "grid_shape", gs)

@@ -68,3 +68,22 @@ def test_plain_library_example(tmp_path):
     assert new["boundary_displacement_max"] < m["taubin (50 iterations)"]["boundary_displacement_max"]
     assert new["reference_vertex_mean"] < 0.5 * m["taubin (50 iterations)"]["reference_vertex_mean"]
     assert abs(new["bbox_diagonal_change_pct"]) < abs(m["laplacian (4 steps)"]["bbox_diagonal_change_pct"])
+
+
+@pytest.mark.parametrize("graph", sorted(p.name for p in EXAMPLES.glob("*.toml")))
+def test_every_example_graph_validates(graph):
+    assert main(["check", str(EXAMPLES / graph)]) == 0
+
+
+def test_quickstart_the_readme_main_job(tmp_path):
+    from build123d import import_step
+
+    out = tmp_path / "qs"
+    assert main(["run", str(EXAMPLES / "quickstart.toml"), "--out", str(out)]) == 0
+    shape = import_step(out / "faired.step")
+    assert len(shape.faces()) == 21 * 40
+    assert {c.label for c in shape.children} >= {"P_0_0", "P_20_39"}
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["fair"]["boundary_displacement_max"] < m["laplace"]["boundary_displacement_max"]
+    assert m["fair"]["reference_vertex_mean"] < m["taubin"]["reference_vertex_mean"]
+    assert load_obj(out / "faired.obj").grid_shape == (22, 41)

@@ -89,3 +89,11 @@ def test_grid_shape_must_match():
 def test_from_grid_points_checks_shape():
     with pytest.raises(InputError, match="rows, cols, 3"):
         from_grid_points(np.zeros((4, 3)))
+
+
+def test_grid_shape_faces_must_be_grid_cells():
+    f = grid_faces(3, 3)
+    QuadMesh(grid(3, 3).vertices, f[:, ::-1], grid_shape=(3, 3))  # any winding is a cell
+    flat = grid(2, 3)  # a 2 x 3 grid declared as 3 x 2
+    with pytest.raises(InputError, match=r"face 0 \[0, 1, 4, 3\] is not a cell of a 3 x 2"):
+        QuadMesh(flat.vertices, flat.faces, grid_shape=(3, 2))

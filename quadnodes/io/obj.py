@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from ..mesh import QuadMesh, grid_faces
+from ..mesh import QuadMesh
 from .. import _validate
 from ._atomic import write_text_atomic
 
@@ -270,7 +270,7 @@ def parse_obj(
     face_array = np.array(faces, dtype=np.int64)
     if grid_shape is not None:
         r, c = grid_shape
-        if not (r >= 2 and c >= 2 and r * c == n and np.array_equal(face_array, grid_faces(r, c))):
+        if not (r >= 2 and c >= 2 and r * c == n and _validate.grid_cells(face_array, r, c) < 0):
             grid_shape = None
     try:
         return QuadMesh(vertices, face_array, grid_shape=grid_shape)

@@ -35,7 +35,11 @@ _GW = 0.5 * _GW
 
 
 def panel_rows_cols(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray] | None:
-    """Row and column of every panel's first vertex, or ``None`` without ``grid_shape``.
+    """Row and column of every panel's grid cell, or ``None`` without ``grid_shape``.
+
+    The cell of a quad is the smallest row and the smallest column among its four
+    vertices, so the label does not depend on where the face's vertex list starts
+    or which way it turns.
 
     Returns
     -------
@@ -51,15 +55,14 @@ def panel_rows_cols(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray] | None:
     _validate.quad_mesh(mesh)
     if mesh.grid_shape is None:
         return None
-    cols = mesh.grid_shape[1]
-    first = mesh.faces[:, 0]
-    return first // cols, first % cols
+    rows, cols = np.divmod(mesh.faces, mesh.grid_shape[1])
+    return rows.min(axis=1), cols.min(axis=1)
 
 
 def panel_labels(mesh: QuadMesh) -> list[str]:
     """A label for every panel.
 
-    ``P_<row>_<col>`` (row and column of the face's first vertex) when the mesh
+    ``P_<row>_<col>`` (row and column of the face's grid cell) when the mesh
     has a ``grid_shape``, else ``P_<face index>``.
 
     Returns

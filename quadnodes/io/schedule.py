@@ -7,7 +7,7 @@ Columns (lengths and areas in model units):
 ``face``
     Face index in the mesh.
 ``row``, ``col``
-    Grid row and column of the face's first vertex; empty without ``grid_shape``.
+    Grid row and column of the face's cell (smallest row and column of its vertices); empty without ``grid_shape``.
 ``x0, y0, z0, ... x3, y3, z3``
     The four corners in face order (counter-clockwise).
 ``area``

@@ -37,7 +37,7 @@ Modes
     connected piece of the mesh (a compound of shells when there are several).
 ``"assembly"``
     An assembly whose children are the panels, each named ``P_<row>_<col>`` (row
-    and column of the face's first vertex, when the mesh has a ``grid_shape``) or
+    and column of the face's grid cell, when the mesh has a ``grid_shape``) or
     ``P_<face index>``, optionally coloured by planarity. Only this form keeps
     the panel labels through STEP (they are written as product names).
 
