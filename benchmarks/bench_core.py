@@ -7,8 +7,13 @@ built — the cost of the operation itself, not of Python and its imports.
 Rows
 - structure lines: ``structure_lines`` + ``windows`` on a fresh mesh;
 - fair, 1 iteration: ``quadnodes.fair(iterations=1, deviation=0)`` with every
-  window-middle vertex free (all but the four corners), SciPy SuperLU with
-  MMD(AᵀA+A) ordering; includes structure lines, detection, assembly, factorization, solve;
+  window-middle vertex free (all but the four corners), default solver (block
+  conjugate gradients from the anchor); includes structure lines, detection,
+  assembly and solve; the note gives CG steps and the relative residual;
+- peers on the same system (assembly excluded): SciPy SuperLU with its default
+  ordering and with MMD(AᵀA+A), and CG preconditioned by pyamg smoothed
+  aggregation when pyamg is installed. SuperLU at 1000² takes minutes and
+  ~12 GB, so those rows run only with ``--slow``;
 - taubin, 10 steps: ``quadnodes.taubin(iterations=5)`` (5 λ|μ pairs = 10 steps) on the
   quad edge 1-ring, including building the operator;
 - trimesh filter_taubin, 10 steps: ``trimesh.smoothing.filter_taubin(iterations=10)``
@@ -66,7 +71,12 @@ def run_row(kind: str, n: int) -> dict:
         from quadnodes.fairing import fair
 
         _, rep = fair(m, iterations=1, deviation=0.0)
-        extra = f"{rep.iterations[0].n_free} free vertices"
+        r = rep.iterations[0]
+        extra = f"{r.n_free} free, {r.solver} {r.cg_iterations} steps, residual {r.residual:.0e}"
+    elif kind in ("superlu", "superlu_mmd", "pyamg"):
+        wall, extra = _peer(kind, m)
+        return {"wall_s": wall, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base,
+                "note": extra}
     elif kind == "taubin":
         from quadnodes.smoothing import taubin
 
@@ -78,9 +88,37 @@ def run_row(kind: str, n: int) -> dict:
     return {"wall_s": wall, "peak_mb": max(peak - base, 0.0), "note": extra}
 
 
+def _peer(kind: str, m) -> tuple[float, str]:
+    """Solve the same one-iteration system with a peer solver; returns (seconds, note)."""
+    from scipy.sparse.linalg import cg, splu
+
+    from quadnodes.fairing import DEFAULT_WEIGHT, FairingSystem
+    from quadnodes.zigzag import detect
+
+    free = detect(m, 0.0).free
+    s = FairingSystem(m.vertices, m.topology.windows, free, DEFAULT_WEIGHT / m.mean_edge_length**2, solver="cg")
+    M = s.matrix
+    rhs = s._rhs + s.weight * m.vertices[free]
+    t = time.perf_counter()
+    if kind == "pyamg":
+        import pyamg
+
+        P = pyamg.smoothed_aggregation_solver(M).aspreconditioner(cycle="V")
+        x = np.stack([cg(M, rhs[:, k], x0=m.vertices[free][:, k], rtol=1e-9, M=P)[0] for k in range(3)], axis=1)
+    else:
+        spec = "MMD_AT_PLUS_A" if kind == "superlu_mmd" else "COLAMD"
+        x = splu(M.tocsc(), permc_spec=spec).solve(rhs)
+    wall = time.perf_counter() - t
+    res = np.linalg.norm(rhs - M @ x, axis=0) / np.linalg.norm(rhs, axis=0)
+    return wall, f"residual {res.max():.0e}"
+
+
 LABELS = {
     "lines": "quadnodes structure lines + windows",
-    "fair": "quadnodes fair, 1 iteration, all free (SuperLU, MMD)",
+    "fair": "quadnodes fair, 1 iteration, all free (block CG)",
+    "superlu": "peer: SciPy SuperLU, default ordering (solve only)",
+    "superlu_mmd": "peer: SciPy SuperLU, MMD(AᵀA+A) (solve only)",
+    "pyamg": "peer: CG + pyamg smoothed aggregation (solve only)",
     "taubin": "quadnodes taubin, 10 steps (quad 1-ring)",
     "trimesh": "trimesh filter_taubin, 10 steps (triangulated)",
 }
@@ -89,6 +127,7 @@ LABELS = {
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000])
+    ap.add_argument("--slow", action="store_true", help="also run SuperLU at sizes above 300")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
@@ -96,8 +135,17 @@ def main() -> None:
         return
     print("| grid | operation | wall time (s) | peak memory above baseline (MB) | note |")
     print("|---|---|---:|---:|---|")
+    try:
+        import pyamg  # noqa: F401
+        have_pyamg = True
+    except ImportError:
+        have_pyamg = False
     for n in args.sizes:
         for kind in LABELS:
+            if kind.startswith("superlu") and n > 300 and not args.slow:
+                continue
+            if kind == "pyamg" and not have_pyamg:
+                continue
             out = subprocess.run([sys.executable, __file__, "--row", kind, str(n)],
                                  capture_output=True, text=True, check=True)
             r = json.loads(out.stdout.strip().splitlines()[-1])

@@ -17,7 +17,8 @@ length of the input, so the result does not depend on the unit of the model.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Literal
 
@@ -30,7 +31,7 @@ from . import _validate
 from .errors import InputError
 from .progress import report_progress
 from .mesh import QuadMesh
-from .zigzag import detect, window_deviation
+from .zigzag import detect, window_deviation, window_edges
 
 __all__ = [
     "DEFAULT_WEIGHT",
@@ -42,6 +43,11 @@ __all__ = [
     "FairingReport",
     "fair",
 ]
+
+#: Systems with at most this many unknown vertices are solved directly by default.
+DIRECT_LIMIT = 2000
+#: Cap on conjugate-gradient steps before falling back to the direct solver.
+MAX_CG_ITERATIONS = 20000
 
 #: Default dimensionless penalty weight (in units of the mean edge length).
 #: Chosen from ``benchmarks/weight_sweep.py``; see ``docs/fairing.md``.
@@ -69,12 +75,13 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
     >>> window_coefficients(v, np.array([[0, 1, 2, 3]])).tolist()
     [[-0.5, 1.0, -1.0, 0.5]]
     """
-    p = vertices[windows]
-    inv = 1.0 / np.linalg.norm(np.diff(p, axis=1), axis=2)  # 1/l0, 1/l1, 1/l2
-    return np.stack(
-        [-0.5 * inv[:, 0], 0.5 * inv[:, 0] + inv[:, 1], -inv[:, 1] - 0.5 * inv[:, 2], 0.5 * inv[:, 2]],
-        axis=1,
-    )
+    i0, i1, i2 = (1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows))
+    c = np.empty((len(windows), 4))
+    c[:, 0] = -0.5 * i0
+    c[:, 1] = 0.5 * i0 + i1
+    c[:, 2] = -i1 - 0.5 * i2
+    c[:, 3] = 0.5 * i2
+    return c
 
 
 def fairing_matrix(vertices: np.ndarray, windows: np.ndarray) -> sp.csr_matrix:
@@ -115,13 +122,57 @@ def fairing_energy(
     return float(np.einsum("ij,ij->", f, f))
 
 
+def _block_cg(
+    apply: Callable[[np.ndarray], np.ndarray],
+    B: np.ndarray,
+    X0: np.ndarray,
+    *,
+    rtol: float,
+    maxiter: int,
+) -> tuple[np.ndarray, int, float]:
+    """Conjugate gradients on the columns of ``B`` at once (one operator product per step).
+
+    Each column is an independent CG run; they share the operator products.
+    Stops when every column's residual is at most ``rtol`` times its right-hand
+    side. Returns the solution, the number of steps and the worst relative residual.
+    """
+    X = np.array(X0, dtype=np.float64, order="C")
+    R = B - apply(X)
+    bnorm = np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+    tol2 = (rtol * bnorm) ** 2
+    rr = np.einsum("ij,ij->j", R, R)
+    P = R.copy()
+    tmp = np.empty_like(X)
+    it = 0
+    while it < maxiter and (rr > tol2).any():
+        Q = apply(P)
+        pq = np.einsum("ij,ij->j", P, Q)
+        alpha = np.divide(rr, pq, out=np.zeros_like(rr), where=pq > 0)
+        np.multiply(P, alpha, out=tmp)
+        X += tmp
+        np.multiply(Q, alpha, out=tmp)
+        R -= tmp
+        rr_new = np.einsum("ij,ij->j", R, R)
+        beta = np.divide(rr_new, rr, out=np.zeros_like(rr), where=rr > 0)
+        P *= beta
+        P += R
+        rr = rr_new
+        it += 1
+    return X, it, float(np.max(np.sqrt(rr) / bnorm))
+
+
 class FairingSystem:
-    """One fairing iteration's least-squares system, factorized once.
+    """One fairing iteration's least-squares system.
 
     Unknowns are the free vertices only; every window with at least one free
     vertex contributes a row; fixed vertices move to the right-hand side. The
-    normal matrix ``AᵀA + ω I`` is factorized on construction and reused by
-    :meth:`solve` for any anchor (three right-hand sides per solve).
+    normal matrix ``AᵀA + ω I`` is the same for x, y and z. It is solved by
+    conjugate gradients on all three coordinates at once (one sparse product per
+    step for x, y and z together), started from the anchor, or — for small systems, on
+    request, or if CG does not converge — by a sparse factorization made once
+    and reused for every anchor. The condition number is about
+    ``(32 + ω h²) / (ω h²)`` on a regular grid with edge length ``h``, so CG needs
+    a few dozen steps at the default weight.
 
     Parameters
     ----------
@@ -133,6 +184,18 @@ class FairingSystem:
         Vertices to move; must contain at least one vertex.
     weight : float
         Effective penalty weight ``ω`` (> 0), in the model's units (``1/length²``).
+    solver : {"auto", "direct", "cg"}
+        ``"auto"``: direct up to :data:`DIRECT_LIMIT` unknowns, CG above.
+    rtol : float
+        CG stops when every coordinate's residual is below ``rtol`` times its
+        right-hand side (the solution's relative error is then of the same order).
+
+    Attributes
+    ----------
+    iterations : int
+        CG steps of the last :meth:`solve` (0 for the direct solver).
+    residual : float
+        Relative residual of the last :meth:`solve`.
 
     Examples
     --------
@@ -144,7 +207,16 @@ class FairingSystem:
     [[2.0, 1.0, 0.308]]
     """
 
-    def __init__(self, vertices: np.ndarray, windows: np.ndarray, free: np.ndarray, weight: float) -> None:
+    def __init__(
+        self,
+        vertices: np.ndarray,
+        windows: np.ndarray,
+        free: np.ndarray,
+        weight: float,
+        *,
+        solver: Literal["auto", "direct", "cg"] = "auto",
+        rtol: float = 1e-9,
+    ) -> None:
         weight = _validate.positive_number(weight, "weight")
         free = np.asarray(free, dtype=bool)
         n = vertices.shape[0]
@@ -159,21 +231,50 @@ class FairingSystem:
         coef = window_coefficients(vertices, win)
         col = np.full(n, -1, dtype=np.int64)
         col[self.free_index] = np.arange(k)
-        rows = np.broadcast_to(np.arange(len(win))[:, None], win.shape)
-        A = sp.csr_matrix((coef[is_free], (rows[is_free], col[win][is_free])), shape=(len(win), k))
+        # rows are the windows in order, so the CSR arrays come straight out of the
+        # row-major masks: no COO sort (a row may hold one column twice on a 3-ring;
+        # sparse products add such duplicates, as the sum of squares requires)
+        indptr = np.zeros(len(win) + 1, dtype=np.int64)
+        np.cumsum(is_free.sum(axis=1), out=indptr[1:])
+        A = sp.csr_matrix((coef[is_free], col[win][is_free], indptr), shape=(len(win), k))
         # fixed vertices' contribution to every active row
         b = np.einsum("wk,wkj->wj", np.where(is_free, 0.0, coef), vertices[win])
         self.weight = weight
         self.A = A
+        self.At = A.T.tocsr()
         self.b = b
-        self.matrix = (A.T @ A + weight * sp.identity(k, format="csr")).tocsc()
-        self._rhs = -(A.T @ b)
-        self._lu = splu(
-            self.matrix,
-            permc_spec="MMD_AT_PLUS_A",
-            diag_pivot_thresh=0.0,
-            options={"SymmetricMode": True},
-        )
+        self._rhs = -(self.At @ b)
+        if solver not in ("auto", "direct", "cg"):
+            raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
+        self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
+        self.rtol = _validate.positive_number(rtol, "rtol")
+        self.iterations = 0
+        self.residual = 0.0
+        self._lu: object | None = None
+
+    @property
+    def matrix(self) -> sp.csr_matrix:
+        """The normal matrix ``AᵀA + ω I`` (assembled on first use)."""
+        if self._matrix is None:
+            k = self.n_free
+            self._matrix = (self.At @ self.A + self.weight * sp.identity(k, format="csr")).tocsr()
+        return self._matrix
+
+    _matrix: sp.csr_matrix | None = None
+
+    def _apply(self, X: np.ndarray) -> np.ndarray:
+        """``(AᵀA + ω I) X`` with the assembled matrix (one sparse pass per product)."""
+        return self.matrix @ X
+
+    def _factor(self) -> object:
+        if self._lu is None:
+            self._lu = splu(
+                self.matrix.tocsc(),
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True},
+            )
+        return self._lu
 
     @property
     def n_free(self) -> int:
@@ -196,7 +297,27 @@ class FairingSystem:
         a = np.asarray(anchor, dtype=np.float64)
         if a.shape != (self.n_free, 3):
             raise InputError(f"anchor: expected shape ({self.n_free}, 3), got {a.shape}")
-        return self._lu.solve(self._rhs + self.weight * a)
+        rhs = self._rhs + self.weight * a
+        if self.solver == "cg":
+            # translation equivariance: solve about the anchor's centroid, so the stopping
+            # rule is relative to the mesh's extent, not to its distance from the origin
+            c = a.mean(axis=0)
+            shifted = rhs - self._apply(np.broadcast_to(c, a.shape))
+            y, its, res = _block_cg(self._apply, shifted, a - c, rtol=self.rtol, maxiter=MAX_CG_ITERATIONS)
+            if res <= self.rtol:
+                self.iterations, self.residual = its, res
+                return y + c
+            warnings.warn(
+                f"fairing: conjugate gradients reached a relative residual of {res:.1e} after {its} "
+                f"iterations; falling back to the direct solver",
+                UserWarning,
+                stacklevel=2,
+            )
+        x = self._factor().solve(rhs)
+        r = rhs - self._apply(x)
+        self.iterations = 0
+        self.residual = float(np.linalg.norm(r) / max(np.linalg.norm(rhs), 1e-300))
+        return x
 
     def objective(self, x: np.ndarray, anchor: np.ndarray) -> float:
         """Value of ``||A x + b||² + ω ||x − anchor||²`` for free positions ``x``."""
@@ -224,6 +345,9 @@ class IterationReport:
     deviation_before: float
     deviation_after: float
     max_displacement: float
+    solver: str = "none"
+    cg_iterations: int = 0
+    residual: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -255,6 +379,7 @@ def fair(
     anchor: Literal["current", "input"] = "current",
     fixed: ArrayLike | None = None,
     fix_boundary: bool = False,
+    solver: Literal["auto", "direct", "cg"] = "auto",
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -286,6 +411,8 @@ def fair(
         Vertices that never move (corners always stay).
     fix_boundary : bool
         Keep every boundary vertex in place.
+    solver : {"auto", "direct", "cg"}
+        Linear solver, see :class:`FairingSystem`; results agree to about 1e-10.
 
     Returns
     -------
@@ -344,7 +471,7 @@ def fair(
             report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: no zigzag above {thresholds[it]:g}")
             continue
         w_eff = float(weights[it] * scale)
-        system = FairingSystem(x, w, zz.free, w_eff)
+        system = FairingSystem(x, w, zz.free, w_eff, solver=solver)
         target = (x if anchor == "current" else x0)[system.free_index]
         new_free = system.solve(target)
         x_new = x.copy()
@@ -362,6 +489,9 @@ def fair(
                 deviation_before=dev_before,
                 deviation_after=float(window_deviation(x_new, w).sum()),
                 max_displacement=float(disp.max()),
+                solver=system.solver,
+                cg_iterations=system.iterations,
+                residual=system.residual,
             )
         )
         x = x_new

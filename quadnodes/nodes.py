@@ -172,11 +172,12 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1
          weight: float | list[float] = DEFAULT_WEIGHT, weight_decay: float = 1.0,
          weight_scale: Literal["normalized", "raw"] = "normalized",
          anchor: Literal["current", "input"] = "current",
-         fix_boundary: bool = False) -> tuple[QuadMesh, FairingReport]:
+         fix_boundary: bool = False,
+         solver: Literal["auto", "direct", "cg"] = "auto") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); deviation and weight may be per-iteration lists."""
     return _fair(mesh, iterations=iterations, deviation=deviation, deviation_decay=deviation_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
-                 fixed=fixed, fix_boundary=fix_boundary)
+                 fixed=fixed, fix_boundary=fix_boundary, solver=solver)
 
 
 def _fix(mesh: QuadMesh, fix: FixMode, fixed: np.ndarray | None) -> np.ndarray:

@@ -163,3 +163,36 @@ def test_system_reuses_factorization_for_new_anchors():
     assert not np.allclose(x1, x2)
     with pytest.raises(InputError, match="anchor"):
         s.solve(np.zeros((2, 3)))
+
+
+@pytest.mark.parametrize("weight", [0.001, 0.01, 0.3, 10.0])
+@pytest.mark.parametrize("make", [
+    lambda: perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3).with_vertices,
+    lambda: perturb(extraordinary_mesh(3), tangential=0.2, seed=4).with_vertices,
+    lambda: perturb(cylinder(30, 40), tangential=0.2, seed=5).with_vertices,
+])
+def test_conjugate_gradients_equal_the_direct_solve(make, weight):
+    with_vertices = make()
+    m = with_vertices(with_vertices.__self__.vertices + [4000.0, -2500.0, 300.0])  # far from the origin
+    free = detect(m, 0.0).free
+    h = m.mean_edge_length
+    d = FairingSystem(m.vertices, m.topology.windows, free, weight / h**2, solver="direct")
+    c = FairingSystem(m.vertices, m.topology.windows, free, weight / h**2, solver="cg")
+    a = m.vertices[free]
+    xd, xc = d.solve(a), c.solve(a)
+    assert c.solver == "cg" and c.iterations > 0 and c.residual <= 1e-9
+    extent = np.ptp(m.vertices, axis=0).max()  # stricter than relative to the coordinates
+    assert np.abs(xc - xd).max() <= 1e-8 * extent
+    # and the fairing move itself to 1e-4 of its size
+    assert np.abs(xc - xd).max() <= 1e-4 * np.abs(xd - a).max()
+
+
+def test_solver_choice_and_report():
+    m = perturb(grid(60, 60), tangential=0.3, seed=1)
+    _, rep = fair(m, deviation=0.0)
+    r = rep.iterations[0]
+    assert r.solver == "cg" and r.cg_iterations > 0 and r.residual <= 1e-9
+    _, rep = fair(perturb(grid(10, 10), tangential=0.3, seed=1), deviation=0.0)
+    assert rep.iterations[0].solver == "direct"
+    with pytest.raises(InputError, match="solver"):
+        fair(m, solver="magic")
