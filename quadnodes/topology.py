@@ -117,20 +117,21 @@ class Topology:
     def he_twin(self) -> np.ndarray:
         """Opposite half-edge in the neighbouring face, or -1 on the boundary."""
         n = self.n_vertices
-        key = self.he_start * n + self.he_end
-        order = np.argsort(key)
-        sk = key[order]
-        want = self.he_end * n + self.he_start
-        pos = np.clip(np.searchsorted(sk, want), 0, sk.size - 1)
-        return np.where(sk[pos] == want, order[pos], -1)
+        h = np.arange(1, self.he_start.size + 1)
+        directed = sp.csr_matrix((h, (self.he_start, self.he_end)), shape=(n, n))
+        return np.asarray(directed[self.he_end, self.he_start]).ravel() - 1
 
     @cached_property
     def _edge_data(self) -> tuple[np.ndarray, np.ndarray]:
+        n = self.n_vertices
         lo = np.minimum(self.he_start, self.he_end)
         hi = np.maximum(self.he_start, self.he_end)
-        keys, inv = np.unique(lo * self.n_vertices + hi, return_inverse=True)
-        edges = np.stack(np.divmod(keys, self.n_vertices), axis=1)
-        return edges, inv.reshape(-1)
+        und = sp.csr_matrix((np.ones(lo.size, dtype=np.int32), (lo, hi)), shape=(n, n))
+        und.sum_duplicates()  # canonical: rows and the columns within them sorted
+        edges = np.stack([np.repeat(np.arange(n), np.diff(und.indptr)), und.indices.astype(np.int64)], axis=1)
+        ids = sp.csr_matrix((np.arange(1, len(edges) + 1), und.indices, und.indptr), shape=(n, n))
+        he_edge = np.asarray(ids[lo, hi]).ravel() - 1
+        return edges, he_edge
 
     @property
     def edges(self) -> np.ndarray:
@@ -212,8 +213,8 @@ class Topology:
         dir_he = np.full(2 * E, -1, dtype=np.int64)
         dir_he[he_dir] = np.arange(he_dir.size)
         d = np.arange(2 * E)
-        e = d // 2
-        end = np.where(d % 2 == 0, self.edges[e, 1], self.edges[e, 0])
+        e = d >> 1
+        end = self.edges[:, ::-1].reshape(-1)  # 2e ends at the high vertex, 2e + 1 at the low one
         succ = np.full(2 * E, -1, dtype=np.int64)
 
         inner = self.regular_interior[end]
@@ -325,12 +326,16 @@ def _canonical(flat: np.ndarray, offsets: np.ndarray, closed: np.ndarray) -> Str
     prv = flat[offsets[:-1] + (shift - 1) % n]
     flip = np.where(closed, prv < nxt, first > last)
     # source position: flipped open lines read backwards; closed read from shift
-    src_local = np.where(
-        closed[line],
-        np.where(flip[line], shift[line] - local, shift[line] + local) % n[line],
-        np.where(flip[line], n[line] - 1 - local, local),
+    # source position of every entry: only flipped or closed lines need arithmetic
+    src = np.arange(flat.size)
+    sel = np.flatnonzero((flip | closed)[line])
+    ls, lc = line[sel], local[sel]
+    src[sel] = offsets[ls] + np.where(
+        closed[ls],
+        np.where(flip[ls], shift[ls] - lc, shift[ls] + lc) % n[ls],
+        n[ls] - 1 - lc,
     )
-    flat = flat[offsets[line] + src_local]
+    flat = flat[src]
     # sort lines by their first two vertices
     second = flat[offsets[:-1] + np.minimum(1, n - 1)]
     order = np.lexsort((second, flat[offsets[:-1]]))
