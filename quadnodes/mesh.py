@@ -111,9 +111,11 @@ class QuadMesh:
         object.__setattr__(new, "vertices", v)
         object.__setattr__(new, "faces", self.faces)
         object.__setattr__(new, "grid_shape", self.grid_shape)
-        if "topology" in self.__dict__:
-            new.__dict__["topology"] = self.__dict__["topology"]
-        _validate.check_edge_lengths(v, self.faces)  # the faces are unchanged; lengths may collapse
+        topo = self.__dict__.get("topology")
+        if topo is not None:
+            new.__dict__["topology"] = topo
+        # the faces are unchanged; only edge lengths may have collapsed
+        _validate.check_edge_lengths(v, self.faces, None if topo is None else topo.edges)
         return new
 
     def __repr__(self) -> str:

@@ -29,6 +29,28 @@ Weights = Literal["uniform", "inverse_length"]
 Fix = Literal["none", "corners", "boundary"]
 
 
+def _weights(mesh: QuadMesh, weights: Weights, vertices: np.ndarray | None, fixed: np.ndarray | None) -> sp.csr_matrix:
+    """Row-normalized edge weights ``W`` (rows of fixed vertices empty)."""
+    if weights not in ("uniform", "inverse_length"):
+        raise InputError(f"weights: expected 'uniform' or 'inverse_length', got {weights!r}")
+    n = mesh.n_vertices
+    indptr, indices, edge_id = mesh.topology.ring
+    if weights == "uniform":
+        c = np.ones(indices.size)
+    else:
+        x = mesh.vertices if vertices is None else vertices
+        e = mesh.topology.edges
+        c = (1.0 / np.linalg.norm(x[e[:, 1]] - x[e[:, 0]], axis=1))[edge_id]
+    counts = np.diff(indptr)
+    row = np.repeat(np.arange(n), counts)
+    if fixed is not None:
+        c = np.where(fixed[row], 0.0, c)
+    total = np.add.reduceat(c, indptr[:-1]) if c.size else np.zeros(n)
+    total = np.where(counts > 0, total, 0.0)
+    scale = np.divide(1.0, total, out=np.zeros(n), where=total > 0)
+    return sp.csr_matrix((c * scale[row], indices, indptr), shape=(n, n))
+
+
 def laplacian_operator(
     mesh: QuadMesh,
     *,
@@ -60,24 +82,11 @@ def laplacian_operator(
     >>> L[4].toarray().round(2).tolist()
     [[0.0, 0.25, 0.0, 0.25, -1.0, 0.25, 0.0, 0.25, 0.0]]
     """
-    if weights not in ("uniform", "inverse_length"):
-        raise InputError(f"weights: expected 'uniform' or 'inverse_length', got {weights!r}")
-    n = mesh.n_vertices
-    e = mesh.topology.edges
-    i = np.concatenate([e[:, 0], e[:, 1]])
-    j = np.concatenate([e[:, 1], e[:, 0]])
-    if weights == "uniform":
-        c = np.ones(i.size)
-    else:
-        x = mesh.vertices if vertices is None else vertices
-        c = np.tile(1.0 / np.linalg.norm(x[e[:, 1]] - x[e[:, 0]], axis=1), 2)
+    W = _weights(mesh, weights, vertices, fixed)
+    moving = np.diff(W.indptr) > 0
     if fixed is not None:
-        c = np.where(fixed[i], 0.0, c)
-    total = np.bincount(i, weights=c, minlength=n)
-    scale = np.divide(1.0, total, out=np.zeros(n), where=total > 0)
-    W = sp.csr_matrix((c * scale[i], (i, j)), shape=(n, n))
-    D = sp.diags(np.where(total > 0, -1.0, 0.0))
-    return (W + D).tocsr()
+        moving &= ~fixed
+    return (W - sp.diags(moving.astype(np.float64))).tocsr()
 
 
 def taubin_lambda(k_pb: float) -> float:
@@ -126,10 +135,17 @@ def fixed_mask(mesh: QuadMesh, fix: Fix | ArrayLike) -> np.ndarray:
 def _smooth(mesh: QuadMesh, factors: list[float], weights: Weights, fix: Fix | ArrayLike) -> QuadMesh:
     fixed = fixed_mask(mesh, fix)
     x = mesh.vertices.copy()
-    L = laplacian_operator(mesh, weights=weights, fixed=fixed) if weights == "uniform" else None
+    W = _weights(mesh, weights, None, fixed) if weights == "uniform" else None
+    # x' = x + f (W x − x) on moving vertices; fixed ones (empty rows) keep their place
+    moving = (np.diff(mesh.topology.ring[0]) > 0) & ~fixed
+    mask = moving.astype(np.float64)[:, None]
     for f in factors:
-        op = L if L is not None else laplacian_operator(mesh, weights=weights, vertices=x, fixed=fixed)
-        x = x + f * (op @ x)
+        op = W if W is not None else _weights(mesh, weights, x, fixed)
+        step = op @ x
+        step -= x
+        step *= mask
+        step *= f
+        x += step
     return mesh.with_vertices(x)
 
 

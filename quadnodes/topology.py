@@ -144,6 +144,21 @@ class Topology:
         return self._edge_data[1]
 
     @cached_property
+    def ring(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The edge 1-ring as CSR arrays: ``indptr``, ``indices`` and the edge id of each entry.
+
+        Row ``i`` lists the neighbours of vertex ``i`` along mesh edges (no quad
+        diagonals), sorted; each undirected edge appears twice.
+        """
+        e = self.edges
+        E = len(e)
+        i = np.concatenate([e[:, 0], e[:, 1]])
+        j = np.concatenate([e[:, 1], e[:, 0]])
+        ids = np.concatenate([np.arange(1, E + 1), np.arange(1, E + 1)])
+        a = sp.csr_matrix((ids, (i, j)), shape=(self.n_vertices, self.n_vertices))
+        return a.indptr, a.indices, a.data - 1
+
+    @cached_property
     def edge_face_count(self) -> np.ndarray:
         """Number of faces (1 or 2) holding each edge, ``(E,)``."""
         return np.bincount(self.he_edge, minlength=len(self.edges))
@@ -421,7 +436,6 @@ def corner_vertices(mesh: QuadMesh) -> np.ndarray:
 
 def adjacency(mesh: QuadMesh) -> sp.csr_matrix:
     """Symmetric vertex adjacency along mesh edges (no quad diagonals), ``(n, n)``."""
-    e = mesh.topology.edges
+    indptr, indices, _ = mesh.topology.ring
     n = mesh.n_vertices
-    a = sp.coo_matrix((np.ones(2 * len(e)), (e.reshape(-1), e[:, ::-1].reshape(-1))), shape=(n, n))
-    return a.tocsr()
+    return sp.csr_matrix((np.ones(indices.size), indices, indptr), shape=(n, n))
