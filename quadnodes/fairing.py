@@ -240,6 +240,7 @@ class FairingSystem:
         # fixed vertices' contribution to every active row
         b = np.einsum("wk,wkj->wj", np.where(is_free, 0.0, coef), vertices[win])
         self.weight = weight
+        self.active = active
         self.A = A
         self.At = A.T.tocsr()
         self.b = b
@@ -318,6 +319,15 @@ class FairingSystem:
         self.iterations = 0
         self.residual = float(np.linalg.norm(r) / max(np.linalg.norm(rhs), 1e-300))
         return x
+
+    def energy_after(self, x: np.ndarray, energy_before: float, window_deviation: np.ndarray) -> float:
+        """Whole-mesh linearized energy at free positions ``x``, lengths frozen as built.
+
+        Only the active windows (those with a free vertex) change; the others keep
+        their ``window_deviation`` (the energy at the build positions).
+        """
+        r = self.A @ x + self.b
+        return float(energy_before - window_deviation[self.active].sum() + np.einsum("ij,ij->", r, r))
 
     def objective(self, x: np.ndarray, anchor: np.ndarray) -> float:
         """Value of ``||A x + b||² + ω ||x − anchor||²`` for free positions ``x``."""
@@ -462,7 +472,7 @@ def fair(
         current = mesh if x is x0 else mesh.with_vertices(x)
         zz = detect(current, float(thresholds[it]), fixed=user, fix_boundary=fix_boundary)
         dev_before = float(zz.window_deviation.sum())
-        e_before = fairing_energy(x, w)
+        e_before = dev_before  # lengths frozen at x: each window's term is its eq. 30 deviation
         if zz.n_free == 0:
             reports.append(
                 IterationReport(it, float(thresholds[it]), float(weights[it]), float(weights[it] * scale),
@@ -485,7 +495,7 @@ def fair(
                 weight_effective=w_eff,
                 n_free=system.n_free,
                 energy_before=e_before,
-                energy_after=fairing_energy(x_new, w, lengths_from=x),
+                energy_after=system.energy_after(new_free, e_before, zz.window_deviation),
                 deviation_before=dev_before,
                 deviation_after=float(window_deviation(x_new, w).sum()),
                 max_displacement=float(disp.max()),

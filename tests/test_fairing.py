@@ -196,3 +196,13 @@ def test_solver_choice_and_report():
     assert rep.iterations[0].solver == "direct"
     with pytest.raises(InputError, match="solver"):
         fair(m, solver="magic")
+
+
+@given(meshes())
+def test_reported_energies_equal_direct_evaluation(mesh):
+    out, rep = fair(mesh, iterations=1, deviation=0.0)
+    r = rep.iterations[0]
+    w = mesh.topology.windows
+    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w), rel=1e-9, abs=1e-12)
+    assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices),
+                                           rel=1e-8, abs=1e-10)
