@@ -9,7 +9,6 @@ Lengths are in the model's unit (millimetres for the built-in surfaces).
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any, Literal
 
@@ -289,4 +288,3 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
 
 
 __all__: list[str] = []  # import for the side effect of registering the nodes
-_ = os  # keep the import for type references in docstrings
