@@ -6,7 +6,7 @@ Functions return clean arrays (copies, never views of the caller's data) or rais
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np

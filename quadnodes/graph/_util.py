@@ -1,16 +1,13 @@
-"""Small helpers shared by the graph modules: error messages, atomic writes."""
+"""Small helpers shared by the graph modules: error messages (atomic writes live in quadnodes.io._atomic)."""
 
 from __future__ import annotations
 
 import difflib
-import os
-import tempfile
-from collections.abc import Callable, Iterable
-from pathlib import Path
+from collections.abc import Iterable
 
 from ..errors import GraphError
 
-__all__ = ["label", "graph_error", "did_you_mean", "write_atomic"]
+__all__ = ["label", "graph_error", "did_you_mean"]
 
 
 def label(node_id: str, op: str | None = None) -> str:

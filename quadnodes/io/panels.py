@@ -12,7 +12,6 @@ import numpy as np
 from .. import _validate
 from ..mesh import QuadMesh
 from ..planarity import diagonal_distance
-from .. import _validate
 
 __all__ = [
     "DEFAULT_PLANAR_TOL",

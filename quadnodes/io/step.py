@@ -66,8 +66,6 @@ from ..progress import report_progress
 from ..errors import ExportError, InputError
 from ..mesh import QuadMesh
 from ..planarity import diagonal_distance
-from .. import _validate
-from ..progress import report_progress
 from ._atomic import write_atomic
 from .panels import DEFAULT_PLANAR_TOL, panel_labels
 
