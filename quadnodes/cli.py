@@ -1,4 +1,4 @@
-"""The ``quadnodes`` command line: run, watch, check, nodes, new.
+"""The ``quadnodes`` command line: run, watch, check, nodes, new, compare.
 
 Examples
 --------
@@ -7,6 +7,7 @@ Examples
     quadnodes run examples/e3_wavy.toml --out out/e3 --set fair.iterations=5
     quadnodes watch examples/e3_wavy.toml
     quadnodes nodes fair
+    quadnodes compare --out out/thesis-comparison --examples E1 E3
 """
 
 from __future__ import annotations
@@ -221,6 +222,27 @@ def cmd_new(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    from .report import thesis_comparison
+
+    out = Path(args.out)
+    if args.spread_seeds < 0:
+        print(f"error: --spread-seeds: must be >= 0, got {args.spread_seeds}", file=sys.stderr)
+        return 1
+    extra = [s for s in range(1, args.spread_seeds + 2) if s != args.seed][: args.spread_seeds]
+    print(f"thesis comparison ({' '.join(args.examples)}; seed {args.seed}"
+          f"{', spread over seeds ' + ' '.join(map(str, extra)) if extra else ''}) -> {out}/", flush=True)
+    res = thesis_comparison(out, examples=args.examples, seed=args.seed, spread_seeds=extra,
+                            interior_noise=not args.no_interior_noise, size_px=args.size,
+                            variants_figure=not args.no_variants, log=lambda m: print(f"  {m}", flush=True))
+    print(f"done in {res.seconds:.1f} s", flush=True)
+    files = [*res.figures.values(), *res.variant_figures.values(), res.markdown, res.csv, res.seeds_csv]
+    for p in files:
+        if p is not None:
+            print(f"  wrote {os.path.relpath(p)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="quadnodes", description="Fair, buildable quad-panel surfaces.")
     ap.add_argument("--version", action="version", version=f"quadnodes {__version__}")
@@ -253,6 +275,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("name")
     p.add_argument("--force", action="store_true")
     p.set_defaults(func=cmd_new)
+    p = sub.add_parser("compare", help="Laplacian vs Taubin vs the new method on the thesis's examples: "
+                                       "figures and metrics tables")
+    p.add_argument("--out", default=str(Path("out") / "thesis-comparison"),
+                   help="folder for the figures and tables (default out/thesis-comparison/)")
+    p.add_argument("--examples", nargs="+", default=["E1", "E2", "E3", "E4"], metavar="NAME",
+                   help="examples to run (default: E1 E2 E3 E4)")
+    p.add_argument("--seed", type=int, default=7, help="seed of the zigzag noise for figures and tables (default 7)")
+    p.add_argument("--spread-seeds", type=int, default=5, metavar="N",
+                   help="also run N other seeds (1, 2, ...) and tabulate the range of the key numbers (default 5)")
+    p.add_argument("--size", type=int, default=1200, help="figure width in pixels (default 1200)")
+    p.add_argument("--no-variants", action="store_true",
+                   help="skip the second figure per example (boundary-fixed baselines, default weight)")
+    p.add_argument("--no-interior-noise", action="store_true",
+                   help="skip the runs with noise on interior vertices only (clean boundary)")
+    p.set_defaults(func=cmd_compare)
     return ap
 
 

@@ -276,15 +276,22 @@ def export_report(data: Any, data2: Any = None, data3: Any = None, data4: Any = 
 
 @node("render_png", outputs=("path",), writes=("path",))
 def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | None = None,
-               mesh4: QuadMesh | None = None, *, path: str, titles: list[str] | None = None,
-               elev: float = 35.0, azim: float = -60.0, size_px: int = 1200) -> Path:
-    """Up to four meshes side by side, structure lines coloured by zigzag deviation."""
+               mesh4: QuadMesh | None = None, reference: QuadMesh | None = None,
+               zigzag: ZigzagReport | None = None, *, path: str, titles: list[str] | None = None,
+               notes: list[str] | None = None, planarity: bool = False, elev: float = 35.0,
+               azim: float = -60.0, ncols: int | None = None, vmin: float = 1e-4, vmax: float = 1.0,
+               size_px: int = 1200) -> Path:
+    """Up to four meshes side by side: shaded, structure lines coloured by zigzag deviation (one log
+    scale); optional faint clean ``reference``, freed/fixed markers from a ``zigzag`` report (on every
+    panel), faces coloured by planarity."""
     from . import viz
 
     meshes = [m for m in (mesh, mesh2, mesh3, mesh4) if m is not None]
     if titles is not None and len(titles) != len(meshes):
         raise InputError(f"titles: {len(titles)} titles for {len(meshes)} connected meshes")
-    return viz.render_png(meshes, path, titles=titles, elev=elev, azim=azim, size_px=size_px)
+    return viz.render_png(meshes, path, titles=titles, notes=notes, free=zigzag, reference=reference,
+                          planarity=planarity, elev=elev, azim=azim, ncols=ncols, vmin=vmin, vmax=vmax,
+                          size_px=size_px)
 
 
 __all__: list[str] = []  # import for the side effect of registering the nodes

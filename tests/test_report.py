@@ -1,0 +1,130 @@
+"""The thesis comparison report: files, columns, parameters, measures, errors and the CLI."""
+
+import csv
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+import quadnodes as qn
+from quadnodes import report
+from quadnodes.cli import main
+from quadnodes.errors import InputError
+from quadnodes.mesh import grid
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def e1(tmp_path_factory):
+    out = tmp_path_factory.mktemp("compare")
+    return report.thesis_comparison(out, examples=["e1"], spread_seeds=(1,), size_px=500,
+                                    variants_figure=True)
+
+
+def test_writes_figures_and_tables_with_all_columns(e1):
+    fig = e1.figures["E1"]
+    assert fig.name == "E1.png" and e1.variant_figures["E1"].name == "E1_variants.png"
+    for p in (fig, e1.variant_figures["E1"]):
+        px = imread(p)[..., :3]
+        assert px.shape[1] == 500 and px.std() > 0.05
+    md = e1.markdown.read_text()
+    assert "## E1: saddle 10×10" in md and "![E1](E1.png)" in md
+    for _, header, _ in report.COLUMNS:
+        assert f"| {header} " in md
+    assert "Range (min – max) over seeds 1:" in md
+    assert "noise on interior vertices only" in md
+    rows = list(csv.DictReader(e1.csv.read_text().splitlines()))
+    keys = ["example", "seed", "noise_fix", "method", "label", "edge_length_mm"] + [c[0] for c in report.COLUMNS]
+    assert list(rows[0]) == keys
+    assert [r["method"] for r in rows] == list(report.METHODS) * 2
+    assert {r["noise_fix"] for r in rows} == {"corners", "boundary"}
+    for r in rows:
+        for k in keys[5:]:
+            assert np.isfinite(float(r[k])), (r["method"], k)
+    seeds = list(csv.DictReader(e1.seeds_csv.read_text().splitlines()))
+    assert {r["seed"] for r in seeds} == {"1"} and len(seeds) == len(report.METHODS)
+
+
+def test_numbers_make_sense(e1):
+    rows = {r["method"]: r for r in e1.results[0].rows}
+    orig = rows["original"]
+    assert orig["displacement_max_h"] == 0.0 and orig["zigzag_max"] > 0.5
+    for key in ("laplacian", "taubin", "new", "new_default_weight"):
+        assert rows[key]["zigzag_max"] < 0.1, key  # every method removes the zigzag above 0.1
+    for key in ("laplacian_fixed_boundary", "taubin_fixed_boundary", "new_fixed_boundary"):
+        assert rows[key]["boundary_displacement_max_h"] == 0.0, key
+    assert rows["laplacian"]["bbox_change_pct"] < 0  # Laplacian shrinks
+    assert rows["new_default_weight"]["vertex_distance_mean_h"] < rows["laplacian"]["vertex_distance_mean_h"]
+    res = e1.results[0]
+    assert res.free["original"].sum() == orig["vertices_above_0.1"]
+    assert not res.free["new"][res.fixed["new"]].any()
+
+
+def test_parameters_match_the_example_graphs():
+    spec = importlib.util.spec_from_file_location("make_thesis_graphs", ROOT / "examples" / "make_thesis_graphs.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert len(mod.EXAMPLES) == len(report.THESIS_EXAMPLES)
+    for name, _stem, laplace, taubin, fair, noise in mod.EXAMPLES:
+        ex = report.THESIS_EXAMPLES[name]
+        assert (ex.laplace, ex.taubin, dict(ex.fair), ex.noise) == (laplace, taubin, fair, noise)
+        assert qn.surfaces.EXAMPLES[name] == (ex.surface, ex.rows, ex.cols)
+
+
+def test_measure_identity_and_boundary_directions():
+    m = grid(6, 7)
+    row = report.measure(m, m, m, m)
+    for k, _, _ in report.COLUMNS:
+        assert row[k] == 0.0, k
+    c = m.vertices.mean(axis=0)
+    bigger = m.with_vertices(c + 1.1 * (m.vertices - c))
+    row = report.measure(m, bigger, m, m)
+    assert row["boundary_outward_max_h"] > 0.2 and row["boundary_inward_max_h"] == 0.0
+    assert row["bbox_change_pct"] == pytest.approx(10.0)
+    smaller = m.with_vertices(c + 0.9 * (m.vertices - c))
+    row = report.measure(m, smaller, m, m)
+    assert row["boundary_inward_max_h"] > 0.2 and row["boundary_outward_max_h"] == 0.0
+    lifted = m.with_vertices(m.vertices + [0.0, 0.0, 0.5])
+    assert report.measure(m, lifted, m, m)["normal_offset_mean_h"] == pytest.approx(0.5)
+    with pytest.raises(InputError, match="result: must have the same faces"):
+        report.measure(m, grid(3, 3), m, m)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(examples=["E5"]), "examples: unknown example 'E5'"),
+        (dict(examples=[]), "examples: expected a non-empty list"),
+        (dict(examples="E1"), "examples: expected a non-empty list"),
+        (dict(examples=["E1", "e1"]), "examples: listed twice"),
+        (dict(seed=1.5), "seed: expected an integer"),
+        (dict(spread_seeds=[1, "2"]), r"spread_seeds\[1\]: expected an integer"),
+        (dict(size_px=10), "size_px: must be >= 200"),
+    ],
+)
+def test_errors_name_the_parameter(tmp_path, kwargs, match):
+    with pytest.raises(InputError, match=match):
+        report.thesis_comparison(tmp_path / "out", **kwargs)
+    assert not (tmp_path / "out").exists()
+
+
+def test_run_example_errors():
+    with pytest.raises(InputError, match="noise_fix"):
+        report.run_example("E1", noise_fix="all")
+    with pytest.raises(InputError, match="examples: unknown example 'X'"):
+        report.run_example("X")
+
+
+def test_cli_compare(tmp_path, capsys):
+    out = tmp_path / "cmp"
+    rc = main(["compare", "--out", str(out), "--examples", "E1", "--spread-seeds", "0", "--no-variants",
+               "--no-interior-noise", "--size", "400"])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "E1" in text and "wrote" in text
+    assert sorted(p.name for p in out.iterdir()) == ["E1.png", "comparison.csv", "comparison.md"]
+    assert main(["compare", "--out", str(tmp_path / "bad"), "--examples", "E7"]) == 1
+    assert "unknown example 'E7'" in capsys.readouterr().err
