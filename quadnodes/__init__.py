@@ -55,7 +55,7 @@ __all__ = [
     "ExportError",
 ]
 
-_LAZY = {"surfaces", "io", "viz"}
+_LAZY = {"surfaces", "io", "viz", "html", "report"}
 
 
 def __getattr__(name: str) -> Any:

@@ -358,6 +358,17 @@ def quad_mesh(mesh: Any, name: str = "mesh") -> Any:
     return mesh
 
 
+def quad_meshes(meshes: Any, name: str = "meshes") -> list[Any]:
+    """A QuadMesh or a non-empty sequence of them as a list, else raise :class:`InputError`."""
+    if isinstance(meshes, _QuadMesh()):
+        return [meshes]
+    if isinstance(meshes, (str, bytes)) or not isinstance(meshes, Sequence):
+        raise InputError(f"{name}: expected a QuadMesh or a sequence of them, got {type(meshes).__name__}")
+    if len(meshes) == 0:
+        raise InputError(f"{name}: got an empty sequence, nothing to show")
+    return [quad_mesh(m, f"{name}[{i}]") for i, m in enumerate(meshes)]
+
+
 def choice(value: Any, options: Iterable[str], name: str) -> str:
     """Return ``value`` lower-cased if it is one of ``options``, else raise :class:`InputError`."""
     opts = tuple(options)

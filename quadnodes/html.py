@@ -3,7 +3,7 @@
 :func:`render_html` writes a page that shows one mesh at a time: its panels
 shaded, its structure lines coloured edge by edge by zigzag deviation (thesis
 eq. 30, on a logarithmic colour scale shared by all meshes, the same colouring
-as the PNG views: see :func:`quadnodes._edges.edge_deviation`) and its vertices
+as the PNG views: see :func:`quadnodes._view.edge_deviation`) and its vertices
 as small dots. Buttons switch between the meshes — e.g. the noisy input and the
 faired result — in the same camera and the same axes, so the difference shows
 as a jump. Hovering a vertex shows its id, zigzag deviation and the worst
@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import _validate
-from ._edges import edge_deviation, face_deviation
+from ._view import camera, edge_deviation, face_deviation, face_normals, light
 from .errors import InputError
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
@@ -67,16 +67,6 @@ _VIEW = (2.3, 1.6)  # width and height of the initial picture of the box, in plo
 # ----------------------------------------------------------------------------
 # option checking
 # ----------------------------------------------------------------------------
-
-
-def _meshes(meshes: Any) -> list[QuadMesh]:
-    if isinstance(meshes, QuadMesh):
-        return [meshes]
-    if isinstance(meshes, (str, bytes)) or not isinstance(meshes, Sequence):
-        raise InputError(f"meshes: expected a QuadMesh or a sequence of them, got {type(meshes).__name__}")
-    if len(meshes) == 0:
-        raise InputError("meshes: got an empty sequence, nothing to show")
-    return [_validate.quad_mesh(m, f"meshes[{i}]") for i, m in enumerate(meshes)]
 
 
 def _titles(titles: Any, k: int) -> list[str]:
@@ -208,30 +198,13 @@ def _colorbar(vmin: float, vmax: float) -> dict[str, Any]:
     }
 
 
-def _camera(elev: float, azim: float) -> np.ndarray:
-    """Rows: screen right, screen up, towards the viewer (as in :mod:`quadnodes.viz`)."""
-    el, az = np.radians(elev), np.radians(azim)
-    eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-    right = np.array([-np.sin(az), np.cos(az), 0.0])
-    return np.stack([right, np.cross(eye, right), eye])
-
-
-def _light(cam: np.ndarray) -> np.ndarray:
-    """Light from the upper left, behind the viewer of the initial camera."""
-    light = 0.75 * cam[2] + 0.45 * cam[1] - 0.35 * cam[0]
-    return light / np.linalg.norm(light)
-
-
 def _shade(mesh: QuadMesh, light: np.ndarray) -> np.ndarray:
     """Two-sided Lambert intensity of every panel in ``[_SHADE_MIN, 1]``, baked into the colours.
 
     plotly lights one side of a surface only; baking keeps both sides of a
     cylinder or a dome equally readable (the shading turns with the mesh).
     """
-    p = mesh.vertices[mesh.faces]
-    n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
-    length = np.linalg.norm(n, axis=1)
-    cos = np.abs(n @ light) / np.where(length > 0, length, 1.0)
+    cos = np.abs(face_normals(mesh) @ light)
     return _SHADE_MIN + (1.0 - _SHADE_MIN) * cos
 
 
@@ -359,7 +332,7 @@ def _scene(points: np.ndarray, elev: float, azim: float) -> dict[str, Any]:
     pad = 0.04 * longest
     ranges = [[float(c - 0.5 * b - pad), float(c + 0.5 * b + pad)] for c, b in zip(mid, box)]
     ratio = (box + 2 * pad) / float((box + 2 * pad).max())
-    cam = _camera(elev, azim)
+    cam = camera(elev, azim)
     # an orthographic plotly camera zooms with the aspect ratio, not the eye distance: scale the box so
     # that its picture fills about the same part of the page whatever its shape
     corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)]) * ratio
@@ -459,7 +432,7 @@ def figure(
     """
     import plotly.graph_objects as go
 
-    ms = _meshes(meshes)
+    ms = _validate.quad_meshes(meshes)
     k = len(ms)
     names = _titles(titles, k)
     if reference is not None:
@@ -479,9 +452,9 @@ def figure(
         raise InputError(f"show_vertices: expected True or False, got {show_vertices!r}")
 
     data = [_MeshData(m) for m in ms]
-    cam = _camera(elev_, azim_)
-    light = _light(cam)
-    groups = [_mesh_traces(d, t, vmin_, vmax_, bool(show_vertices), width, light, cam[2])
+    cam = camera(elev_, azim_)
+    light_dir = light(cam)
+    groups = [_mesh_traces(d, t, vmin_, vmax_, bool(show_vertices), width, light_dir, cam[2])
               for d, t in zip(data, names)]
     ref_traces = _reference_traces(reference) if reference is not None else []
     fig = go.Figure()

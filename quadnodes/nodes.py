@@ -294,4 +294,21 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
                           size_px=size_px)
 
 
+@node("render_html", outputs=("path",), writes=("path",))
+def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | None = None,
+                mesh4: QuadMesh | None = None, reference: QuadMesh | None = None, *, path: str,
+                titles: list[str] | None = None, elev: float = 35.0, azim: float = -60.0,
+                vmin: float = 1e-4, vmax: float = 1.0) -> Path:
+    """Up to four meshes in one self-contained interactive HTML page (works offline), buttons switching
+    between them; structure lines coloured by zigzag deviation; hover shows vertex and panel ids,
+    deviation and planarity; an optional clean reference is shown as grey edges."""
+    from . import html
+
+    meshes = [m for m in (mesh, mesh2, mesh3, mesh4) if m is not None]
+    if titles is not None and len(titles) != len(meshes):
+        raise InputError(f"titles: {len(titles)} titles for {len(meshes)} connected meshes")
+    return html.render_html(meshes, path, titles=titles, reference=reference, elev=elev, azim=azim,
+                            vmin=vmin, vmax=vmax)
+
+
 __all__: list[str] = []  # import for the side effect of registering the nodes

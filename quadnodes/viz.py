@@ -29,7 +29,8 @@ from . import _validate
 from .errors import InputError
 from .io._atomic import write_atomic
 from .mesh import QuadMesh
-from .zigzag import ZigzagReport, window_deviation
+from ._view import camera, edge_deviation, face_normals, light
+from .zigzag import ZigzagReport
 
 __all__ = ["render_png", "edge_deviation"]
 
@@ -39,67 +40,9 @@ _REF_RGBA = (0.30, 0.30, 0.30, 0.30)
 _REF_BOUNDARY_RGBA = (0.12, 0.12, 0.12, 0.85)
 
 
-def edge_deviation(mesh: QuadMesh) -> np.ndarray:
-    """Zigzag deviation of every edge, for colouring structure lines.
-
-    An edge gets the largest deviation (eq. 30) of the windows whose middle
-    edge it is; the first and last edge of an open line are the middle of no
-    window and get the largest deviation of the windows they belong to. Edges
-    in no window at all (lines of fewer than four vertices) get 0.
-
-    Parameters
-    ----------
-    mesh : QuadMesh
-
-    Returns
-    -------
-    (E,) float64
-        In the order of ``mesh.topology.edges``.
-
-    Examples
-    --------
-    >>> from quadnodes.mesh import grid
-    >>> z = np.zeros((3, 6)); z[1, 3] = 0.5
-    >>> d = edge_deviation(grid(3, 6, height=z))
-    >>> d.shape, bool(d.max() > 0.1), float(d.min())
-    ((27,), True, 0.0)
-    """
-    _validate.quad_mesh(mesh)
-    topo = mesh.topology
-    e, w = topo.edges, topo.windows
-    out = np.zeros(len(e))
-    if len(w) == 0:
-        return out
-    n = mesh.n_vertices
-    ekey = e[:, 0] * n + e[:, 1]
-
-    def ids(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.searchsorted(ekey, np.minimum(a, b) * n + np.maximum(a, b))
-
-    wd = window_deviation(mesh.vertices, w)
-    mid = ids(w[:, 1], w[:, 2])
-    np.maximum.at(out, mid, wd)
-    side = np.zeros(len(e))
-    np.maximum.at(side, ids(w[:, 0], w[:, 1]), wd)
-    np.maximum.at(side, ids(w[:, 2], w[:, 3]), wd)
-    has_mid = np.zeros(len(e), dtype=bool)
-    has_mid[mid] = True
-    return np.where(has_mid, out, side)
-
-
 # ----------------------------------------------------------------------------
 # option checking (per-panel values)
 # ----------------------------------------------------------------------------
-
-
-def _meshes(meshes: Any) -> list[QuadMesh]:
-    if isinstance(meshes, QuadMesh):
-        return [meshes]
-    if isinstance(meshes, (str, bytes)) or not isinstance(meshes, Sequence):
-        raise InputError(f"meshes: expected a QuadMesh or a sequence of them, got {type(meshes).__name__}")
-    if len(meshes) == 0:
-        raise InputError("meshes: got an empty sequence, nothing to draw")
-    return [_validate.quad_mesh(m, f"meshes[{i}]") for i, m in enumerate(meshes)]
 
 
 def _per_panel(value: Any, k: int, name: str, single: tuple[type, ...]) -> list[Any]:
@@ -148,21 +91,6 @@ def _masks(value: Any, meshes: list[QuadMesh], name: str) -> list[np.ndarray | N
 # ----------------------------------------------------------------------------
 
 
-def _camera(elev: float, azim: float) -> np.ndarray:
-    """Rows: screen right, screen up, towards the viewer (a right-handed frame)."""
-    el, az = np.radians(elev), np.radians(azim)
-    eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-    right = np.array([-np.sin(az), np.cos(az), 0.0])
-    return np.stack([right, np.cross(eye, right), eye])
-
-
-def _face_normals(mesh: QuadMesh) -> np.ndarray:
-    p = mesh.vertices[mesh.faces]
-    n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
-
-
 class _Items:
     """Polygons (faces) and segments (lines) collected for one back-to-front draw."""
 
@@ -195,9 +123,7 @@ class _Items:
 
 def _shade(mesh: QuadMesh, cam: np.ndarray) -> np.ndarray:
     """Lambert intensity per face (two-sided), light from upper left behind the viewer."""
-    light = 0.75 * cam[2] + 0.45 * cam[1] - 0.35 * cam[0]
-    light /= np.linalg.norm(light)
-    return 0.50 + 0.50 * np.abs(_face_normals(mesh) @ light)
+    return 0.50 + 0.50 * np.abs(face_normals(mesh) @ light(cam))
 
 
 def _boundary_segments(mesh: QuadMesh) -> np.ndarray:
@@ -299,7 +225,7 @@ def render_png(
     >>> p.stat().st_size > 5000
     True
     """
-    ms = _meshes(meshes)
+    ms = _validate.quad_meshes(meshes)
     k = len(ms)
     titles_ = _texts(titles, k, "titles")
     notes_ = _texts(notes, k, "notes")
@@ -340,7 +266,7 @@ def render_png(
     from matplotlib.colors import LogNorm
     from matplotlib.lines import Line2D
 
-    cam = _camera(elev_, azim_)
+    cam = camera(elev_, azim_)
     # shared limits: everything drawn in any panel
     pts = [m.vertices @ cam[:2].T for m in ms] + [r.vertices @ cam[:2].T for r in refs if r is not None]
     allp = np.vstack(pts)

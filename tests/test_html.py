@@ -13,9 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import quadnodes.nodes  # noqa: F401  (grid, perturb, fair nodes)
-import quadnodes.nodes_html  # noqa: F401  (render_html node)
-from quadnodes._edges import edge_deviation, face_deviation
+import quadnodes.nodes  # noqa: F401  (grid, perturb, fair, render_html nodes)
+from quadnodes._view import edge_deviation, face_deviation
 from quadnodes.errors import ExportError, InputError, NodeError
 from quadnodes.fairing import fair
 from quadnodes.graph import Graph

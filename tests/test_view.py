@@ -1,11 +1,11 @@
-"""quadnodes._edges: per-edge and per-panel zigzag values against plain loops."""
+"""quadnodes._view: per-edge and per-panel zigzag values against plain loops, the shared camera."""
 
 import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
 from meshes import extraordinary_mesh, l_shape_with_hole
-from quadnodes._edges import edge_deviation, edge_ids, face_deviation, face_edges
+from quadnodes._view import edge_deviation, edge_ids, face_deviation, face_edges
 from quadnodes.errors import InputError
 from quadnodes.mesh import cylinder, grid
 from quadnodes.perturb import perturb

@@ -1,9 +1,11 @@
-"""Per-edge and per-panel zigzag values shared by the views (PNG and HTML).
+"""What the two views (PNG in :mod:`quadnodes.viz`, HTML in :mod:`quadnodes.html`) share.
 
 Structure lines are drawn edge by edge, so the views need one deviation per
 undirected edge (in the order of ``mesh.topology.edges``) and, for hover texts
 and panel colours, one per quad. Both come from the window deviations of
-:func:`quadnodes.zigzag.window_deviation` in a few vectorized passes.
+:func:`quadnodes.zigzag.window_deviation` in a few vectorized passes. Both
+views also use the same camera frame and the same light, so a PNG and the
+initial HTML view of one mesh show it alike.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from .errors import InputError
 from .mesh import QuadMesh
 from .zigzag import window_deviation
 
-__all__ = ["edge_ids", "edge_deviation", "face_edges", "face_deviation"]
+__all__ = ["edge_ids", "edge_deviation", "face_edges", "face_deviation", "camera", "light", "face_normals"]
 
 
 def edge_ids(mesh: QuadMesh, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -139,3 +141,36 @@ def face_deviation(mesh: QuadMesh, *, edge_dev: np.ndarray | None = None) -> np.
     """
     d = edge_deviation(mesh) if edge_dev is None else np.asarray(edge_dev, dtype=np.float64)
     return d[face_edges(mesh)].max(axis=1)
+
+
+def camera(elev: float, azim: float) -> np.ndarray:
+    """Orthographic camera frame for an elevation and azimuth in degrees.
+
+    Returns
+    -------
+    (3, 3) float64
+        Rows: screen right, screen up, towards the viewer (a right-handed frame).
+
+    Examples
+    --------
+    >>> np.round(camera(90.0, -90.0), 6).tolist()
+    [[1.0, 0.0, 0.0], [-0.0, 1.0, 0.0], [0.0, -0.0, 1.0]]
+    """
+    el, az = np.radians(elev), np.radians(azim)
+    eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    right = np.array([-np.sin(az), np.cos(az), 0.0])
+    return np.stack([right, np.cross(eye, right), eye])
+
+
+def light(cam: np.ndarray) -> np.ndarray:
+    """Unit direction towards the light: upper left, behind the viewer of ``cam``."""
+    d = 0.75 * cam[2] + 0.45 * cam[1] - 0.35 * cam[0]
+    return d / np.linalg.norm(d)
+
+
+def face_normals(mesh: QuadMesh) -> np.ndarray:
+    """Unit normal of every quad (cross product of its diagonals), zero for degenerate quads, ``(m, 3)``."""
+    p = mesh.vertices[mesh.faces]
+    n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
