@@ -17,8 +17,10 @@ length of the input, so the result does not depend on the unit of the model.
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Literal
 
@@ -26,6 +28,11 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 from scipy.sparse.linalg import splu
+
+try:  # SciPy's own CSR kernel (Y += A X on a row range); it releases the GIL
+    from scipy.sparse._sparsetools import csr_matvecs as _csr_matvecs
+except ImportError:  # pragma: no cover - a SciPy that moved it: fall back to row blocks
+    _csr_matvecs = None
 
 from . import _validate
 from .errors import InputError
@@ -48,6 +55,10 @@ __all__ = [
 DIRECT_LIMIT = 2000
 #: Cap on conjugate-gradient steps before falling back to the direct solver.
 MAX_CG_ITERATIONS = 20000
+#: Threads for the conjugate-gradient products and updates (capped by the cores available).
+MAX_THREADS = 4
+#: Rows per thread below which a system is solved on one thread.
+PARALLEL_MIN_ROWS = 25000
 
 #: Default dimensionless penalty weight (in units of the mean edge length).
 #: Chosen from ``benchmarks/weight_sweep.py``; see ``docs/fairing.md``.
@@ -122,8 +133,68 @@ def fairing_energy(
     return float(np.einsum("ij,ij->", f, f))
 
 
+def _thread_count() -> int:
+    """Cores this process may use (at most :data:`MAX_THREADS`)."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        n = os.cpu_count() or 1
+    return max(1, min(n, MAX_THREADS))
+
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=MAX_THREADS - 1, thread_name_prefix="quadnodes")
+    return _POOL
+
+
+class _RowBlocks:
+    """A CSR matrix cut into row ranges of about equal work, one per thread.
+
+    ``run(fn)`` calls ``fn(lo, hi)`` for every range — on the calling thread
+    when there is one range, else in parallel (SciPy's sparse kernels and NumPy's
+    array loops release the GIL) — and returns the results in order.
+    ``matvec(X, Y, lo, hi)`` writes ``Y[lo:hi] = (M @ X)[lo:hi]`` for ``(n, c)`` arrays.
+    """
+
+    def __init__(self, M: sp.csr_matrix, *, threads: int | None = None) -> None:
+        M = M.tocsr()
+        rows = M.shape[0]
+        t = _thread_count() if threads is None else max(1, int(threads))
+        t = max(1, min(t, rows // PARALLEL_MIN_ROWS))
+        # equal nonzeros per range
+        cuts = np.searchsorted(M.indptr, np.arange(1, t) * (M.nnz / t))
+        self.ranges = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, rows].tolist()))
+        self.M = M
+        idx = np.result_type(M.indptr, M.indices)
+        self._indptr = M.indptr.astype(idx, copy=False)
+        self._indices = M.indices.astype(idx, copy=False)
+        self._blocks = None if _csr_matvecs is not None else [M[lo:hi] for lo, hi in self.ranges]
+
+    def run(self, fn: Callable[[int, int], object]) -> list:
+        if len(self.ranges) == 1:
+            return [fn(*self.ranges[0])]
+        futures = [_pool().submit(fn, lo, hi) for lo, hi in self.ranges[1:]]
+        first = fn(*self.ranges[0])
+        return [first] + [f.result() for f in futures]
+
+    def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
+        if self._blocks is not None:  # pragma: no cover - SciPy without the private kernel
+            Y[lo:hi] = self._blocks[self.ranges.index((lo, hi))] @ X
+            return
+        M = self.M
+        y = Y[lo:hi]
+        y.fill(0.0)  # the kernel accumulates
+        _csr_matvecs(hi - lo, M.shape[1], X.shape[1], self._indptr[lo : hi + 1], self._indices,
+                     M.data, X.reshape(-1), y.reshape(-1))
+
+
 def _block_cg(
-    apply: Callable[[np.ndarray], np.ndarray],
+    blocks: _RowBlocks,
     B: np.ndarray,
     X0: np.ndarray,
     *,
@@ -132,32 +203,59 @@ def _block_cg(
 ) -> tuple[np.ndarray, int, float]:
     """Conjugate gradients on the columns of ``B`` at once (one operator product per step).
 
-    Each column is an independent CG run; they share the operator products.
+    Each column is an independent CG run; they share the operator products, and
+    every vector update runs on the row ranges of ``blocks`` in parallel.
     Stops when every column's residual is at most ``rtol`` times its right-hand
     side. Returns the solution, the number of steps and the worst relative residual.
     """
     X = np.array(X0, dtype=np.float64, order="C")
-    R = B - apply(X)
-    bnorm = np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+    B = np.ascontiguousarray(B, dtype=np.float64)
+    R = np.empty_like(X)
+    P = np.empty_like(X)
+    Q = np.empty_like(X)
+    T = np.empty_like(X)
+    dot = "ij,ij->j"
+
+    def start(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+        r = R[lo:hi]
+        blocks.matvec(X, R, lo, hi)
+        np.subtract(B[lo:hi], r, out=r)
+        P[lo:hi] = r
+        return np.einsum(dot, r, r), np.einsum(dot, B[lo:hi], B[lo:hi])
+
+    parts = blocks.run(start)
+    rr = sum(p[0] for p in parts)
+    bnorm = np.maximum(np.sqrt(sum(p[1] for p in parts)), 1e-300)
     tol2 = (rtol * bnorm) ** 2
-    rr = np.einsum("ij,ij->j", R, R)
-    P = R.copy()
-    tmp = np.empty_like(X)
+    alpha = beta = rr
+
+    def product(lo: int, hi: int) -> np.ndarray:
+        blocks.matvec(P, Q, lo, hi)
+        return np.einsum(dot, P[lo:hi], Q[lo:hi])
+
+    def update(lo: int, hi: int) -> np.ndarray:
+        t, r = T[lo:hi], R[lo:hi]
+        np.multiply(P[lo:hi], alpha, out=t)
+        X[lo:hi] += t
+        np.multiply(Q[lo:hi], alpha, out=t)
+        r -= t
+        return np.einsum(dot, r, r)
+
+    def direction(lo: int, hi: int) -> None:
+        p = P[lo:hi]
+        p *= beta
+        p += R[lo:hi]
+
     it = 0
     while it < maxiter and (rr > tol2).any():
-        Q = apply(P)
-        pq = np.einsum("ij,ij->j", P, Q)
+        pq = sum(blocks.run(product))
         alpha = np.divide(rr, pq, out=np.zeros_like(rr), where=pq > 0)
-        np.multiply(P, alpha, out=tmp)
-        X += tmp
-        np.multiply(Q, alpha, out=tmp)
-        R -= tmp
-        rr_new = np.einsum("ij,ij->j", R, R)
+        rr_new = sum(blocks.run(update))
         beta = np.divide(rr_new, rr, out=np.zeros_like(rr), where=rr > 0)
-        P *= beta
-        P += R
         rr = rr_new
         it += 1
+        if it < maxiter and (rr > tol2).any():
+            blocks.run(direction)
     return X, it, float(np.max(np.sqrt(rr) / bnorm))
 
 
@@ -226,25 +324,36 @@ class FairingSystem:
             raise InputError("free: no vertex is free; nothing to solve")
         is_free = free[windows]
         active = is_free.any(axis=1)
-        win = windows[active]
-        is_free = is_free[active]
+        win = windows if active.all() else windows[active]
+        if win is not windows:
+            is_free = is_free[active]
         coef = window_coefficients(vertices, win)
-        col = np.full(n, -1, dtype=np.int64)
-        col[self.free_index] = np.arange(k)
+        idx = np.int32 if max(n, 4 * len(win)) < 2**31 - 1 else np.int64
+        col = np.full(n, -1, dtype=idx)
+        col[self.free_index] = np.arange(k, dtype=idx)
+        cols = col[win]
         # rows are the windows in order, so the CSR arrays come straight out of the
         # row-major masks: no COO sort (a row may hold one column twice on a 3-ring;
         # sparse products add such duplicates, as the sum of squares requires)
-        indptr = np.zeros(len(win) + 1, dtype=np.int64)
-        np.cumsum(is_free.sum(axis=1), out=indptr[1:])
-        A = sp.csr_matrix((coef[is_free], col[win][is_free], indptr), shape=(len(win), k))
-        # fixed vertices' contribution to every active row
-        b = np.einsum("wk,wkj->wj", np.where(is_free, 0.0, coef), vertices[win])
+        partial = np.flatnonzero(~is_free.all(axis=1))  # windows with a fixed vertex
+        if partial.size == 0:
+            indptr = np.arange(0, 4 * len(win) + 1, 4, dtype=idx)
+            A = sp.csr_matrix((coef.reshape(-1), cols.reshape(-1), indptr), shape=(len(win), k))
+        else:
+            indptr = np.zeros(len(win) + 1, dtype=idx)
+            np.cumsum(is_free.sum(axis=1), out=indptr[1:])
+            A = sp.csr_matrix((coef[is_free], cols[is_free], indptr), shape=(len(win), k))
+        # fixed vertices' contribution to every active row (zero where all four are free)
+        b = np.zeros((len(win), 3))
+        wp = win[partial]
+        b[partial] = np.einsum("wk,wkj->wj", np.where(is_free[partial], 0.0, coef[partial]),
+                               np.take(vertices, wp.reshape(-1), axis=0).reshape(wp.shape + (3,)))
         self.weight = weight
         self.active = active
         self.A = A
         self.At = A.T.tocsr()
         self.b = b
-        self._rhs = -(self.At @ b)
+        self._rhs = -(A[partial].T @ b[partial]) if partial.size else np.zeros((k, 3))
         if solver not in ("auto", "direct", "cg"):
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
         self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
@@ -258,10 +367,20 @@ class FairingSystem:
         """The normal matrix ``AᵀA + ω I`` (assembled on first use)."""
         if self._matrix is None:
             k = self.n_free
-            self._matrix = (self.At @ self.A + self.weight * sp.identity(k, format="csr")).tocsr()
+            M = (self.At @ self.A).tocsr()
+            # every free vertex is in a window, so AᵀA holds each diagonal entry once:
+            # add ω there in place instead of a sparse sum with ωI
+            row = np.repeat(np.arange(k, dtype=M.indices.dtype), np.diff(M.indptr))
+            diag = np.flatnonzero(M.indices == row)
+            if diag.size == k and np.array_equal(row[diag], np.arange(k)):
+                M.data[diag] += self.weight
+            else:  # pragma: no cover - defensive
+                M = (M + self.weight * sp.identity(k, format="csr")).tocsr()
+            self._matrix = M
         return self._matrix
 
     _matrix: sp.csr_matrix | None = None
+    _blocks: _RowBlocks | None = None
 
     def _apply(self, X: np.ndarray) -> np.ndarray:
         """``(AᵀA + ω I) X`` with the assembled matrix (one sparse pass per product)."""
@@ -304,7 +423,9 @@ class FairingSystem:
             # rule is relative to the mesh's extent, not to its distance from the origin
             c = a.mean(axis=0)
             shifted = rhs - self._apply(np.broadcast_to(c, a.shape))
-            y, its, res = _block_cg(self._apply, shifted, a - c, rtol=self.rtol, maxiter=MAX_CG_ITERATIONS)
+            if self._blocks is None:
+                self._blocks = _RowBlocks(self.matrix)
+            y, its, res = _block_cg(self._blocks, shifted, a - c, rtol=self.rtol, maxiter=MAX_CG_ITERATIONS)
             if res <= self.rtol:
                 self.iterations, self.residual = its, res
                 return y + c

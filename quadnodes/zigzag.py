@@ -16,7 +16,8 @@ __all__ = ["window_edges", "window_deviation", "vertex_deviation", "ZigzagReport
 def window_edges(vertices: np.ndarray, windows: np.ndarray) -> list[np.ndarray]:
     """The three edge vectors ``p1 − p0, p2 − p1, p3 − p2`` of every window, each ``(w, 3)``.
 
-    Three gathers instead of one ``(w, 4, 3)`` array keep the temporaries small.
+    Four row gathers (``np.take``, several times faster than fancy indexing of
+    an ``(n, 3)`` array) instead of one ``(w, 4, 3)`` array keep the temporaries small.
 
     Examples
     --------
@@ -24,7 +25,10 @@ def window_edges(vertices: np.ndarray, windows: np.ndarray) -> list[np.ndarray]:
     >>> [e.tolist() for e in window_edges(v, np.array([[0, 1, 2, 3]]))]
     [[[1.0, 0.0, 0.0]], [[0.0, 2.0, 0.0]], [[0.0, 0.0, 3.0]]]
     """
-    return [vertices[windows[:, k + 1]] - vertices[windows[:, k]] for k in range(3)]
+    p = [np.take(vertices, windows[:, k], axis=0) for k in range(4)]
+    for k in (3, 2, 1):
+        p[k] -= p[k - 1]
+    return p[1:]
 
 
 def window_deviation(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:

@@ -187,6 +187,27 @@ def test_conjugate_gradients_equal_the_direct_solve(make, weight):
     assert np.abs(xc - xd).max() <= 1e-4 * np.abs(xd - a).max()
 
 
+@pytest.mark.parametrize("threads", [2, 3])
+def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads):
+    from quadnodes import fairing
+
+    m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
+    m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
+    free = detect(m, 0.0).free
+    w = 0.3 / m.mean_edge_length**2
+    one = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg")
+    x1 = one.solve(m.vertices[free])
+    monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(fairing, "_thread_count", lambda: threads)
+    par = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg")
+    xp = par.solve(m.vertices[free])
+    assert len(par._blocks.ranges) == threads and len(one._blocks.ranges) == 1
+    assert par.iterations == one.iterations and par.residual <= 1e-9
+    np.testing.assert_allclose(xp, x1, rtol=0, atol=1e-10 * np.ptp(m.vertices))
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(xp - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
 def test_solver_choice_and_report():
     m = perturb(grid(60, 60), tangential=0.3, seed=1)
     _, rep = fair(m, deviation=0.0)
