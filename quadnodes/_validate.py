@@ -127,13 +127,20 @@ def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarra
         )
 
 
-def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
+def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
     """Check the combinatorics and geometry that single arrays cannot show.
 
     Zero-length edges, edges shared by more than two faces, and neighbouring faces
     with inconsistent orientation (an edge walked the same way by both faces).
     Counting uses SciPy's linear-time COO→CSR conversion; the offending faces are
     looked up only when there is an error.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix
+        The undirected edges as an upper-triangular ``(n, n)`` matrix in canonical
+        form, holding the number of faces at each edge — the mesh's topology starts
+        from it instead of counting the edges again.
 
     Raises
     ------
@@ -172,6 +179,7 @@ def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
             f"along edge {a}->{b} in the same direction (inconsistent orientation); "
             "flip one of them"
         )
+    return und
 
 
 def vertex_mask(mask: ArrayLike | None, n: int, name: str = "fixed") -> np.ndarray:

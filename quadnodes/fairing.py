@@ -158,7 +158,7 @@ class _RowBlocks:
     ``run(fn)`` calls ``fn(lo, hi)`` for every range — on the calling thread
     when there is one range, else in parallel (SciPy's sparse kernels and NumPy's
     array loops release the GIL) — and returns the results in order.
-    ``matvec(X, Y, lo, hi)`` writes ``Y[lo:hi] = (M @ X)[lo:hi]`` for ``(n, c)`` arrays.
+    ``matvec(X, Y, lo, hi)`` writes ``Y[lo:hi] = (M @ X)[lo:hi]`` for C-ordered ``(n, c)`` arrays.
     """
 
     def __init__(self, M: sp.csr_matrix, *, threads: int | None = None) -> None:
@@ -173,7 +173,6 @@ class _RowBlocks:
         idx = np.result_type(M.indptr, M.indices)
         self._indptr = M.indptr.astype(idx, copy=False)
         self._indices = M.indices.astype(idx, copy=False)
-        self._blocks = None if _csr_matvecs is not None else [M[lo:hi] for lo, hi in self.ranges]
 
     def run(self, fn: Callable[[int, int], object]) -> list:
         if len(self.ranges) == 1:
@@ -182,15 +181,25 @@ class _RowBlocks:
         first = fn(*self.ranges[0])
         return [first] + [f.result() for f in futures]
 
-    def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
-        if self._blocks is not None:  # pragma: no cover - SciPy without the private kernel
-            Y[lo:hi] = self._blocks[self.ranges.index((lo, hi))] @ X
-            return
+    def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
+               accumulate: bool = False) -> None:
+        """``Y[lo:hi] (+)= (M @ X)[lo:hi]``; ``data`` replaces the matrix's values (same pattern)."""
         M = self.M
+        data = M.data if data is None else data
         y = Y[lo:hi]
-        y.fill(0.0)  # the kernel accumulates
+        if _csr_matvecs is None:  # pragma: no cover - SciPy without the private kernel
+            a, b = int(self._indptr[lo]), int(self._indptr[hi])
+            part = sp.csr_matrix((data[a:b], self._indices[a:b], self._indptr[lo : hi + 1] - a),
+                                 shape=(hi - lo, M.shape[1])) @ X
+            if accumulate:
+                y += part
+            else:
+                y[...] = part
+            return
+        if not accumulate:
+            y.fill(0.0)  # the kernel accumulates
         _csr_matvecs(hi - lo, M.shape[1], X.shape[1], self._indptr[lo : hi + 1], self._indices,
-                     M.data, X.reshape(-1), y.reshape(-1))
+                     data, X.reshape(-1), y.reshape(-1))
 
 
 def _block_cg(

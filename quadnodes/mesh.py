@@ -54,7 +54,7 @@ class QuadMesh:
     def __post_init__(self) -> None:
         v = _validate.vertices_array(self.vertices)
         f = _validate.faces_array(self.faces, v.shape[0])
-        _validate.check_quad_mesh(v, f)
+        edge_matrix = _validate.check_quad_mesh(v, f)
         gs = self.grid_shape
         if gs is not None:
             gs = (int(gs[0]), int(gs[1]))
@@ -70,6 +70,7 @@ class QuadMesh:
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
         object.__setattr__(self, "grid_shape", gs)
+        self.__dict__["_edge_matrix"] = edge_matrix  # counted by the validation; topology reuses it
 
     @property
     def n_vertices(self) -> int:
@@ -86,7 +87,7 @@ class QuadMesh:
         """Edges, boundary, valence and structure lines (computed once, shared by copies)."""
         from .topology import Topology
 
-        return Topology.from_faces(self.faces, self.n_vertices)
+        return Topology.from_faces(self.faces, self.n_vertices, edge_matrix=self.__dict__.pop("_edge_matrix", None))
 
     @cached_property
     def mean_edge_length(self) -> float:

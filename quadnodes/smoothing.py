@@ -12,6 +12,7 @@ neighbourhood (a zero row), so they never move — Taubin's interpolatory constr
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Literal
 
 import numpy as np
@@ -21,6 +22,7 @@ from scipy.optimize import brentq
 
 from . import _validate
 from .errors import InputError
+from .fairing import _RowBlocks
 from .mesh import QuadMesh
 
 __all__ = ["laplacian_operator", "taubin_lambda", "fixed_mask", "laplacian", "taubin"]
@@ -35,13 +37,19 @@ def _weights(mesh: QuadMesh, weights: Weights, vertices: np.ndarray | None, fixe
         raise InputError(f"weights: expected 'uniform' or 'inverse_length', got {weights!r}")
     n = mesh.n_vertices
     indptr, indices, edge_id = mesh.topology.ring
+    counts = np.diff(indptr)
     if weights == "uniform":
-        c = np.ones(indices.size)
+        # 1 / valence on every entry of a row; fixed rows hold zeros
+        w = np.divide(1.0, counts, out=np.zeros(n), where=counts > 0)
+        if fixed is not None:
+            w[fixed] = 0.0
+        return sp.csr_matrix((np.repeat(w, counts), indices, indptr), shape=(n, n))
     else:
         x = mesh.vertices if vertices is None else vertices
         e = mesh.topology.edges
-        c = (1.0 / np.linalg.norm(x[e[:, 1]] - x[e[:, 0]], axis=1))[edge_id]
-    counts = np.diff(indptr)
+        d = np.take(x, e[:, 1], axis=0)
+        d -= np.take(x, e[:, 0], axis=0)
+        c = (1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)))[edge_id]
     row = np.repeat(np.arange(n), counts)
     if fixed is not None:
         c = np.where(fixed[row], 0.0, c)
@@ -135,17 +143,32 @@ def fixed_mask(mesh: QuadMesh, fix: Fix | ArrayLike) -> np.ndarray:
 def _smooth(mesh: QuadMesh, factors: list[float], weights: Weights, fix: Fix | ArrayLike) -> QuadMesh:
     fixed = fixed_mask(mesh, fix)
     x = mesh.vertices.copy()
-    W = _weights(mesh, weights, None, fixed) if weights == "uniform" else None
     # x' = x + f (W x − x) on moving vertices; fixed ones (empty rows) keep their place
     moving = (np.diff(mesh.topology.ring[0]) > 0) & ~fixed
-    mask = moving.astype(np.float64)[:, None]
+    if weights != "uniform":
+        mask = moving.astype(np.float64)[:, None]
+        for f in factors:
+            step = _weights(mesh, weights, x, fixed) @ x
+            step -= x
+            step *= mask
+            step *= f
+            x += step
+        return mesh.with_vertices(x)
+    # the operator is fixed: x' = (1 − f·moving) x + (f W) x, one product per step,
+    # written row range by row range (in parallel on large meshes) into a second buffer
+    W = _weights(mesh, weights, None, fixed)
+    blocks = _RowBlocks(W)
+    scaled = {f: W.data * f for f in set(factors)}
+    keep = {f: np.where(moving, 1.0 - f, 1.0)[:, None] for f in set(factors)}
+    y = np.empty_like(x)
+
+    def step(src: np.ndarray, dst: np.ndarray, f: float, lo: int, hi: int) -> None:
+        np.multiply(src[lo:hi], keep[f][lo:hi], out=dst[lo:hi])
+        blocks.matvec(src, dst, lo, hi, data=scaled[f], accumulate=True)
+
     for f in factors:
-        op = W if W is not None else _weights(mesh, weights, x, fixed)
-        step = op @ x
-        step -= x
-        step *= mask
-        step *= f
-        x += step
+        blocks.run(partial(step, x, y, f))
+        x, y = y, x
     return mesh.with_vertices(x)
 
 

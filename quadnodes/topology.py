@@ -92,9 +92,17 @@ class Topology:
     n_vertices: int
 
     @classmethod
-    def from_faces(cls, faces: np.ndarray, n_vertices: int) -> Topology:
-        """Topology of an already validated ``(m, 4)`` face array."""
-        return cls(np.asarray(faces, dtype=np.int64), int(n_vertices))
+    def from_faces(cls, faces: np.ndarray, n_vertices: int, *, edge_matrix: sp.csr_matrix | None = None) -> Topology:
+        """Topology of an already validated ``(m, 4)`` face array.
+
+        ``edge_matrix``: the undirected edges as counted by
+        :func:`quadnodes._validate.check_quad_mesh` (upper triangular, canonical),
+        so they are not counted twice.
+        """
+        topo = cls(np.asarray(faces, dtype=np.int64), int(n_vertices))
+        if edge_matrix is not None:
+            topo.__dict__["_edge_matrix"] = edge_matrix
+        return topo
 
     # --- half-edges -------------------------------------------------------------
     @cached_property
@@ -136,11 +144,14 @@ class Topology:
         n = self.n_vertices
         lo = np.minimum(self.he_start, self.he_end)
         hi = np.maximum(self.he_start, self.he_end)
-        und = sp.csr_matrix((np.ones(lo.size, dtype=np.int32), (lo, hi)), shape=(n, n))
-        und.sum_duplicates()  # canonical: rows and the columns within them sorted
+        und = self.__dict__.pop("_edge_matrix", None)
+        if und is None:
+            und = sp.csr_matrix((np.ones(lo.size, dtype=np.int32), (lo, hi)), shape=(n, n))
+            und.sum_duplicates()  # canonical: rows and the columns within them sorted
         edges = np.stack([np.repeat(np.arange(n), np.diff(und.indptr)), und.indices.astype(np.int64)], axis=1)
         ids = sp.csr_matrix((np.arange(1, len(edges) + 1), und.indices, und.indptr), shape=(n, n))
         he_edge = np.asarray(ids[lo, hi]).ravel() - 1
+        self.__dict__["edge_face_count"] = und.data.astype(np.int64)  # faces per edge, in edge order
         return edges, he_edge
 
     @property
@@ -162,10 +173,11 @@ class Topology:
         """
         e = self.edges
         E = len(e)
-        i = np.concatenate([e[:, 0], e[:, 1]])
-        j = np.concatenate([e[:, 1], e[:, 0]])
-        ids = np.concatenate([np.arange(1, E + 1), np.arange(1, E + 1)])
-        a = sp.csr_matrix((ids, (i, j)), shape=(self.n_vertices, self.n_vertices))
+        n = self.n_vertices
+        indptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(e[:, 0], minlength=n), out=indptr[1:])
+        upper = sp.csr_matrix((np.arange(1, E + 1), e[:, 1], indptr), shape=(n, n))
+        a = upper + upper.T.tocsr()  # disjoint patterns: a sorted merge
         return a.indptr, a.indices, a.data - 1
 
     @cached_property

@@ -107,3 +107,24 @@ def test_mask_fixing_and_errors():
         laplacian(m, weights="cotan")
     with pytest.raises(InputError, match="iterations"):
         taubin(m, iterations=0)
+
+
+@pytest.mark.parametrize("fix", ["none", "corners", "boundary"])
+def test_threaded_taubin_equals_dense_steps(monkeypatch, fix):
+    from quadnodes import fairing
+
+    m = perturb(grid(30, 40), tangential=0.3, normal=0.1, seed=2)
+    fixed = fixed_mask(m, fix)
+    lam, mu = taubin_lambda(0.1), 1.0 / (0.1 - 1.0 / taubin_lambda(0.1))
+    L = _dense_laplacian(m, fixed=fixed)
+    ref = m.vertices.copy()
+    for _ in range(3):
+        for f in (lam, mu):
+            ref = ref + f * (L @ ref)
+    one = taubin(m, iterations=3, fix=fix).vertices
+    monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(fairing, "_thread_count", lambda: 3)
+    par = taubin(m, iterations=3, fix=fix).vertices
+    np.testing.assert_allclose(one, ref, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(par, one)
+    assert np.array_equal(par[fixed], m.vertices[fixed])
