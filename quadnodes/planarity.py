@@ -6,12 +6,7 @@ import numpy as np
 
 from .mesh import QuadMesh
 
-__all__ = ["diagonal_distance", "angle_defect", "planarity", "summary"]
-
-
-def _corners(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    p = mesh.vertices[mesh.faces]
-    return p[:, 0], p[:, 1], p[:, 2], p[:, 3]
+__all__ = ["diagonal_distance", "quad_diagonal_distance", "angle_defect", "planarity", "summary"]
 
 
 def diagonal_distance(mesh: QuadMesh, *, relative: bool = True) -> np.ndarray:
@@ -41,7 +36,20 @@ def diagonal_distance(mesh: QuadMesh, *, relative: bool = True) -> np.ndarray:
     >>> round(float(diagonal_distance(m)[0]), 4)  # one lifted corner
     0.2595
     """
-    p0, p1, p2, p3 = _corners(mesh)
+    return quad_diagonal_distance(mesh.vertices, mesh.faces, relative=relative)
+
+
+def quad_diagonal_distance(vertices: np.ndarray, faces: np.ndarray, *, relative: bool = True) -> np.ndarray:
+    """:func:`diagonal_distance` from plain arrays (no :class:`QuadMesh` checks), for inner loops.
+
+    Examples
+    --------
+    >>> v = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]])
+    >>> round(float(quad_diagonal_distance(v, np.array([[0, 1, 2, 3]]))[0]), 4)
+    0.2595
+    """
+    p = vertices[faces]
+    p0, p1, p2, p3 = p[:, 0], p[:, 1], p[:, 2], p[:, 3]
     d1, d2 = p2 - p0, p3 - p1
     n = np.cross(d1, d2)
     nn = np.linalg.norm(n, axis=1)

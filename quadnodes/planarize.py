@@ -1,0 +1,376 @@
+"""Planar panels: move the vertices of a quad mesh until every quad is flat.
+
+Beyond the thesis (which leaves planarity as future work): :func:`planarize`
+minimizes, over the vertices that may move,
+
+.. math::
+
+    E(x) = \\frac{w_p}{h^2} \\sum_{f} \\sum_{k=0}^{3} \\| (x_{f_k} - c_f) - q_{f_k} \\|^2
+         + w_f \\sum_{\\text{windows}} \\| A x \\|^2
+         + \\frac{w_c}{h^2} \\sum_i \\| x_i - t_i \\|^2
+
+- **planarity** (``w_p``): ``c_f`` is the centroid of quad ``f`` and ``q_f`` its
+  vertices projected onto the plane through the centroid parallel to both
+  diagonals, centred — the closest flat quad up to a translation
+  (ShapeUp's projection constraint). That plane leaves both diagonals at equal
+  heights, so the projection moves every vertex by half the distance between
+  the diagonals, which is exactly the measure of :func:`quadnodes.planarity.diagonal_distance`;
+- **fairness** (``w_f``): the thesis's structure-line term (eq. 32) with the
+  edge lengths of the input frozen, so straight, evenly spaced lines cost nothing;
+- **closeness** (``w_c``): ``t_i`` is the input vertex, or with a ``reference``
+  (a build123d face or a mesh) the closest point of ``x_i`` on it, so vertices
+  may slide along the design surface.
+
+It alternates a *local* step (project every quad, find closest points) with a
+*global* step (one sparse linear solve for x, y and z; the matrix depends only
+on the weights, so its factorization is reused while they stay fixed). When
+the planarity stops improving before the tolerance is met, the planarity
+weight is doubled (and the matrix factorized again). Weights are relative to
+the mean edge length ``h`` of the input, so ``planarize(s·P) == s·planarize(P)``.
+Fixed vertices never move.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike
+from scipy.sparse.linalg import splu
+
+from . import _validate
+from .errors import InputError
+from .fairing import window_coefficients
+from .mesh import QuadMesh
+from .planarity import diagonal_distance, quad_diagonal_distance
+from .progress import report_progress
+from .reference import Reference, as_reference
+
+__all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "DEFAULT_TOLERANCE"]
+
+#: Default planarity tolerance: diagonal distance / mean diagonal length.
+DEFAULT_TOLERANCE = 1e-3
+#: With a reference surface, a weak pull to the input positions keeps vertices from sliding far along it.
+DEFAULT_INPUT_WEIGHT = 0.01
+#: The adaptive planarity weight grows at most this much over its start value.
+MAX_WEIGHT_GROWTH = 1e6
+
+Fix = Literal["none", "corners", "boundary"]
+
+
+def quad_plane_projection(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each quad's vertices projected onto its diagonal mid-plane, relative to the quad's centroid.
+
+    The plane passes through the centroid and is parallel to both diagonals; the
+    four projected points form a flat quad. For a quad whose diagonals are parallel
+    (degenerate), the vertices are returned unprojected (centred).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 4) int64
+
+    Returns
+    -------
+    (m, 4, 3) float64
+        Centred, projected corner positions (each quad's rows sum to zero).
+
+    Examples
+    --------
+    >>> v = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]])
+    >>> q = quad_plane_projection(v, np.array([[0, 1, 2, 3]]))
+    >>> np.round(q[0], 3).tolist()
+    [[-0.5, -0.5, -0.5], [0.5, -0.5, 0.0], [0.5, 0.5, 0.5], [-0.5, 0.5, 0.0]]
+    """
+    p = vertices[faces]
+    c = p.mean(axis=1, keepdims=True)
+    r = p - c
+    n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+    nn = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.divide(n, nn, out=np.zeros_like(n), where=nn > 0)
+    return r - np.einsum("mk,mj->mkj", np.einsum("mkj,mj->mk", r, n), n)
+
+
+@dataclass(frozen=True)
+class PlanarizeReport:
+    """What :func:`planarize` did.
+
+    Planarity is the diagonal distance over the mean diagonal length (per quad);
+    distances are in model units; ``history`` holds the maximum planarity after
+    every iteration.
+    """
+
+    converged: bool
+    iterations: int
+    tolerance: float
+    planarity_max_before: float
+    planarity_max: float
+    planarity_mean: float
+    moved_max: float
+    moved_mean: float
+    reference: str
+    reference_distance_max: float
+    reference_distance_mean: float
+    weight_planarity_final: float
+    factorizations: int
+    seconds: float
+    length_scale: float
+    history: list[float] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """Plain-Python form (JSON-ready)."""
+        return asdict(self)
+
+
+def _fixed_mask(mesh: QuadMesh, fix: Any, fixed: ArrayLike | None) -> np.ndarray:
+    fix = _validate.choice(fix, ("none", "corners", "boundary"), "fix")
+    mask = _validate.vertex_mask(fixed, mesh.n_vertices, "fixed").copy()
+    if fix == "corners":
+        mask |= mesh.topology.corner_vertices
+    elif fix == "boundary":
+        mask |= mesh.topology.boundary_vertices
+    return mask
+
+
+def _centering_matrix(faces: np.ndarray, n: int) -> sp.csr_matrix:
+    """``Σ_f S_fᵀ (I − J/4) S_f``: the planarity term's normal matrix (``S_f`` picks quad ``f``)."""
+    a = np.repeat(faces, 4, axis=1).reshape(-1)
+    b = np.tile(faces, (1, 4)).reshape(-1)
+    val = np.tile((np.eye(4) - 0.25).reshape(-1), len(faces))
+    return sp.csr_matrix((val, (a, b)), shape=(n, n))
+
+
+class _Anderson:
+    """Anderson acceleration (type II) of a fixed-point iteration ``x <- g(x)``, with a residual safeguard."""
+
+    def __init__(self, m: int) -> None:
+        self.m = m
+        self.reset()
+
+    def reset(self) -> None:
+        self.F: list[np.ndarray] = []
+        self.G: list[np.ndarray] = []
+        self.last_norm = np.inf
+
+    def update(self, x: np.ndarray, g: np.ndarray) -> np.ndarray:
+        f = (g - x).reshape(-1)
+        norm = float(np.linalg.norm(f))
+        if norm > self.last_norm:  # the last (accelerated) step made things worse: restart from the plain step
+            self.reset()
+        self.last_norm = norm
+        self.F.append(f)
+        self.G.append(g.reshape(-1))
+        if len(self.F) > self.m + 1:
+            self.F.pop(0)
+            self.G.pop(0)
+        if len(self.F) < 2:
+            return g
+        dF = np.diff(np.array(self.F), axis=0).T
+        dG = np.diff(np.array(self.G), axis=0).T
+        gamma, *_ = np.linalg.lstsq(dF, f, rcond=None)
+        return (g.reshape(-1) - dG @ gamma).reshape(g.shape)
+
+
+def planarize(
+    mesh: QuadMesh,
+    *,
+    reference: Any = None,
+    tolerance: float = DEFAULT_TOLERANCE,
+    max_iterations: int = 2000,
+    planarity_weight: float = 1.0,
+    fairness_weight: float = 0.1,
+    closeness_weight: float = 0.1,
+    input_weight: float | None = None,
+    fix: Fix = "corners",
+    fixed: ArrayLike | None = None,
+    reference_samples: int = 4,
+    adapt: bool = True,
+    anderson: int = 5,
+) -> tuple[QuadMesh, PlanarizeReport]:
+    """Make every quad planar while keeping structure lines fair and the mesh on its design surface.
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+    reference : build123d Face, QuadMesh or Reference, optional
+        Design surface the vertices stay close to (and may slide along). Without
+        it, vertices stay close to their input positions.
+    tolerance : float
+        Stop when every quad's planarity (diagonal distance / mean diagonal) is at
+        most this (> 0).
+    max_iterations : int
+        Cap on local/global iterations (>= 1).
+    planarity_weight, fairness_weight, closeness_weight : float
+        ``w_p`` (> 0), ``w_f`` (>= 0), ``w_c`` (>= 0) of the energy in the module
+        text; dimensionless. ``w_p`` is the starting value when ``adapt`` is on
+        (it grows at most :data:`MAX_WEIGHT_GROWTH`-fold; past that the run stops
+        unconverged).
+    input_weight : float, optional
+        Weight (>= 0) of an extra pull to the input positions, in the units of
+        ``w_c``. Default: 0 without a reference, :data:`DEFAULT_INPUT_WEIGHT` with
+        one — the fairness term (lengths frozen) rewards shrinking, and without this
+        pull the vertices could slide inwards along the surface.
+    fix : {"none", "corners", "boundary"}
+        Vertices held in place, besides ``fixed``.
+    fixed : (n,) bool or int indices, optional
+        More vertices that never move.
+    reference_samples : int
+        For a face: fine samples per mesh edge (see :func:`quadnodes.reference.as_reference`).
+    adapt : bool
+        Double ``w_p`` whenever the maximum planarity improved by less than 1 %
+        over the last 10 iterations (and the tolerance is not met).
+    anderson : int
+        History length of the Anderson acceleration of the local/global
+        iteration (0: plain iteration). An accelerated step whose fixed-point
+        residual grew is replaced by the plain step and the history restarts.
+
+    Returns
+    -------
+    mesh : QuadMesh
+        The planarized mesh (the input itself if it already meets the tolerance).
+    report : PlanarizeReport
+
+    Raises
+    ------
+    InputError
+        On bad weights, tolerance, iteration cap, fixing option or reference; if
+        every vertex is fixed while some quad is not planar; if closeness and
+        fairness are both zero and nothing is fixed (the problem has no unique
+        solution).
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> z = np.array([[0.0, 0, 0], [0, 0.3, 0], [0, 0, 0]])
+    >>> flat, rep = planarize(grid(3, 3, height=z))
+    >>> rep.converged, rep.planarity_max <= 1e-3
+    (True, True)
+    """
+    t0 = time.perf_counter()
+    _validate.quad_mesh(mesh)
+    tol = _validate.positive_number(tolerance, "tolerance")
+    max_iterations = _validate.positive_int(max_iterations, "max_iterations")
+    w_p = _validate.positive_number(planarity_weight, "planarity_weight")
+    w_f = _validate.finite_number(fairness_weight, "fairness_weight")
+    w_c = _validate.finite_number(closeness_weight, "closeness_weight")
+    if input_weight is None:
+        input_weight = 0.0 if reference is None else DEFAULT_INPUT_WEIGHT
+    w_i = _validate.finite_number(input_weight, "input_weight")
+    for value, name in ((w_f, "fairness_weight"), (w_c, "closeness_weight"), (w_i, "input_weight")):
+        if value < 0:
+            raise InputError(f"{name}: expected a number >= 0, got {value!r}")
+    if not isinstance(adapt, (bool, np.bool_)):
+        raise InputError(f"adapt: expected True or False, got {adapt!r}")
+    held = _fixed_mask(mesh, fix, fixed)
+    ref: Reference | None = None
+    if reference is not None:
+        ref = as_reference(reference, mesh, samples=reference_samples)
+    if w_c == 0 and w_i == 0 and w_f == 0 and not held.any():
+        raise InputError(
+            "closeness_weight: with closeness and fairness both 0 and nothing fixed, any translation "
+            "of the result is as good; give a closeness weight or fix some vertices"
+        )
+
+    x0 = mesh.vertices
+    n = mesh.n_vertices
+    h = mesh.mean_edge_length
+    free = ~held
+    fi = np.flatnonzero(free)
+    plan0 = diagonal_distance(mesh)
+    p_before = float(plan0.max()) if len(plan0) else 0.0
+
+    def closest(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if ref is None:
+            return x0, np.linalg.norm(x - x0, axis=1)
+        return ref.closest(x)
+
+    def finish(x: np.ndarray, converged: bool, its: int, history: list[float], w_p_now: float, facts: int):
+        out = mesh if x is x0 else mesh.with_vertices(x)
+        pl = diagonal_distance(out)
+        moved = np.linalg.norm(x - x0, axis=1)
+        _, dist = closest(x)
+        return out, PlanarizeReport(
+            converged=converged, iterations=its, tolerance=tol, planarity_max_before=p_before,
+            planarity_max=float(pl.max()) if len(pl) else 0.0, planarity_mean=float(pl.mean()) if len(pl) else 0.0,
+            moved_max=float(moved.max()), moved_mean=float(moved.mean()),
+            reference="none" if ref is None else ref.source,
+            reference_distance_max=float(dist.max()), reference_distance_mean=float(dist.mean()),
+            weight_planarity_final=w_p_now, factorizations=facts, seconds=time.perf_counter() - t0,
+            length_scale=h, history=history,
+        )
+
+    if p_before <= tol:
+        return finish(x0, True, 0, [], w_p, 0)
+    if fi.size == 0:
+        raise InputError(
+            f"fixed: every vertex is fixed but quad {int(np.argmax(plan0))} has planarity {p_before:.3g} "
+            f"> tolerance {tol:g}; free some vertices"
+        )
+
+    faces = mesh.faces
+    C = _centering_matrix(faces, n) / h**2
+    w = mesh.topology.windows
+    if len(w) and w_f > 0:
+        coef = window_coefficients(x0, w)
+        rows = np.repeat(np.arange(len(w)), 4)
+        A = sp.csr_matrix((coef.reshape(-1), (rows, w.reshape(-1))), shape=(len(w), n))
+        F = (A.T @ A).tocsr()
+    else:
+        F = sp.csr_matrix((n, n))
+    Cff, Cfx = C[fi][:, fi], C[fi][:, ~free]
+    Fff, Ffx = F[fi][:, fi], F[fi][:, ~free]
+    I = sp.identity(fi.size, format="csc") / h**2
+    xfix = x0[~free]
+    fixed_F = Ffx @ xfix if Ffx.shape[1] else np.zeros((fi.size, 3))
+    fixed_C = Cfx @ xfix if Cfx.shape[1] else np.zeros((fi.size, 3))
+
+    def factor(wp: float) -> Any:
+        M = (wp * Cff + w_f * Fff + (w_c + w_i) * I).tocsc()
+        return splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+
+    lu = factor(w_p)
+    facts = 1
+
+    def step(xf: np.ndarray) -> np.ndarray:
+        """One local/global step from free positions ``xf`` (the fixed-point map)."""
+        x = x0.copy()
+        x[fi] = xf
+        q = quad_plane_projection(x, faces)
+        qv = np.zeros((n, 3))
+        np.add.at(qv, faces.reshape(-1), q.reshape(-1, 3))
+        target, _ = closest(x)
+        rhs = (w_p / h**2) * qv[fi] - w_p * fixed_C - w_f * fixed_F + (w_c / h**2) * target[fi] + (w_i / h**2) * x0[fi]
+        return lu.solve(rhs)
+
+    xf = x0[fi].copy()
+    acc = _Anderson(anderson) if anderson else None
+    history: list[float] = []
+    converged = False
+    it = last_change = 0
+    for it in range(1, max_iterations + 1):
+        g = step(xf)
+        xf = acc.update(xf, g) if acc is not None else g
+        x = x0.copy()
+        x[fi] = xf
+        pmax = float(quad_diagonal_distance(x, faces).max())
+        history.append(pmax)
+        if it % 10 == 0:
+            report_progress(min(it / max_iterations, 1.0), f"iteration {it}: planarity max {pmax:.2e}")
+        if pmax <= tol:
+            converged = True
+            break
+        if adapt and it - last_change >= 10 and pmax > 0.99 * history[-10]:
+            if w_p * 2.0 > MAX_WEIGHT_GROWTH * planarity_weight:
+                break  # stalled at the largest weight: the tolerance is out of reach with these constraints
+            w_p *= 2.0
+            lu = factor(w_p)
+            facts += 1
+            last_change = it
+            if acc is not None:
+                acc.reset()
+    x = x0.copy()
+    x[fi] = xf
+    return finish(x, converged, it, history, w_p, facts)
