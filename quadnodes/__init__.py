@@ -30,6 +30,7 @@ from .mesh import QuadMesh, from_grid_points, grid
 from .metrics import compare
 from .perturb import perturb
 from .planarity import planarity
+from .planarize import planarize
 from .smoothing import laplacian, taubin
 from .topology import structure_lines, windows
 from .zigzag import detect
@@ -48,6 +49,7 @@ __all__ = [
     "perturb",
     "planarity",
     "compare",
+    "planarize",
     "QuadnodesError",
     "InputError",
     "GraphError",
@@ -55,7 +57,7 @@ __all__ = [
     "ExportError",
 ]
 
-_LAZY = {"surfaces", "io", "viz", "html", "report"}
+_LAZY = {"surfaces", "io", "viz", "html", "report", "reference"}
 
 
 def __getattr__(name: str) -> Any:

@@ -1,0 +1,168 @@
+"""quadnodes.planarize: planar panels, fixed vertices, scale invariance, errors, the node and STEP."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from quadnodes.errors import InputError
+from quadnodes.fairing import fair
+from quadnodes.mesh import grid
+from quadnodes.perturb import perturb
+from quadnodes.planarity import diagonal_distance
+from quadnodes.planarize import planarize, quad_plane_projection
+from quadnodes.zigzag import window_deviation
+
+
+def hypar(n: int = 8, rise: float = 0.4) -> object:
+    """z = rise·x·y on its rulings: every quad is skew."""
+    y, x = np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n), indexing="ij")
+    return grid(n, n, spacing=2.0 / (n - 1), height=rise * x * y)
+
+
+def test_a_planar_grid_stays_put():
+    m = grid(6, 7)
+    out, rep = planarize(m)
+    assert out is m and rep.converged and rep.iterations == 0 and rep.moved_max == 0.0
+
+
+def test_a_hyperbolic_paraboloid_becomes_planar_by_bounded_movement():
+    m = hypar()
+    assert diagonal_distance(m).max() > 0.01
+    out, rep = planarize(m, tolerance=1e-4)
+    d = diagonal_distance(out)
+    assert rep.converged and d.max() <= 1e-4 and rep.planarity_max == pytest.approx(d.max())
+    h = m.mean_edge_length
+    moved = np.linalg.norm(out.vertices - m.vertices, axis=1)
+    # it has to move, and not further than the surface's rise (its corners, held, are ±0.4 off the plane z=0)
+    assert 0.01 * h < moved.max() < 0.4
+    assert rep.moved_max == pytest.approx(moved.max())
+    # the history is the maximum planarity after every iteration and ends at the result
+    assert len(rep.history) == rep.iterations and rep.history[-1] == pytest.approx(d.max())
+
+
+def test_projection_centres_and_flattens_every_quad():
+    m = perturb(hypar(5), tangential=0.1, normal=0.2, seed=3)
+    q = quad_plane_projection(m.vertices, m.faces)
+    np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)
+    # every projected quad on its own is flat, and each corner moved by half the diagonal gap
+    from quadnodes.planarity import quad_diagonal_distance
+
+    v = q.reshape(-1, 3)
+    assert quad_diagonal_distance(v, np.arange(len(v)).reshape(-1, 4)).max() < 1e-12
+    centred = m.vertices[m.faces] - m.vertices[m.faces].mean(axis=1, keepdims=True)
+    gap = diagonal_distance(m, relative=False)
+    np.testing.assert_allclose(np.linalg.norm(centred - q, axis=2), np.repeat(gap[:, None] / 2, 4, axis=1),
+                               rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 10_000), frac=st.floats(0.05, 0.5))
+def test_fixed_vertices_never_move(seed, frac):
+    m = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
+    rng = np.random.default_rng(seed)
+    fixed = rng.random(m.n_vertices) < frac
+    out, rep = planarize(m, fixed=fixed, fix="none", max_iterations=200)
+    np.testing.assert_array_equal(out.vertices[fixed], m.vertices[fixed])
+    assert np.isfinite(out.vertices).all()
+    assert rep.planarity_max <= rep.planarity_max_before
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 10_000), scale=st.sampled_from([1e-3, 0.5, 7.0, 1e3]))
+def test_scale_and_translation_equivariant(seed, scale):
+    m = perturb(hypar(6), tangential=0.1, normal=0.1, seed=seed)
+    out, rep = planarize(m, max_iterations=300)
+    shift = np.array([10.0, -3.0, 2.0])
+    m2 = m.with_vertices(scale * m.vertices + shift * scale)
+    out2, rep2 = planarize(m2, max_iterations=300)
+    # equal up to round-off, which Anderson's small least-squares problems amplify a little
+    np.testing.assert_allclose(out2.vertices, scale * out.vertices + shift * scale, rtol=0, atol=1e-5 * scale)
+    assert rep2.converged == rep.converged and abs(rep2.iterations - rep.iterations) <= 2
+
+
+def test_fairness_term_keeps_lines_fair():
+    # a translational paraboloid: its grid quads are planar, so planarizing the faired noisy mesh should not
+    # need to bend the structure lines
+    y, x = np.meshgrid(np.linspace(-1, 1, 9), np.linspace(-1, 1, 9), indexing="ij")
+    clean = grid(9, 9, spacing=0.25, height=0.3 * (x**2 + 0.5 * y**2))
+    m = perturb(clean, tangential=0.15, normal=0.05, seed=1, fix="corners")
+    faired, _ = fair(m, iterations=3)
+    out, rep = planarize(faired)
+    w = faired.topology.windows
+    assert rep.converged
+    assert window_deviation(out.vertices, w).mean() < 3 * window_deviation(faired.vertices, w).mean() + 1e-4
+
+
+def test_reference_surface_keeps_vertices_on_it():
+    clean = hypar(9)
+    noisy = perturb(clean, tangential=0.2, normal=0.1, seed=2, fix="corners")
+    faired, _ = fair(noisy, iterations=3)
+    a, ra = planarize(faired)
+    b, rb = planarize(faired, reference=clean)
+    assert ra.reference == "none" and rb.reference == "mesh"
+    assert rb.converged and rb.planarity_max <= 1e-3
+    from quadnodes.metrics import distance_to_mesh
+
+    np.testing.assert_allclose(distance_to_mesh(b.vertices, clean).max(), rb.reference_distance_max, rtol=1e-9)
+    assert rb.reference_distance_mean < distance_to_mesh(a.vertices, clean).mean()
+
+
+def test_boundary_fix_and_corners():
+    m = perturb(hypar(7), tangential=0.1, normal=0.1, seed=4)
+    out, _ = planarize(m, fix="boundary", max_iterations=300)
+    b = m.topology.boundary_vertices
+    np.testing.assert_array_equal(out.vertices[b], m.vertices[b])
+    out, _ = planarize(m, max_iterations=50)
+    c = m.topology.corner_vertices
+    np.testing.assert_array_equal(out.vertices[c], m.vertices[c])
+
+
+def test_unreachable_tolerance_stops_unconverged():
+    m = hypar(4)
+    fixed = np.ones(m.n_vertices, bool)
+    fixed[5] = False  # one free vertex cannot flatten four quads around it and the others
+    out, rep = planarize(m, fixed=fixed, max_iterations=60)
+    assert not rep.converged and rep.iterations <= 60 and rep.planarity_max > 1e-3
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"tolerance": 0.0}, "tolerance"),
+        ({"tolerance": float("nan")}, "tolerance"),
+        ({"max_iterations": 0}, "max_iterations"),
+        ({"planarity_weight": -1.0}, "planarity_weight"),
+        ({"fairness_weight": -0.1}, "fairness_weight"),
+        ({"closeness_weight": -0.1}, "closeness_weight"),
+        ({"input_weight": -0.1}, "input_weight"),
+        ({"fix": "edges"}, "fix"),
+        ({"reference": "surface.step"}, "reference"),
+        ({"fixed": np.ones(64, bool)}, "every vertex is fixed"),
+        ({"closeness_weight": 0.0, "fairness_weight": 0.0, "fix": "none"}, "closeness_weight"),
+        ({"adapt": "yes"}, "adapt"),
+    ],
+)
+def test_bad_input_names_the_parameter(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        planarize(hypar(8), **kwargs)
+
+
+def test_node_and_step_export_write_planar_faces(tmp_path):
+    from build123d import GeomType, import_step
+
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import Graph
+
+    g = Graph(base_dir=tmp_path)
+    m = g.add("grid", id="grid", rows=7, cols=7, spacing=1.0)
+    noisy = g.add("perturb", m, id="noisy", normal=0.15, seed=5)
+    flat = g.add("planarize", noisy, id="flat", tolerance=1e-4)
+    g.add("export_step", flat.mesh, id="step", path="flat.step", planar_tol=1e-4)
+    res = g.run()
+    rep = res["flat.report"]
+    assert rep.converged and rep.planarity_max <= 1e-4
+    faces = import_step(str(tmp_path / "flat.step")).faces()
+    assert len(faces) == 36 and {f.geom_type for f in faces} == {GeomType.PLANE}
