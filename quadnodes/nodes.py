@@ -27,6 +27,8 @@ from .mesh import QuadMesh
 from .mesh import grid as _grid
 from .perturb import perturb as _perturb
 from .planarity import planarity as _planarity_of
+from .planarize import DEFAULT_TOLERANCE, PlanarizeReport
+from .planarize import planarize as _planarize
 from .planarity import summary as _summary
 from .zigzag import ZigzagReport
 from .zigzag import detect as _detect
@@ -177,6 +179,21 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1
     return _fair(mesh, iterations=iterations, deviation=deviation, deviation_decay=deviation_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
                  fixed=fixed, fix_boundary=fix_boundary, solver=solver)
+
+
+@node("planarize", outputs=("mesh", "report"))
+def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: np.ndarray | None = None, *,
+              tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = 2000,
+              planarity_weight: float = 1.0, fairness_weight: float = 0.1, closeness_weight: float = 0.1,
+              input_weight: float | None = None, fix: Literal["none", "corners", "boundary"] = "corners",
+              reference_samples: int = 4) -> tuple[QuadMesh, PlanarizeReport]:
+    """Make every quad planar (diagonal distance / mean diagonal <= tolerance) while keeping structure lines
+    fair and the vertices close to a reference surface (a face or a mesh; they may slide along it) or to
+    their input positions; corners, boundary or a mask held fixed."""
+    return _planarize(mesh, reference=reference, tolerance=tolerance, max_iterations=max_iterations,
+                      planarity_weight=planarity_weight, fairness_weight=fairness_weight,
+                      closeness_weight=closeness_weight, input_weight=input_weight, fix=fix, fixed=fixed,
+                      reference_samples=reference_samples)
 
 
 def _fix(mesh: QuadMesh, fix: FixMode, fixed: np.ndarray | None) -> np.ndarray:

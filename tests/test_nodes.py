@@ -12,7 +12,7 @@ EXPECTED = {
     "saddle", "s_shape", "wavy", "dome", "cylinder_segment", "torus_patch", "read_step_surface", "sample",
     "thesis_example", "grid", "read_mesh", "perturb", "detect", "select_fixed", "fair", "laplacian", "taubin",
     "planarity", "compare", "export_step", "export_obj", "export_csv", "export_json", "export_report",
-    "render_png", "render_html",
+    "render_png", "render_html", "planarize",
 }
 
 
