@@ -159,11 +159,13 @@ def _smooth(mesh: QuadMesh, factors: list[float], weights: Weights, fix: Fix | A
     W = _weights(mesh, weights, None, fixed)
     blocks = _RowBlocks(W)
     scaled = {f: W.data * f for f in set(factors)}
-    keep = {f: np.where(moving, 1.0 - f, 1.0)[:, None] for f in set(factors)}
+    still = np.flatnonzero(~moving)  # rows that keep their position (f·W is empty there)
     y = np.empty_like(x)
 
     def step(src: np.ndarray, dst: np.ndarray, f: float, lo: int, hi: int) -> None:
-        np.multiply(src[lo:hi], keep[f][lo:hi], out=dst[lo:hi])
+        np.multiply(src[lo:hi], 1.0 - f, out=dst[lo:hi])  # a scalar: no (n, 1) broadcast
+        s = still[np.searchsorted(still, lo) : np.searchsorted(still, hi)]
+        dst[s] = src[s]
         blocks.matvec(src, dst, lo, hi, data=scaled[f], accumulate=True)
 
     for f in factors:
