@@ -535,6 +535,7 @@ def fair(
     weight_decay: float = 1.0,
     weight_scale: Literal["normalized", "raw"] = "normalized",
     anchor: Literal["current", "input"] = "current",
+    reference: object | None = None,
     fixed: ArrayLike | None = None,
     fix_boundary: bool = False,
     solver: Literal["auto", "direct", "cg"] = "auto",
@@ -565,6 +566,11 @@ def fair(
         (its effect then depends on the model's unit).
     anchor : {"current", "input"}
         Penalize the distance to the current iterate (default) or to the input.
+    reference : build123d Face, QuadMesh or :class:`quadnodes.reference.Reference`, optional
+        Design surface: the penalty then pulls every free vertex to the closest
+        point of the current iterate on it (instead of the iterate itself), so
+        faired lines slide along the surface and normal noise is removed; a
+        face is sampled 4 times as finely as the mesh (``anchor`` is ignored).
     fixed : (n,) bool or int indices, optional
         Vertices that never move (corners always stay).
     fix_boundary : bool
@@ -610,6 +616,11 @@ def fair(
         raise InputError(
             "fixed: every vertex that lies inside a structure line is fixed; nothing can be faired"
         )
+    ref = None
+    if reference is not None:
+        from .reference import as_reference
+
+        ref = as_reference(reference, mesh)
     h = mesh.mean_edge_length
     scale = 1.0 / h**2 if weight_scale == "normalized" else 1.0
     w = topo.windows
@@ -630,7 +641,10 @@ def fair(
             continue
         w_eff = float(weights[it] * scale)
         system = FairingSystem(x, w, zz.free, w_eff, solver=solver)
-        target = (x if anchor == "current" else x0)[system.free_index]
+        if ref is not None:
+            target, _ = ref.closest(x[system.free_index])
+        else:
+            target = (x if anchor == "current" else x0)[system.free_index]
         new_free = system.solve(target)
         x_new = x.copy()
         x_new[system.free_index] = new_free

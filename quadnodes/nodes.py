@@ -168,17 +168,19 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
 
 
 @node("fair", outputs=("mesh", "report"))
-def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1,
+def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | Face | None = None, *,
+         iterations: int = 1,
          deviation: float | list[float] = 0.1, deviation_decay: float = 1.0,
          weight: float | list[float] = DEFAULT_WEIGHT, weight_decay: float = 1.0,
          weight_scale: Literal["normalized", "raw"] = "normalized",
          anchor: Literal["current", "input"] = "current",
          fix_boundary: bool = False,
          solver: Literal["auto", "direct", "cg"] = "auto") -> tuple[QuadMesh, FairingReport]:
-    """The thesis's structure-line fairing (eq. 32–34); deviation and weight may be per-iteration lists."""
+    """The thesis's structure-line fairing (eq. 32–34); deviation and weight may be per-iteration lists;
+    with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it."""
     return _fair(mesh, iterations=iterations, deviation=deviation, deviation_decay=deviation_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
-                 fixed=fixed, fix_boundary=fix_boundary, solver=solver)
+                 fixed=fixed, fix_boundary=fix_boundary, solver=solver, reference=reference)
 
 
 @node("planarize", outputs=("mesh", "report"))

@@ -1,0 +1,90 @@
+"""quadnodes.reference: closest points against trimesh's exhaustive search and OCCT; fair(reference=...)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from quadnodes import surfaces
+from quadnodes.errors import InputError
+from quadnodes.fairing import fair
+from quadnodes.mesh import grid
+from quadnodes.metrics import distance_to_mesh
+from quadnodes.perturb import perturb
+from quadnodes.reference import Reference, as_reference
+
+
+def _surface(n: int = 12) -> object:
+    y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
+    return grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y))
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 100_000), spread=st.floats(0.01, 1.0))
+def test_closest_points_equal_the_exhaustive_search(seed, spread):
+    ref_mesh = _surface()
+    h = ref_mesh.mean_edge_length
+    rng = np.random.default_rng(seed)
+    pts = ref_mesh.vertices[rng.integers(0, ref_mesh.n_vertices, 60)] + rng.normal(scale=spread * h, size=(60, 3))
+    q, d = Reference(ref_mesh).closest(pts)
+    # brute force: every point against every triangle (trimesh.proximity.closest_point, which
+    # metrics.distance_to_mesh uses, is off by up to ~1e-5 h for points this close to the surface)
+    from trimesh.triangles import closest_point
+
+    f = ref_mesh.faces
+    tris = ref_mesh.vertices[np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])]
+    k = len(tris)
+    c = closest_point(np.tile(tris, (len(pts), 1, 1)), np.repeat(pts, k, axis=0)).reshape(len(pts), k, 3)
+    exhaustive = np.linalg.norm(c - pts[:, None], axis=2).min(axis=1)
+    np.testing.assert_allclose(d, exhaustive, rtol=0, atol=1e-12 * h)
+    assert (d <= distance_to_mesh(pts, ref_mesh) + 1e-12 * h).all()
+    np.testing.assert_allclose(np.linalg.norm(q - pts, axis=1), d, atol=1e-12)
+
+
+def test_face_reference_is_within_the_chord_error_of_occt():
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+
+    face = surfaces.dome()
+    mesh = surfaces.sample(face, 12, 12)
+    ref = as_reference(face, mesh)
+    assert ref.source == "face" and ref.mesh.grid_shape == (64, 64)
+    h = mesh.mean_edge_length
+    rng = np.random.default_rng(0)
+    pts = mesh.vertices[::7] + rng.normal(scale=0.2 * h, size=mesh.vertices[::7].shape)
+    _, d = ref.closest(pts)
+    exact = []
+    for p in pts:
+        v = BRepBuilderAPI_MakeVertex(gp_Pnt(*p.tolist())).Vertex()
+        exact.append(BRepExtrema_DistShapeShape(v, face.wrapped).Value())
+    assert np.abs(d - np.array(exact)).max() < 2e-3 * h
+
+
+def test_as_reference_accepts_meshes_and_rejects_others():
+    m = _surface(5)
+    r = as_reference(m, m)
+    assert isinstance(r, Reference) and as_reference(r, m) is r
+    with pytest.raises(InputError, match="reference: expected a QuadMesh, a build123d Face"):
+        as_reference("dome.step", m)
+    with pytest.raises(InputError, match="points"):
+        r.closest(np.zeros((3, 2)))
+
+
+def test_fair_with_a_reference_stays_closer_to_the_design_surface():
+    clean = surfaces.example("E1")
+    h = clean.mean_edge_length
+    noisy = perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")
+    plain, _ = fair(noisy, iterations=3)
+    slid, rep = fair(noisy, iterations=3, reference=clean)
+    assert distance_to_mesh(slid.vertices, clean).max() < 0.5 * distance_to_mesh(plain.vertices, clean).max()
+    assert rep.iterations[0].n_free > 0
+    # corners never move; the zigzag is gone as well as without the reference
+    c = clean.topology.corner_vertices
+    np.testing.assert_array_equal(slid.vertices[c], noisy.vertices[c])
+    from quadnodes.zigzag import detect
+
+    assert detect(slid, 0.1).n_free == 0
+    assert np.isfinite(slid.vertices).all() and h > 0
