@@ -87,3 +87,17 @@ def test_quickstart_the_readme_main_job(tmp_path):
     assert m["fair"]["boundary_displacement_max"] < m["laplace"]["boundary_displacement_max"]
     assert m["fair"]["reference_vertex_mean"] < m["taubin"]["reference_vertex_mean"]
     assert load_obj(out / "faired.obj").grid_shape == (22, 41)
+
+
+def test_planar_panels_graph_end_to_end(tmp_path):
+    from build123d import GeomType, import_step
+
+    out = tmp_path / "planar"
+    assert main(["run", str(EXAMPLES / "planar_panels.toml"), "--out", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    flat = report["planarize"]
+    assert flat["converged"] and flat["planarity_max"] <= 1e-3 and flat["reference"] == "face"
+    # on the dome, flat panels cost little: within 5 % of an edge length of the design surface
+    assert flat["reference_distance_max"] < 0.05 * flat["length_scale"]
+    faces = import_step(out / "planar.step").faces()
+    assert len(faces) == 225 and {f.geom_type for f in faces} == {GeomType.PLANE}
