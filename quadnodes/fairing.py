@@ -38,7 +38,7 @@ from . import _validate
 from .errors import InputError
 from .progress import report_progress
 from .mesh import QuadMesh
-from .zigzag import detect, window_deviation, window_edges
+from .zigzag import _detect, _window_geometry, window_edges
 
 __all__ = [
     "DEFAULT_WEIGHT",
@@ -89,7 +89,12 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
     [[-0.5, 1.0, -1.0, 0.5]]
     """
     i0, i1, i2 = (1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows))
-    c = np.empty((len(windows), 4))
+    return _coefficients(i0, i1, i2)
+
+
+def _coefficients(i0: np.ndarray, i1: np.ndarray, i2: np.ndarray) -> np.ndarray:
+    """Eq. 32 coefficients from the inverse lengths of the windows' three edges."""
+    c = np.empty((len(i0), 4))
     c[:, 0] = -0.5 * i0
     c[:, 1] = 0.5 * i0 + i1
     c[:, 2] = -i1 - 0.5 * i2
@@ -341,6 +346,7 @@ class FairingSystem:
         *,
         solver: Literal["auto", "direct", "cg"] = "auto",
         rtol: float = 1e-9,
+        _inverse_lengths: np.ndarray | None = None,
     ) -> None:
         weight = _validate.positive_number(weight, "weight")
         free = np.asarray(free, dtype=bool)
@@ -354,7 +360,11 @@ class FairingSystem:
         win = windows if active.all() else windows[active]
         if win is not windows:
             is_free = is_free[active]
-        coef = window_coefficients(vertices, win)
+        if _inverse_lengths is None:  # else (w, 3) for all windows, from fair()'s detection pass
+            coef = window_coefficients(vertices, win)
+        else:
+            il = _inverse_lengths if win is windows else _inverse_lengths[active]
+            coef = _coefficients(il[:, 0], il[:, 1], il[:, 2])
         idx = np.int32 if max(n, 4 * len(win)) < 2**31 - 1 else np.int64
         col = np.full(n, -1, dtype=idx)
         col[self.free_index] = np.arange(k, dtype=idx)
@@ -627,9 +637,12 @@ def fair(
     x0 = mesh.vertices
     x = x0
     reports: list[IterationReport] = []
+    geometry = None  # windows' deviation and inverse edge lengths at x, shared by every use
     for it in range(iterations):
         current = mesh if x is x0 else mesh.with_vertices(x)
-        zz = detect(current, float(thresholds[it]), fixed=user, fix_boundary=fix_boundary)
+        if geometry is None:
+            geometry = _window_geometry(x, w)
+        zz = _detect(current, float(thresholds[it]), user, fix_boundary, geometry[0])
         dev_before = float(zz.window_deviation.sum())
         e_before = dev_before  # lengths frozen at x: each window's term is its eq. 30 deviation
         if zz.n_free == 0:
@@ -640,7 +653,7 @@ def fair(
             report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: no zigzag above {thresholds[it]:g}")
             continue
         w_eff = float(weights[it] * scale)
-        system = FairingSystem(x, w, zz.free, w_eff, solver=solver)
+        system = FairingSystem(x, w, zz.free, w_eff, solver=solver, _inverse_lengths=geometry[1])
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
         else:
@@ -649,6 +662,7 @@ def fair(
         x_new = x.copy()
         x_new[system.free_index] = new_free
         disp = np.linalg.norm(new_free - x[system.free_index], axis=1)
+        geometry = _window_geometry(x_new, w)
         reports.append(
             IterationReport(
                 iteration=it,
@@ -659,7 +673,7 @@ def fair(
                 energy_before=e_before,
                 energy_after=system.energy_after(new_free, e_before, zz.window_deviation),
                 deviation_before=dev_before,
-                deviation_after=float(window_deviation(x_new, w).sum()),
+                deviation_after=float(geometry[0].sum()),
                 max_displacement=float(disp.max()),
                 solver=system.solver,
                 cg_iterations=system.iterations,

@@ -51,14 +51,25 @@ def window_deviation(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
     >>> window_deviation(v, np.array([[0, 1, 2, 3], [0, 4, 5, 3]])).round(3).tolist()
     [0.0, 2.632]
     """
+    return _window_geometry(vertices, windows)[0]
+
+
+def _window_geometry(vertices: np.ndarray, windows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Deviation ``(w,)`` of every window and the inverse lengths ``(w, 3)`` of its edges.
+
+    One pass serves detection and the fairing coefficients (which freeze these lengths).
+    """
     u = window_edges(vertices, windows)
-    for d in u:
-        d /= np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+    inverse = np.empty((len(windows), 3))
+    for k, d in enumerate(u):
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        np.divide(1.0, length, out=inverse[:, k])
+        d /= length[:, None]
     r = u[0]
     r += u[2]
     r *= 0.5
     r -= u[1]
-    return np.einsum("ij,ij->i", r, r)
+    return np.einsum("ij,ij->i", r, r), inverse
 
 
 def vertex_deviation(deviation: np.ndarray, windows: np.ndarray, n: int) -> np.ndarray:
@@ -172,11 +183,15 @@ def detect(
     [[0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 1, 0], [0, 0, 0, 0, 0, 0]]
     """
     threshold = _validate.nonnegative_number(threshold, "threshold")
+    user = _validate.vertex_mask(fixed, mesh.n_vertices, "fixed")
+    return _detect(mesh, threshold, user, fix_boundary, window_deviation(mesh.vertices, mesh.topology.windows))
+
+
+def _detect(mesh: QuadMesh, threshold: float, user: np.ndarray, fix_boundary: bool, wd: np.ndarray) -> ZigzagReport:
+    """:func:`detect` with checked arguments and the windows' deviation ``wd`` already known."""
     n = mesh.n_vertices
-    user = _validate.vertex_mask(fixed, n, "fixed")
     topo = mesh.topology
     w = topo.windows
-    wd = window_deviation(mesh.vertices, w)
     vd = vertex_deviation(wd, w, n)
     fix = user | ~topo.window_middle
     if fix_boundary:

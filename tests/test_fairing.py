@@ -227,3 +227,16 @@ def test_reported_energies_equal_direct_evaluation(mesh):
     assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w), rel=1e-9, abs=1e-12)
     assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices),
                                            rel=1e-8, abs=1e-10)
+
+
+def test_shared_window_geometry_gives_the_same_system():
+    from quadnodes.zigzag import _window_geometry
+
+    m = perturb(l_shape_with_hole(), tangential=0.2, seed=3)
+    w = m.topology.windows
+    free = detect(m, 0.05).free
+    dev, inverse = _window_geometry(m.vertices, w)
+    np.testing.assert_array_equal(dev, window_deviation(m.vertices, w))
+    a = FairingSystem(m.vertices, w, free, 0.5)
+    b = FairingSystem(m.vertices, w, free, 0.5, _inverse_lengths=inverse)
+    assert (a.A != b.A).nnz == 0 and np.array_equal(a.b, b.b) and np.array_equal(a._rhs, b._rhs)
