@@ -59,6 +59,10 @@ MAX_CG_ITERATIONS = 20000
 MAX_THREADS = 4
 #: Vector rows per lane group: CG vectors are updated as ``(k / LANES, 3 LANES)`` arrays.
 LANES = 64
+#: Unknowns per block of the block-Jacobi preconditioner (a patch of about 4 × 4 vertices).
+BLOCK_SIZE = 16
+#: Precondition when the mean diagonal of AᵀA exceeds this many times ω (else plain CG wins).
+BLOCK_JACOBI_RATIO = 50.0
 #: Rows per thread below which a system is solved on one thread.
 PARALLEL_MIN_ROWS = 25000
 
@@ -209,6 +213,96 @@ class _RowBlocks:
                      data, X.reshape(-1), y.reshape(-1))
 
 
+def _with_weight(AtA: sp.csr_matrix, weight: float) -> sp.csr_matrix:
+    """``AᵀA + ω I``, adding ω on the diagonal in place when every diagonal entry is stored."""
+    M = AtA.tocsr()
+    k = M.shape[0]
+    row = np.repeat(np.arange(k, dtype=M.indices.dtype), np.diff(M.indptr))
+    diag = np.flatnonzero(M.indices == row)
+    if diag.size == k and np.array_equal(row[diag], np.arange(k)):
+        M.data[diag] += weight
+        return M
+    return (M + weight * sp.identity(k, format="csr")).tocsr()  # pragma: no cover - defensive
+
+
+def _patch_order(windows: np.ndarray, free_index: np.ndarray, side: int = 4) -> np.ndarray:
+    """Order of the free vertices that groups them in patches of about ``side × side``.
+
+    Every vertex gets its position along (up to) two structure lines through it,
+    read off the windows (consecutive windows of a line share three vertices):
+    ``a`` along the line with the smaller number, ``b`` along another. Sorting by
+    ``(a // side, b // side, a % side, b % side)`` puts a regular grid's
+    ``side × side`` patches one after the other; elsewhere the groups are
+    merely less compact.
+    """
+    n = int(max(windows.max(initial=0), free_index.max(initial=0))) + 1
+    brk = np.r_[True, (windows[1:, :3] != windows[:-1, 1:]).any(axis=1)]
+    line = np.cumsum(brk) - 1
+    first = np.flatnonzero(brk)
+    pos = np.arange(len(windows)) - first[line] + 1  # position of p1 along its line
+    v = np.concatenate([windows[:, 1], windows[:, 2]])
+    ln = np.concatenate([line, line])
+    ps = np.concatenate([pos, pos + 1])
+    la = np.full(n, np.iinfo(np.int64).max)
+    np.minimum.at(la, v, ln)
+    a = np.zeros(n, dtype=np.int64)
+    b = np.zeros(n, dtype=np.int64)
+    on_a = ln == la[v]
+    a[v[on_a]] = ps[on_a]
+    b[v[~on_a]] = ps[~on_a]
+    a, b = a[free_index], b[free_index]
+    span = int(b.max(initial=0)) // side + 1
+    key = ((a // side) * span + b // side) * (side * side) + (a % side) * side + b % side
+    return np.argsort(key, kind="stable")
+
+
+def _permuted(M: sp.csr_matrix, order: np.ndarray) -> sp.csr_matrix:
+    """``M[order][:, order]`` for a CSR matrix in one pass (column indices left unsorted)."""
+    k = M.shape[0]
+    idx = M.indices.dtype
+    rank = np.empty(k, dtype=idx)
+    rank[order] = np.arange(k, dtype=idx)
+    counts = np.diff(M.indptr)[order]
+    indptr = np.zeros(k + 1, dtype=M.indptr.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    # source position of every entry: its row's old start plus its place in the row
+    src = np.repeat(M.indptr[:-1][order] - indptr[:-1], counts) + np.arange(indptr[-1], dtype=indptr.dtype)
+    return sp.csr_matrix((M.data[src], rank[M.indices[src]], indptr), shape=M.shape)
+
+
+class _BlockJacobi:
+    """Block-diagonal preconditioner: exact inverses of the diagonal ``b × b`` blocks of ``M``.
+
+    The unknowns are ordered by :func:`_patch_order`, so a block is a compact patch
+    of about 4 × 4 vertices. On such a patch the fairing energy of a smooth (slowly
+    varying) motion is small next to ω, so the local solves capture most of the
+    stiff, oscillating part and leave the smooth part to CG.
+    """
+
+    def __init__(self, M: sp.csr_matrix, size: int) -> None:
+        k = M.shape[0]
+        kp = -(-k // LANES) * LANES  # as the CG vectors (size divides LANES)
+        counts = np.diff(M.indptr)
+        row = np.repeat(np.arange(k, dtype=np.int64), counts)
+        col = M.indices.astype(np.int64)
+        same = np.flatnonzero((row ^ col) < size) if size & (size - 1) == 0 else \
+            np.flatnonzero(row // size == col // size)  # same block (power of 2: equal high bits)
+        D = np.zeros(kp * size)
+        D[row[same] * size + (col[same] % size)] = M.data[same]
+        D = D.reshape(kp // size, size, size)
+        pad = np.arange(k, kp)
+        D[pad // size, pad % size, pad % size] = 1.0
+        self.inv = np.linalg.inv(D)
+        self.size = size
+
+    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int) -> None:
+        """``Z[lo:hi] = P⁻¹ R[lo:hi]`` for rows ``lo..hi`` at block boundaries."""
+        b = self.size
+        r, z = R[lo:hi], Z[lo:hi]
+        c = R.shape[1]
+        np.matmul(self.inv[lo // b : hi // b], r.reshape(-1, b, c), out=z.reshape(-1, b, c))
+
+
 def _block_cg(
     blocks: _RowBlocks,
     B: np.ndarray,
@@ -216,13 +310,15 @@ def _block_cg(
     *,
     rtol: float,
     maxiter: int,
+    precond: _BlockJacobi | None = None,
 ) -> tuple[np.ndarray, int, float]:
-    """Conjugate gradients on the columns of ``B`` at once (one operator product per step).
+    """(Preconditioned) conjugate gradients on the columns of ``B`` at once.
 
-    Each column is an independent CG run; they share the operator products, and
-    every vector update runs on the row ranges of ``blocks`` in parallel.
-    Stops when every column's residual is at most ``rtol`` times its right-hand
-    side. Returns the solution, the number of steps and the worst relative residual.
+    Each column is an independent CG run; they share the operator products (one
+    per step), and every vector update runs on the row ranges of ``blocks`` in
+    parallel. Stops when every column's residual is at most ``rtol`` times its
+    right-hand side. Returns the solution, the number of steps and the worst
+    relative residual.
 
     The ``(k, c)`` vectors are padded with zero rows to a multiple of
     :data:`LANES` and updated through ``(rows / LANES, LANES·c)`` views, so that
@@ -240,6 +336,7 @@ def _block_cg(
         return out
 
     X, B, R, P, Q, T = padded(X0), padded(B), padded(None), padded(None), padded(None), padded(None)
+    Z = R if precond is None else padded(None)
 
     def wide(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
         return V.reshape(-1, width)[lo // LANES : (kp if hi == k else hi) // LANES]
@@ -247,16 +344,23 @@ def _block_cg(
     def dot(U: np.ndarray, V: np.ndarray) -> np.ndarray:
         return np.einsum("ij,ij->j", U, V).reshape(LANES, c).sum(axis=0)
 
-    def start(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+    def precondition(lo: int, hi: int) -> None:
+        if precond is not None:
+            precond.apply(R, Z, lo, kp if hi == k else hi)
+
+    def start(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         blocks.matvec(X, R, lo, hi)
         r, b = wide(R, lo, hi), wide(B, lo, hi)
         np.subtract(b, r, out=r)
-        wide(P, lo, hi)[...] = r
-        return dot(r, r), dot(b, b)
+        precondition(lo, hi)
+        z = wide(Z, lo, hi)
+        wide(P, lo, hi)[...] = z
+        return dot(r, r), dot(b, b), dot(r, z)
 
     parts = blocks.run(start)
     rr = sum(p[0] for p in parts)
     bnorm = np.maximum(np.sqrt(sum(p[1] for p in parts)), 1e-300)
+    rz = sum(p[2] for p in parts)
     tol2 = (rtol * bnorm) ** 2
     alpha, beta = np.empty((LANES, c)), np.empty((LANES, c))  # per-column scalars, repeated per lane
     alpha, beta = alpha.reshape(-1), beta.reshape(-1)
@@ -265,26 +369,29 @@ def _block_cg(
         blocks.matvec(P, Q, lo, hi)
         return dot(wide(P, lo, hi), wide(Q, lo, hi))
 
-    def update(lo: int, hi: int) -> np.ndarray:
+    def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
         t, r = wide(T, lo, hi), wide(R, lo, hi)
         np.multiply(wide(P, lo, hi), alpha, out=t)
         wide(X, lo, hi)[...] += t
         np.multiply(wide(Q, lo, hi), alpha, out=t)
         r -= t
-        return dot(r, r)
+        precondition(lo, hi)
+        return dot(r, r), (None if precond is None else dot(r, wide(Z, lo, hi)))
 
     def direction(lo: int, hi: int) -> None:
         p = wide(P, lo, hi)
         p *= beta
-        p += wide(R, lo, hi)
+        p += wide(Z, lo, hi)
 
     it = 0
     while it < maxiter and (rr > tol2).any():
         pq = sum(blocks.run(product))
-        alpha.reshape(LANES, c)[:] = np.divide(rr, pq, out=np.zeros_like(rr), where=pq > 0)
-        rr_new = sum(blocks.run(update))
-        beta.reshape(LANES, c)[:] = np.divide(rr_new, rr, out=np.zeros_like(rr), where=rr > 0)
-        rr = rr_new
+        alpha.reshape(LANES, c)[:] = np.divide(rz, pq, out=np.zeros_like(rz), where=pq > 0)
+        parts = blocks.run(update)
+        rr_new = sum(p[0] for p in parts)
+        rz_new = rr_new if precond is None else sum(p[1] for p in parts)
+        beta.reshape(LANES, c)[:] = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
+        rr, rz = rr_new, rz_new
         it += 1
         if it < maxiter and (rr > tol2).any():
             blocks.run(direction)
@@ -386,6 +493,7 @@ class FairingSystem:
         b[partial] = np.einsum("wk,wkj->wj", np.where(is_free[partial], 0.0, coef[partial]),
                                np.take(vertices, wp.reshape(-1), axis=0).reshape(wp.shape + (3,)))
         self.weight = weight
+        self._windows = win
         self.active = active
         self.A = A
         self.At = A.T.tocsr()
@@ -403,21 +511,10 @@ class FairingSystem:
     def matrix(self) -> sp.csr_matrix:
         """The normal matrix ``AᵀA + ω I`` (assembled on first use)."""
         if self._matrix is None:
-            k = self.n_free
-            M = (self.At @ self.A).tocsr()
-            # every free vertex is in a window, so AᵀA holds each diagonal entry once:
-            # add ω there in place instead of a sparse sum with ωI
-            row = np.repeat(np.arange(k, dtype=M.indices.dtype), np.diff(M.indptr))
-            diag = np.flatnonzero(M.indices == row)
-            if diag.size == k and np.array_equal(row[diag], np.arange(k)):
-                M.data[diag] += self.weight
-            else:  # pragma: no cover - defensive
-                M = (M + self.weight * sp.identity(k, format="csr")).tocsr()
-            self._matrix = M
+            self._matrix = _with_weight(self.At @ self.A, self.weight)
         return self._matrix
 
     _matrix: sp.csr_matrix | None = None
-    _blocks: _RowBlocks | None = None
 
     def _apply(self, X: np.ndarray) -> np.ndarray:
         """``(AᵀA + ω I) X`` with the assembled matrix (one sparse pass per product)."""
@@ -432,6 +529,27 @@ class FairingSystem:
                 options={"SymmetricMode": True},
             )
         return self._lu
+
+    def _cg_setup(self) -> tuple[_RowBlocks, _BlockJacobi | None, np.ndarray | None]:
+        """The CG operator (row ranges), its preconditioner and the unknowns' order, made once.
+
+        When the weight is small next to the fairing term (mean diagonal of AᵀA
+        above :data:`BLOCK_JACOBI_RATIO` ω), the unknowns are renumbered in
+        patches (:func:`_patch_order`) and preconditioned by :class:`_BlockJacobi`; otherwise plain
+        CG on ``AᵀA + ωI`` in ``free_index`` order.
+        """
+        if self._cg is None:
+            A, k = self.A, self.n_free
+            mean_diag = float(np.einsum("i,i->", A.data, A.data)) / k
+            if k >= BLOCK_SIZE and mean_diag > BLOCK_JACOBI_RATIO * self.weight:
+                order = _patch_order(self._windows, self.free_index, 4)
+                M = _permuted(self.matrix, order)
+                self._cg = (_RowBlocks(M), _BlockJacobi(M, BLOCK_SIZE), order)
+            else:
+                self._cg = (_RowBlocks(self.matrix), None, None)
+        return self._cg
+
+    _cg: tuple | None = None
 
     @property
     def n_free(self) -> int:
@@ -459,13 +577,21 @@ class FairingSystem:
             # translation equivariance: solve about the anchor's centroid, so the stopping
             # rule is relative to the mesh's extent, not to its distance from the origin
             c = a.mean(axis=0)
-            shifted = rhs - self._apply(np.broadcast_to(c, a.shape))
-            if self._blocks is None:
-                self._blocks = _RowBlocks(self.matrix)
-            y, its, res = _block_cg(self._blocks, shifted, a - c, rtol=self.rtol, maxiter=MAX_CG_ITERATIONS)
+            blocks, precond, order = self._cg_setup()
+            rhs_cg, a_cg = rhs, a
+            if order is not None:  # unknowns along the Morton curve
+                rhs_cg, a_cg = np.take(rhs, order, axis=0), np.take(a, order, axis=0)
+            shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
+            y, its, res = _block_cg(blocks, shifted, a_cg - c, rtol=self.rtol, maxiter=MAX_CG_ITERATIONS,
+                                    precond=precond)
             if res <= self.rtol:
                 self.iterations, self.residual = its, res
-                return y + c
+                y += c
+                if order is not None:
+                    out = np.empty_like(y)
+                    out[order] = y
+                    y = out
+                return y
             warnings.warn(
                 f"fairing: conjugate gradients reached a relative residual of {res:.1e} after {its} "
                 f"iterations; falling back to the direct solver",

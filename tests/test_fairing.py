@@ -188,21 +188,23 @@ def test_conjugate_gradients_equal_the_direct_solve(make, weight):
 
 
 @pytest.mark.parametrize("threads", [2, 3])
-def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads):
+@pytest.mark.parametrize("weight", [0.3, 0.01])  # plain CG, block-Jacobi CG
+def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, weight):
     from quadnodes import fairing
 
     m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
     free = detect(m, 0.0).free
-    w = 0.3 / m.mean_edge_length**2
+    w = weight / m.mean_edge_length**2
     one = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg")
     x1 = one.solve(m.vertices[free])
     monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
     monkeypatch.setattr(fairing, "_thread_count", lambda: threads)
     par = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg")
     xp = par.solve(m.vertices[free])
-    assert len(par._blocks.ranges) == threads and len(one._blocks.ranges) == 1
+    assert len(par._cg[0].ranges) == threads and len(one._cg[0].ranges) == 1
     assert par.iterations == one.iterations and par.residual <= 1e-9
+    assert (par._cg[1] is not None) == (weight < 0.1)
     np.testing.assert_allclose(xp, x1, rtol=0, atol=1e-10 * np.ptp(m.vertices))
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
     assert np.abs(xp - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
@@ -240,3 +242,31 @@ def test_shared_window_geometry_gives_the_same_system():
     a = FairingSystem(m.vertices, w, free, 0.5)
     b = FairingSystem(m.vertices, w, free, 0.5, _inverse_lengths=inverse)
     assert (a.A != b.A).nnz == 0 and np.array_equal(a.b, b.b) and np.array_equal(a._rhs, b._rhs)
+
+
+def test_patch_order_and_permutation():
+    from quadnodes.fairing import _BlockJacobi, _patch_order, _permuted
+
+    m = perturb(grid(13, 11), tangential=0.2, seed=1)
+    free = detect(m, 0.0).free
+    s = FairingSystem(m.vertices, m.topology.windows, free, 0.01)
+    order = _patch_order(m.topology.windows, s.free_index, 4)
+    assert np.array_equal(np.sort(order), np.arange(s.n_free))
+    big = perturb(grid(41, 43), tangential=0.2, seed=1)
+    fi = np.flatnonzero(detect(big, 0.0).free)
+    ij = np.stack(np.divmod(fi[_patch_order(big.topology.windows, fi, 4)], 43), axis=-1)
+    blocks = ij[: len(ij) // 16 * 16].reshape(-1, 16, 2)
+    compact = (np.ptp(blocks, axis=1) <= 7).all(axis=1)  # within two neighbouring 4 x 4 patches
+    assert compact.mean() > 0.7
+    M = s.matrix
+    P = _permuted(M, order)
+    np.testing.assert_array_equal(P.toarray(), M.toarray()[order][:, order])
+    bj = _BlockJacobi(P, 16)
+    D = P.toarray()
+    R = np.zeros((bj.inv.shape[0] * 16, 3))
+    R[: s.n_free] = np.random.default_rng(0).normal(size=(s.n_free, 3))
+    Z = np.empty_like(R)
+    bj.apply(R, Z, 0, len(R))
+    for b in range(s.n_free // 16):
+        blk = slice(16 * b, 16 * b + 16)
+        np.testing.assert_allclose(D[blk, blk] @ Z[blk], R[blk], rtol=1e-10, atol=1e-10)
