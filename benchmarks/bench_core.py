@@ -19,7 +19,7 @@ Rows
 - trimesh filter_taubin, 10 steps: ``trimesh.smoothing.filter_taubin(iterations=10)``
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
-Run:  python benchmarks/bench_core.py [--sizes 100 300 1000]
+Run:  python benchmarks/bench_core.py [--sizes 100 300 1000] [--only fair taubin ...]
 """
 
 from __future__ import annotations
@@ -128,6 +128,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000])
     ap.add_argument("--slow", action="store_true", help="also run SuperLU at sizes above 300")
+    ap.add_argument("--only", nargs="+", choices=list(LABELS), help="run only these rows")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
@@ -141,7 +142,7 @@ def main() -> None:
     except ImportError:
         have_pyamg = False
     for n in args.sizes:
-        for kind in LABELS:
+        for kind in args.only or LABELS:
             if kind.startswith("superlu") and n > 300 and not args.slow:
                 continue
             if kind == "pyamg" and not have_pyamg:

@@ -252,9 +252,12 @@ class Topology:
         end = self.edges[:, ::-1].reshape(-1)  # 2e ends at the high vertex, 2e + 1 at the low one
         succ = np.full(2 * E, -1, dtype=np.int64)
 
-        inner = self.regular_interior[end]
-        h = dir_he[d[inner]]  # exists: every edge at an interior vertex has two faces
-        succ[inner] = he_dir[self.he_next[self.he_twin[self.he_next[h]]]]
+        inner = np.flatnonzero(self.regular_interior[end])
+        h = dir_he[inner]  # exists: every edge at an interior vertex has two faces
+        h = (h & ~3) | ((h + 1) & 3)  # next in the face (as he_next, without the gather)
+        h = dir_he[he_dir[h] ^ 1]  # its twin
+        h = (h & ~3) | ((h + 1) & 3)
+        succ[inner] = he_dir[h]
 
         bnd_he = np.flatnonzero(self.he_twin < 0)
         b_in = np.full(self.n_vertices, -1, dtype=np.int64)
@@ -344,45 +347,51 @@ def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
 
 
 def _canonical(flat: np.ndarray, offsets: np.ndarray, closed: np.ndarray) -> StructureLines:
-    """Orient and order lines deterministically, independent of edge numbering."""
+    """Orient and order lines deterministically, independent of edge numbering.
+
+    Open lines run from their smaller end vertex; closed lines start at their
+    smallest vertex and go towards its smaller neighbour; lines are sorted by
+    their first two vertices. Everything is decided per line, then one gather
+    writes the result.
+    """
     L = closed.size
     if L == 0:
         return StructureLines(flat, offsets, closed)
-    lengths = np.diff(offsets)
-    line = np.repeat(np.arange(L), lengths)
-    local = np.arange(flat.size) - offsets[line]
-    first, last = flat[offsets[:-1]], flat[offsets[1:] - 1]
-    # closed: rotate to the smallest vertex, then go towards its smaller neighbour
-    seg_min = np.minimum.reduceat(flat, offsets[:-1])
-    is_min = flat == seg_min[line]
+    n = np.diff(offsets)
+    start = offsets[:-1]
+    first, last = flat[start], flat[offsets[1:] - 1]
+    # closed: rotate to the (first) smallest vertex
     shift = np.zeros(L, dtype=np.int64)
-    # first position of the minimum in each line
-    pos_min = np.where(is_min, local, np.iinfo(np.int64).max)
-    shift = np.minimum.reduceat(pos_min, offsets[:-1])
-    shift = np.where(closed, shift, 0)
-    n = lengths
-    nxt = flat[offsets[:-1] + (shift + 1) % n]
-    prv = flat[offsets[:-1] + (shift - 1) % n]
+    ci = np.flatnonzero(closed)
+    if ci.size:
+        cn = n[ci]
+        coff = np.r_[0, np.cumsum(cn)]
+        cl = np.repeat(np.arange(ci.size), cn)
+        cpos = np.arange(coff[-1]) - coff[cl]
+        cflat = flat[start[ci][cl] + cpos]
+        cmin = np.minimum.reduceat(cflat, coff[:-1])
+        shift[ci] = np.minimum.reduceat(np.where(cflat == cmin[cl], cpos, np.iinfo(np.int64).max), coff[:-1])
+    nxt = flat[start + (shift + 1) % n]
+    prv = flat[start + (shift - 1) % n]
     flip = np.where(closed, prv < nxt, first > last)
-    # source position: flipped open lines read backwards; closed read from shift
-    # source position of every entry: only flipped or closed lines need arithmetic
-    src = np.arange(flat.size)
-    sel = np.flatnonzero((flip | closed)[line])
-    ls, lc = line[sel], local[sel]
-    src[sel] = offsets[ls] + np.where(
-        closed[ls],
-        np.where(flip[ls], shift[ls] - lc, shift[ls] + lc) % n[ls],
-        n[ls] - 1 - lc,
-    )
-    flat = flat[src]
-    # sort lines by their first two vertices
-    second = flat[offsets[:-1] + np.minimum(1, n - 1)]
-    order = np.lexsort((second, flat[offsets[:-1]]))
+    one = np.minimum(1, n - 1)
+    head = np.where(closed, flat[start + shift], np.where(flip, last, first))
+    second = np.where(closed, np.where(flip, prv, nxt),
+                      np.where(flip, flat[offsets[1:] - 1 - one], flat[start + one]))
+    order = np.lexsort((second, head))
+    # source position of output entry q of output line j (= input line order[j]):
+    # base + sign * q, taken modulo the length for closed lines
+    base = np.where(closed, shift, np.where(flip, n - 1, 0))[order]
+    sign = np.where(flip, -1, 1)[order]
     new_len = n[order]
     new_off = np.r_[0, np.cumsum(new_len)].astype(np.int64)
     new_line = np.repeat(np.arange(L), new_len)
-    new_local = np.arange(flat.size) - new_off[new_line]
-    flat = flat[offsets[order][new_line] + new_local]
+    q = np.arange(flat.size) - new_off[new_line]
+    pos = base[new_line] + sign[new_line] * q
+    cl_entries = np.flatnonzero(closed[order][new_line]) if ci.size else np.empty(0, dtype=np.int64)
+    pos[cl_entries] %= new_len[new_line[cl_entries]]
+    pos += start[order][new_line]
+    flat = flat[pos]
     for a in (flat, new_off):
         a.setflags(write=False)
     closed = closed[order].copy()
