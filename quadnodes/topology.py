@@ -429,7 +429,9 @@ def windows(lines: StructureLines, *, return_line: bool = False) -> np.ndarray |
     line = np.repeat(np.arange(len(n)), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     pos = k[:, None] + np.arange(4)
-    pos = np.where(closed[line][:, None], pos % n[line][:, None], pos)
+    wrap = np.flatnonzero(closed[line])  # only closed lines' windows wrap around
+    if wrap.size:
+        pos[wrap] %= n[line[wrap]][:, None]
     w = lines.indices[lines.offsets[:-1][line][:, None] + pos]
     return (w, line) if return_line else w
 
