@@ -1,0 +1,188 @@
+"""Planar panels: quadnodes ``planarize`` beside libigl's ``planarize_quad_mesh`` on the same meshes.
+
+Meshes: the four thesis examples E1–E4 (``quadnodes.surfaces.example``) with the
+noise of ``quadnodes.report.THESIS_EXAMPLES`` (``perturb(clean, tangential=t,
+normal=n, seed=7, fix="corners")``: 0.25/0.1 for E1–E3, 0.6/0.2 for E4), then
+``fair(noisy, iterations=3)`` (default weight); and "F100", a 100×100 sample of a
+free-form B-spline face, ``surfaces.wavy(10000, 10000, 400, waves_u=0.5,
+waves_v=1.0)`` (bicubic, built by ``surfaces.from_points``), perturbed 0.25/0.1
+and faired the same way. Every method starts from that faired mesh.
+
+Rows
+- input (faired): the faired mesh itself, for the "before" numbers;
+- quadnodes, reference = clean mesh: ``planarize(faired, reference=clean)`` with
+  every other setting at its default (tolerance 1e-3, corners fixed, Anderson 5,
+  adaptive planarity weight); the reference is the clean sampled mesh (its quads
+  split in two triangles);
+- quadnodes, reference = face: the same with ``reference=`` the build123d face
+  (sampled 4× finer inside ``planarize``; the sampling is part of the time);
+- quadnodes, no reference: ``planarize(faired)`` — closeness to the input vertices;
+- libigl default: ``igl.planarize_quad_mesh(V, F, 100, 0.005)`` (ShapeUp
+  projection, planarity only, mean re-centred at the end, nothing held fixed);
+- libigl at our tolerance: ``igl.planarize_quad_mesh(V, F, 1000, 1e-3)``.
+  libigl's per-iteration cost grows with (number of quads × number of vertices)
+  (it builds a selector matrix as wide as the mesh for every quad): about 2.7 s
+  per iteration at 100×100, so this row runs on F100 only with ``--slow`` (up to
+  1000 iterations: most of an hour). The default row stops after a few
+  iterations there (~7 s) and always runs.
+
+Columns
+- planarity max / mean: ``quadnodes.planarity.diagonal_distance`` (distance between
+  the diagonals over their mean length); the script checks on every row that it
+  equals ``|igl.quad_planarity|`` (libigl's measure is the same number with a sign)
+  and prints the largest difference under each table;
+- to clean surface max / mean (h): ``quadnodes.metrics.distance_to_mesh`` from every
+  vertex to the clean face sampled 4× finer (as ``quadnodes.report``), in mean edge
+  lengths h of the clean mesh;
+- moved max (h): largest vertex displacement from the faired input;
+- zigzag mean: mean window deviation (thesis eq. 30) of all structure-line windows;
+- iterations: quadnodes' local/global iterations (with the number of matrix
+  factorizations, i.e. planarity-weight doublings + 1, and whether the tolerance was
+  met); libigl does not report its count: "100 (cap)" when the result is still above
+  its threshold, "≤ 100" when it stopped at the threshold;
+- wall time: the planarization call only (mesh construction, noise, fairing, the
+  mesh's structure lines and module imports excluded); peak MB: that row's subprocess peak resident memory (ru_maxrss) minus
+  its resident memory just before the call.
+
+Run:  python benchmarks/bench_planarize.py [--quick] [--slow]
+      (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
+      --slow adds libigl at threshold 1e-3 on F100)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+EXAMPLES = ("E1", "E2", "E3", "E4")
+FREEFORM = "F100"
+KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "igl_default", "igl_tol")
+LABELS = {
+    "input": "input (faired)",
+    "qn_mesh": "quadnodes, reference = clean mesh",
+    "qn_face": "quadnodes, reference = face",
+    "qn_none": "quadnodes, no reference",
+    "igl_default": "libigl, maxIter 100, threshold 5e-3 (default)",
+    "igl_tol": "libigl, maxIter 1000, threshold 1e-3",
+}
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
+
+
+def _case(name: str):
+    """(face, clean mesh, 4× finer sample of the face, faired noisy mesh) of one benchmark case."""
+    from quadnodes import surfaces
+    from quadnodes.fairing import fair
+    from quadnodes.perturb import perturb
+
+    if name == FREEFORM:
+        face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
+        rows, cols, noise = 100, 100, (0.25, 0.1)
+    else:
+        from quadnodes.report import THESIS_EXAMPLES
+
+        ex = THESIS_EXAMPLES[name]
+        face = getattr(surfaces, ex.surface)()
+        rows, cols, noise = ex.rows, ex.cols, ex.noise
+    clean = surfaces.sample(face, rows, cols)
+    fine = surfaces.sample(face, 4 * (rows - 1) + 1, 4 * (cols - 1) + 1)
+    noisy = perturb(clean, tangential=noise[0], normal=noise[1], seed=7, fix="corners")
+    faired, _ = fair(noisy, iterations=3)
+    return face, clean, fine, faired
+
+
+def run_row(name: str, kind: str) -> dict:
+    import igl
+
+    from quadnodes.metrics import distance_to_mesh
+    from quadnodes.planarity import diagonal_distance
+    from quadnodes.planarize import planarize
+    from quadnodes.zigzag import window_deviation
+
+    face, clean, fine, faired = _case(name)
+    import trimesh.triangles  # noqa: F401  (imported lazily by the closest-point search: keep it out of the time)
+
+    _ = faired.topology.windows  # built before timing, like the input of a graph node (cached on the mesh)
+    base = _rss_mb()
+    t = time.perf_counter()
+    iters = "—"
+    if kind == "input":
+        out = faired
+    elif kind.startswith("qn_"):
+        ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None}[kind]
+        out, rep = planarize(faired, reference=ref)
+        iters = f"{rep.iterations} ({rep.factorizations} fact., {'met' if rep.converged else 'NOT met'})"
+    else:
+        max_iter, thr = (100, 0.005) if kind == "igl_default" else (1000, 1e-3)
+        v = igl.planarize_quad_mesh(faired.vertices, faired.faces, max_iter, thr)
+        out = faired.with_vertices(np.ascontiguousarray(v, dtype=np.float64))
+    wall = time.perf_counter() - t
+    peak = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base, 0.0)
+    h = clean.mean_edge_length
+    pl = diagonal_distance(out)
+    pl_igl = np.abs(np.asarray(igl.quad_planarity(out.vertices, out.faces), dtype=np.float64).ravel())
+    if kind.startswith("igl_"):
+        iters = f"{max_iter} (cap)" if pl.max() >= thr else f"≤ {max_iter}"
+    ds = distance_to_mesh(out.vertices, fine) / h
+    moved = np.linalg.norm(out.vertices - faired.vertices, axis=1) / h
+    zz = window_deviation(out.vertices, out.topology.windows)
+    return {
+        "planarity_max": float(pl.max()), "planarity_mean": float(pl.mean()),
+        "igl_measure_diff": float(np.abs(pl - pl_igl).max()),
+        "surface_max_h": float(ds.max()), "surface_mean_h": float(ds.mean()),
+        "moved_max_h": float(moved.max()), "zigzag_mean": float(zz.mean()),
+        "iterations": iters, "wall_s": None if kind == "input" else wall,
+        "peak_mb": None if kind == "input" else peak,
+        "size": f"{clean.grid_shape[0]}×{clean.grid_shape[1]}",
+    }
+
+
+HEADER = ("| method | planarity max | planarity mean | to clean surface max (h) | to clean surface mean (h) "
+          "| moved max (h) | zigzag mean | iterations | wall time (s) | peak MB |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="only E1–E4 (skip the 100×100 free-form surface)")
+    ap.add_argument("--slow", action="store_true",
+                    help="also run libigl at threshold 1e-3 on the 100×100 surface (up to an hour)")
+    ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.row:
+        print(json.dumps(run_row(args.row[0], args.row[1])))
+        return
+    cases = list(EXAMPLES) + ([] if args.quick else [FREEFORM])
+    for name in cases:
+        worst = 0.0
+        lines = []
+        for kind in KINDS:
+            if name == FREEFORM and kind == "igl_tol" and not args.slow:
+                continue
+            out = subprocess.run([sys.executable, __file__, "--row", name, kind],
+                                 capture_output=True, text=True, check=True)
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            worst = max(worst, r["igl_measure_diff"])
+            wall = "—" if r["wall_s"] is None else f"{r['wall_s']:.2f}"
+            peak = "—" if r["peak_mb"] is None else f"{r['peak_mb']:.0f}"
+            lines.append(f"| {LABELS[kind]} | {r['planarity_max']:.2e} | {r['planarity_mean']:.2e} "
+                         f"| {r['surface_max_h']:.3f} | {r['surface_mean_h']:.3f} | {r['moved_max_h']:.3f} "
+                         f"| {r['zigzag_mean']:.2e} | {r['iterations']} | {wall} | {peak} |")
+            if len(lines) == 1:
+                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---|---:|---:|")
+            print(lines[-1], flush=True)
+        if name == FREEFORM and not args.slow:
+            print("\n(libigl at threshold 1e-3 skipped on this mesh: run with --slow)")
+        print(f"\nLargest |diagonal_distance − |igl.quad_planarity|| over these rows: {worst:.1e}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
