@@ -55,6 +55,8 @@ __all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "DEFAULT_TOL
 DEFAULT_TOLERANCE = 1e-3
 #: With a reference surface, a weak pull to the input positions keeps vertices from sliding far along it.
 DEFAULT_INPUT_WEIGHT = 0.01
+#: ``method="auto"`` tries Newton steps after an unconverged local/global run up to this many free vertices.
+NEWTON_LIMIT = 5000
 #: The adaptive planarity weight grows at most this much over its start value.
 MAX_WEIGHT_GROWTH = 1e6
 
@@ -119,6 +121,8 @@ class PlanarizeReport:
     seconds: float
     length_scale: float
     history: list[float] = field(default_factory=list)
+    method: str = "local-global"
+    newton_steps: int = 0
 
     def to_dict(self) -> dict:
         """Plain-Python form (JSON-ready)."""
@@ -144,7 +148,11 @@ def _centering_matrix(faces: np.ndarray, n: int) -> sp.csr_matrix:
 
 
 class _Anderson:
-    """Anderson acceleration (type II) of a fixed-point iteration ``x <- g(x)``, with a residual safeguard."""
+    """Anderson acceleration (type II) of a fixed-point iteration ``x <- g(x)``, with a residual safeguard.
+
+    When the fixed-point residual ``||g(x) − x||`` grew since the last call, the
+    history is dropped and this call returns the plain step ``g(x)``.
+    """
 
     def __init__(self, m: int) -> None:
         self.m = m
@@ -158,7 +166,7 @@ class _Anderson:
     def update(self, x: np.ndarray, g: np.ndarray) -> np.ndarray:
         f = (g - x).reshape(-1)
         norm = float(np.linalg.norm(f))
-        if norm > self.last_norm:  # the last (accelerated) step made things worse: restart from the plain step
+        if norm > self.last_norm:  # the last (accelerated) step made things worse: restart with a plain step
             self.reset()
         self.last_norm = norm
         self.F.append(f)
@@ -172,6 +180,89 @@ class _Anderson:
         dG = np.diff(np.array(self.G), axis=0).T
         gamma, *_ = np.linalg.lstsq(dF, f, rcond=None)
         return (g.reshape(-1) - dG @ gamma).reshape(g.shape)
+
+
+def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed, normalized planarity ``c_f`` of every quad and its gradient ``(m, 4, 3)``.
+
+    ``c_f = det(p1 − p0, p2 − p0, p3 − p0) / s_f`` with ``s_f = |d1 × d2| · mean diagonal``;
+    ``|c_f|`` equals the relative diagonal distance, and ``s_f`` is held fixed when
+    differentiating (the Gauss–Newton linearization).
+    """
+    p = x[faces]
+    a, b, e = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]
+    d2 = p[:, 3] - p[:, 1]
+    s = np.linalg.norm(np.cross(b, d2), axis=1) * 0.5 * (np.linalg.norm(b, axis=1) + np.linalg.norm(d2, axis=1))
+    s = np.maximum(s, 1e-300)
+    g1, g2, g3 = np.cross(b, e), np.cross(e, a), np.cross(a, b)
+    c = np.einsum("ij,ij->i", a, g1) / s
+    grad = np.stack([-(g1 + g2 + g3), g1, g2, g3], axis=1) / s[:, None, None]
+    return c, grad
+
+
+def _newton(
+    x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
+    closest: Any, tol: float, max_steps: int,
+) -> tuple[np.ndarray, list[float], int]:
+    """Planarity as a hard constraint: Gauss–Newton (SQP) steps on the fairness and closeness energy.
+
+    Each step minimizes the quadratic energy subject to the linearized constraints
+    ``c + G Δ = 0`` (one sparse KKT solve for x, y and z together), then halves the
+    step until the constraint norm decreases (at most 6 times). Works in units of
+    the mean edge length about the centroid, so the system is well scaled.
+    Returns the positions, the maximum planarity after every step and the number of steps.
+    """
+    w_f, w_c, w_i = weights
+    n = len(x0)
+    h = float(np.mean(np.linalg.norm(x0[faces] - np.roll(x0[faces], 1, axis=1), axis=2)))
+    centre = x0.mean(axis=0)
+    X0 = (x0 - centre) / h
+    k = fi.size
+    free = np.zeros(n, dtype=bool)
+    free[fi] = True
+    col = np.full(n, -1, dtype=np.int64)
+    col[fi] = np.arange(k)
+    F = F * h**2  # AᵀA in units of the mean edge length (its coefficients go as 1/length)
+    Fff, Ffx = F[fi][:, fi], F[fi][:, ~free]
+    H = sp.kron((w_f * Fff + (w_c + w_i) * sp.identity(k)).tocsr(), sp.identity(3), format="csr")
+    fixed_F = w_f * (Ffx @ X0[~free]) if Ffx.shape[1] else np.zeros((k, 3))
+    cols = col[faces]
+    active = (cols >= 0).any(axis=1)
+    fa, ca = faces[active], cols[active]
+    m = len(fa)
+    rr = np.broadcast_to(np.arange(m)[:, None, None], (m, 4, 3))
+    cc = 3 * ca[:, :, None] + np.arange(3)
+    use = np.broadcast_to((ca >= 0)[:, :, None], (m, 4, 3))
+    reg = 1e-10 * sp.identity(m, format="csr")
+    X = X0.copy()
+    history: list[float] = []
+    steps = 0
+    for steps in range(1, max_steps + 1):
+        target = (closest(X * h + centre)[0] - centre) / h
+        b = (w_c * target[fi] + w_i * X0[fi] - fixed_F).reshape(-1)
+        grad_e = H @ X[fi].reshape(-1) - b
+        c, grad = _planarity_constraints(X, fa)
+        G = sp.csr_matrix((grad[use], (rr[use], cc[use])), shape=(m, 3 * k))
+        K = sp.bmat([[H, G.T], [G, -reg]], format="csc")
+        sol = splu(K).solve(np.concatenate([-grad_e, -c]))
+        D = sol[: 3 * k].reshape(k, 3)
+        norm0 = float(np.linalg.norm(c))
+        t = 1.0
+        for _ in range(7):
+            Xt = X.copy()
+            Xt[fi] += t * D
+            if float(np.linalg.norm(_planarity_constraints(Xt, fa)[0])) < norm0:
+                break
+            t *= 0.5
+        X = Xt
+        pmax = float(quad_diagonal_distance(X, faces).max())
+        history.append(pmax)
+        report_progress(min(steps / max_steps, 1.0), f"Newton step {steps}: planarity max {pmax:.2e}")
+        if pmax <= tol:
+            break
+    out = x0.copy()  # fixed vertices exactly as given (no round trip through the scaled frame)
+    out[fi] = X[fi] * h + centre
+    return out, history, steps
 
 
 def planarize(
@@ -189,6 +280,8 @@ def planarize(
     reference_samples: int = 4,
     adapt: bool = True,
     anderson: int = 5,
+    method: Literal["auto", "local-global", "newton"] = "auto",
+    newton_steps: int = 30,
 ) -> tuple[QuadMesh, PlanarizeReport]:
     """Make every quad planar while keeping structure lines fair and the mesh on its design surface.
 
@@ -221,11 +314,21 @@ def planarize(
         For a face: fine samples per mesh edge (see :func:`quadnodes.reference.as_reference`).
     adapt : bool
         Double ``w_p`` whenever the maximum planarity improved by less than 1 %
-        over the last 10 iterations (and the tolerance is not met).
+        over 9 iterations (at most every 10 iterations, while the tolerance is not met).
     anderson : int
         History length of the Anderson acceleration of the local/global
-        iteration (0: plain iteration). An accelerated step whose fixed-point
-        residual grew is replaced by the plain step and the history restarts.
+        iteration (0: plain iteration). When an accelerated step made the
+        fixed-point residual grow, the history restarts with a plain step.
+    method : {"auto", "local-global", "newton"}
+        ``"local-global"``: the projection iteration above. ``"newton"``:
+        planarity as a hard constraint, Gauss–Newton (SQP) steps on the fairness
+        and closeness energy, one sparse KKT factorization per step (few steps,
+        each costlier; ``w_p`` and ``adapt`` unused). ``"auto"`` (default):
+        local/global, and when it ends above the tolerance with at most
+        :data:`NEWTON_LIMIT` free vertices, Newton from the input; the result
+        that meets the tolerance (else the flatter one) is returned.
+    newton_steps : int
+        Cap on Newton steps (>= 1).
 
     Returns
     -------
@@ -262,6 +365,8 @@ def planarize(
     for value, name in ((w_f, "fairness_weight"), (w_c, "closeness_weight"), (w_i, "input_weight")):
         if value < 0:
             raise InputError(f"{name}: expected a number >= 0, got {value!r}")
+    method = _validate.choice(method, ("auto", "local-global", "newton"), "method")
+    newton_steps = _validate.positive_int(newton_steps, "newton_steps")
     if not isinstance(adapt, (bool, np.bool_)):
         raise InputError(f"adapt: expected True or False, got {adapt!r}")
     held = _fixed_mask(mesh, fix, fixed)
@@ -287,7 +392,8 @@ def planarize(
             return x0, np.linalg.norm(x - x0, axis=1)
         return ref.closest(x)
 
-    def finish(x: np.ndarray, converged: bool, its: int, history: list[float], w_p_now: float, facts: int):
+    def finish(x: np.ndarray, converged: bool, its: int, history: list[float], w_p_now: float, facts: int,
+               used: str = "local-global", n_steps: int = 0):
         out = mesh if x is x0 else mesh.with_vertices(x)
         pl = diagonal_distance(out)
         moved = np.linalg.norm(x - x0, axis=1)
@@ -299,7 +405,7 @@ def planarize(
             reference="none" if ref is None else ref.source,
             reference_distance_max=float(dist.max()), reference_distance_mean=float(dist.mean()),
             weight_planarity_final=w_p_now, factorizations=facts, seconds=time.perf_counter() - t0,
-            length_scale=h, history=history,
+            length_scale=h, history=history, method=used, newton_steps=n_steps,
         )
 
     if p_before <= tol:
@@ -320,6 +426,12 @@ def planarize(
         F = (A.T @ A).tocsr()
     else:
         F = sp.csr_matrix((n, n))
+    def run_newton(its: int, history: list[float], facts: int) -> tuple[QuadMesh, PlanarizeReport]:
+        x, steps_h, steps = _newton(x0, faces, fi, F, (w_f, w_c, w_i), closest, tol, newton_steps)
+        return finish(x, steps_h[-1] <= tol, its, history + steps_h, w_p, facts + steps, "newton", steps)
+
+    if method == "newton":
+        return run_newton(0, [], 0)
     Cff, Cfx = C[fi][:, fi], C[fi][:, ~free]
     Fff, Ffx = F[fi][:, fi], F[fi][:, ~free]
     I = sp.identity(fi.size, format="csc") / h**2
@@ -373,4 +485,9 @@ def planarize(
                 acc.reset()
     x = x0.copy()
     x[fi] = xf
-    return finish(x, converged, it, history, w_p, facts)
+    result = finish(x, converged, it, history, w_p, facts)
+    if converged or method != "auto" or fi.size > NEWTON_LIMIT:
+        return result
+    other = run_newton(it, history, facts)
+    better = other[1].converged or other[1].planarity_max < result[1].planarity_max
+    return other if better else result
