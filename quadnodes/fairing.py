@@ -29,10 +29,10 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 from scipy.sparse.linalg import splu
 
-try:  # SciPy's own CSR kernel (Y += A X on a row range); it releases the GIL
-    from scipy.sparse._sparsetools import csr_matvecs as _csr_matvecs
-except ImportError:  # pragma: no cover - a SciPy that moved it: fall back to row blocks
-    _csr_matvecs = None
+try:  # SciPy's own CSR kernels (y += A x on a row range); they release the GIL
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec, csr_matvecs as _csr_matvecs
+except ImportError:  # pragma: no cover - a SciPy that moved them: fall back to row blocks
+    _csr_matvec = _csr_matvecs = None
 
 from . import _validate
 from .errors import InputError
@@ -57,8 +57,12 @@ DIRECT_LIMIT = 2000
 MAX_CG_ITERATIONS = 20000
 #: Threads for the conjugate-gradient products and updates (capped by the cores available).
 MAX_THREADS = 4
-#: Vector rows per lane group: CG vectors are updated as ``(k / LANES, 3 LANES)`` arrays.
-LANES = 64
+#: Row ranges (threads, block-Jacobi blocks) start at multiples of this many rows.
+RANGE_ALIGN = 64
+#: Matrices with at most this many nonzeros (about 24 MB, cache-sized) are applied to
+#: x, y and z one after the other ((3, n) vectors, SciPy's one-vector kernel: 25-30 %
+#: faster there); larger ones to all three in one pass ((n, 3) vectors, one read of the matrix).
+COLUMNS_MAX_NNZ = 2_000_000
 #: Unknowns per block of the block-Jacobi preconditioner (a patch of about 4 × 4 vertices).
 BLOCK_SIZE = 16
 #: Precondition when the mean diagonal of AᵀA exceeds this many times ω (else plain CG wins).
@@ -169,7 +173,9 @@ class _RowBlocks:
     ``run(fn)`` calls ``fn(lo, hi)`` for every range — on the calling thread
     when there is one range, else in parallel (SciPy's sparse kernels and NumPy's
     array loops release the GIL) — and returns the results in order.
-    ``matvec(X, Y, lo, hi)`` writes ``Y[lo:hi] = (M @ X)[lo:hi]`` for C-ordered ``(n, c)`` arrays.
+    ``matvec(X, Y, lo, hi)`` writes rows ``lo:hi`` of ``M @ X`` into ``Y``; the
+    vectors are ``(c, n)`` arrays (one vector per row) when ``columns`` (small
+    matrices, see :data:`COLUMNS_MAX_NNZ`), else C-ordered ``(n, c)`` arrays.
     """
 
     def __init__(self, M: sp.csr_matrix, *, threads: int | None = None) -> None:
@@ -177,10 +183,11 @@ class _RowBlocks:
         rows = M.shape[0]
         t = _thread_count() if threads is None else max(1, int(threads))
         t = max(1, min(t, rows // PARALLEL_MIN_ROWS))
-        # equal nonzeros per range, cut at multiples of LANES rows (see _block_cg)
-        cuts = np.searchsorted(M.indptr, np.arange(1, t) * (M.nnz / t)) // LANES * LANES
+        # equal nonzeros per range, cut at multiples of RANGE_ALIGN rows
+        cuts = np.searchsorted(M.indptr, np.arange(1, t) * (M.nnz / t)) // RANGE_ALIGN * RANGE_ALIGN
         self.ranges = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, rows].tolist()))
         self.M = M
+        self.columns = M.nnz <= COLUMNS_MAX_NNZ
         idx = np.result_type(M.indptr, M.indices)
         self._indptr = M.indptr.astype(idx, copy=False)
         self._indices = M.indices.astype(idx, copy=False)
@@ -194,23 +201,42 @@ class _RowBlocks:
 
     def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
                accumulate: bool = False) -> None:
-        """``Y[lo:hi] (+)= (M @ X)[lo:hi]``; ``data`` replaces the matrix's values (same pattern)."""
+        """``Y[lo:hi] (+)= (M @ X)[lo:hi]`` in the layout of :attr:`columns`.
+
+        ``data`` replaces the matrix's values (same pattern); ``hi`` may exceed the
+        matrix's rows (padding rows of ``Y`` are left alone).
+        """
         M = self.M
         data = M.data if data is None else data
-        y = Y[lo:hi]
-        if _csr_matvecs is None:  # pragma: no cover - SciPy without the private kernel
+        hi = min(hi, M.shape[0])
+        if _csr_matvec is None:  # pragma: no cover - SciPy without the private kernels
             a, b = int(self._indptr[lo]), int(self._indptr[hi])
             part = sp.csr_matrix((data[a:b], self._indices[a:b], self._indptr[lo : hi + 1] - a),
-                                 shape=(hi - lo, M.shape[1])) @ X
+                                 shape=(hi - lo, M.shape[1]))
+            if self.columns:
+                part = (part @ X[:, : M.shape[1]].T).T
+                y = Y[:, lo:hi]
+            else:
+                part = part @ X[: M.shape[1]]
+                y = Y[lo:hi]
             if accumulate:
                 y += part
             else:
                 y[...] = part
             return
-        if not accumulate:
-            y.fill(0.0)  # the kernel accumulates
-        _csr_matvecs(hi - lo, M.shape[1], X.shape[1], self._indptr[lo : hi + 1], self._indices,
-                     data, X.reshape(-1), y.reshape(-1))
+        indptr = self._indptr[lo : hi + 1]
+        if not self.columns:
+            y = Y[lo:hi]
+            if not accumulate:
+                y.fill(0.0)  # the kernels accumulate
+            _csr_matvecs(hi - lo, M.shape[1], X.shape[1], indptr, self._indices, data, X.reshape(-1),
+                         y.reshape(-1))
+            return
+        for x, y in zip(X, Y):
+            y = y[lo:hi]
+            if not accumulate:
+                y.fill(0.0)
+            _csr_matvec(hi - lo, M.shape[1], indptr, self._indices, data, x, y)
 
 
 def _with_weight(AtA: sp.csr_matrix, weight: float) -> sp.csr_matrix:
@@ -279,7 +305,7 @@ class _BlockJacobi:
 
     def __init__(self, M: sp.csr_matrix, size: int) -> None:
         k = M.shape[0]
-        kp = -(-k // LANES) * LANES  # as the CG vectors (size divides LANES)
+        kp = -(-k // RANGE_ALIGN) * RANGE_ALIGN  # as the CG vectors (size divides RANGE_ALIGN)
         counts = np.diff(M.indptr)
         row = np.repeat(np.arange(k, dtype=np.int64), counts)
         col = M.indices.astype(np.int64)
@@ -290,15 +316,24 @@ class _BlockJacobi:
         D = D.reshape(kp // size, size, size)
         pad = np.arange(k, kp)
         D[pad // size, pad % size, pad % size] = 1.0
-        self.inv = np.linalg.inv(D)
+        inv = np.linalg.inv(D)
+        inv += inv.transpose(0, 2, 1)  # exactly symmetric, so a row vector can multiply it
+        inv *= 0.5
+        self.inv = inv
         self.size = size
 
-    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int) -> None:
-        """``Z[lo:hi] = P⁻¹ R[lo:hi]`` for rows ``lo..hi`` at block boundaries."""
+    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
+        """``Z = P⁻¹ R`` on rows ``lo:hi`` (at block boundaries) of ``(c, n)`` or ``(n, c)`` arrays."""
         b = self.size
-        r, z = R[lo:hi], Z[lo:hi]
-        c = R.shape[1]
-        np.matmul(self.inv[lo // b : hi // b], r.reshape(-1, b, c), out=z.reshape(-1, b, c))
+        inv = self.inv[lo // b : hi // b]
+        if columns:
+            c = R.shape[0]
+            r = R[:, lo:hi].reshape(c, -1, b).transpose(1, 0, 2)  # (blocks, c, b) views
+            z = Z[:, lo:hi].reshape(c, -1, b).transpose(1, 0, 2)
+            np.matmul(r, inv, out=z)
+        else:
+            c = R.shape[1]
+            np.matmul(inv, R[lo:hi].reshape(-1, b, c), out=Z[lo:hi].reshape(-1, b, c))
 
 
 def _block_cg(
@@ -312,47 +347,64 @@ def _block_cg(
 ) -> tuple[np.ndarray, int, float]:
     """(Preconditioned) conjugate gradients on the columns of ``B`` at once.
 
-    Each column is an independent CG run; they share the operator products (one
-    per step), and every vector update runs on the row ranges of ``blocks`` in
-    parallel. Stops when every column's residual is at most ``rtol`` times its
-    right-hand side. Returns the solution, the number of steps and the worst
-    relative residual.
+    Each column is an independent CG run; they share the operator products, and
+    every vector update runs on the row ranges of ``blocks`` in parallel. Stops
+    when every column's residual is at most ``rtol`` times its right-hand side.
+    Returns the solution, the number of steps and the worst relative residual.
 
-    The ``(k, c)`` vectors are padded with zero rows to a multiple of
-    :data:`LANES` and updated through ``(rows / LANES, LANES·c)`` views, so that
-    per-column scalars broadcast over long rows (NumPy is several times slower on
-    an inner dimension of 3).
+    The vectors are zero-padded to a multiple of :data:`RANGE_ALIGN` rows and
+    stored as ``(c, k)`` arrays for small systems (``blocks.columns``), else as
+    ``(k, c)`` arrays updated through ``(k / RANGE_ALIGN, RANGE_ALIGN·c)`` views:
+    either way per-column scalars broadcast along long rows (NumPy is several
+    times slower on an inner dimension of 3).
     """
     k, c = B.shape
-    kp = -(-k // LANES) * LANES
-    width = LANES * c
+    kp = -(-k // RANGE_ALIGN) * RANGE_ALIGN
+    columns = blocks.columns
+    width = RANGE_ALIGN * c
 
     def padded(a: np.ndarray | None) -> np.ndarray:
-        out = np.zeros((kp, c))
+        out = np.zeros((c, kp) if columns else (kp, c))
         if a is not None:
-            out[:k] = a
+            if columns:
+                out[:, :k] = a.T
+            else:
+                out[:k] = a
         return out
 
     X, B, R, P, Q, T = padded(X0), padded(B), padded(None), padded(None), padded(None), padded(None)
     Z = R if precond is None else padded(None)
 
-    def wide(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
-        return V.reshape(-1, width)[lo // LANES : (kp if hi == k else hi) // LANES]
+    if columns:
+        def part(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
+            return V[:, lo : kp if hi == k else hi]
 
-    def dot(U: np.ndarray, V: np.ndarray) -> np.ndarray:
-        return np.einsum("ij,ij->j", U, V).reshape(LANES, c).sum(axis=0)
+        def dot(U: np.ndarray, V: np.ndarray) -> np.ndarray:
+            return np.einsum("ij,ij->i", U, V)
+
+        alpha, beta = np.zeros((c, 1)), np.zeros((c, 1))  # per-column scalars
+        scalars = alpha[:, 0], beta[:, 0]
+    else:
+        def part(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
+            return V.reshape(-1, width)[lo // RANGE_ALIGN : (kp if hi == k else hi) // RANGE_ALIGN]
+
+        def dot(U: np.ndarray, V: np.ndarray) -> np.ndarray:
+            return np.einsum("ij,ij->j", U, V).reshape(RANGE_ALIGN, c).sum(axis=0)
+
+        alpha, beta = np.zeros(width), np.zeros(width)  # per-column scalars, repeated along a row
+        scalars = alpha.reshape(RANGE_ALIGN, c), beta.reshape(RANGE_ALIGN, c)
 
     def precondition(lo: int, hi: int) -> None:
         if precond is not None:
-            precond.apply(R, Z, lo, kp if hi == k else hi)
+            precond.apply(R, Z, lo, kp if hi == k else hi, columns)
 
     def start(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         blocks.matvec(X, R, lo, hi)
-        r, b = wide(R, lo, hi), wide(B, lo, hi)
+        r, b = part(R, lo, hi), part(B, lo, hi)
         np.subtract(b, r, out=r)
         precondition(lo, hi)
-        z = wide(Z, lo, hi)
-        wide(P, lo, hi)[...] = z
+        z = part(Z, lo, hi)
+        part(P, lo, hi)[...] = z
         return dot(r, r), dot(b, b), dot(r, z)
 
     parts = blocks.run(start)
@@ -360,40 +412,39 @@ def _block_cg(
     bnorm = np.maximum(np.sqrt(sum(p[1] for p in parts)), 1e-300)
     rz = sum(p[2] for p in parts)
     tol2 = (rtol * bnorm) ** 2
-    alpha, beta = np.empty((LANES, c)), np.empty((LANES, c))  # per-column scalars, repeated per lane
-    alpha, beta = alpha.reshape(-1), beta.reshape(-1)
 
     def product(lo: int, hi: int) -> np.ndarray:
         blocks.matvec(P, Q, lo, hi)
-        return dot(wide(P, lo, hi), wide(Q, lo, hi))
+        return dot(part(P, lo, hi), part(Q, lo, hi))
 
-    def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
-        t, r = wide(T, lo, hi), wide(R, lo, hi)
-        np.multiply(wide(P, lo, hi), alpha, out=t)
-        wide(X, lo, hi)[...] += t
-        np.multiply(wide(Q, lo, hi), alpha, out=t)
+    def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
+        t, r = part(T, lo, hi), part(R, lo, hi)
+        np.multiply(part(P, lo, hi), alpha, out=t)
+        part(X, lo, hi)[...] += t
+        np.multiply(part(Q, lo, hi), alpha, out=t)
         r -= t
         precondition(lo, hi)
-        return dot(r, r), (None if precond is None else dot(r, wide(Z, lo, hi)))
+        return dot(r, r), (None if precond is None else dot(r, part(Z, lo, hi)))
 
     def direction(lo: int, hi: int) -> None:
-        p = wide(P, lo, hi)
+        p = part(P, lo, hi)
         p *= beta
-        p += wide(Z, lo, hi)
+        p += part(Z, lo, hi)
 
     it = 0
     while it < maxiter and (rr > tol2).any():
         pq = sum(blocks.run(product))
-        alpha.reshape(LANES, c)[:] = np.divide(rz, pq, out=np.zeros_like(rz), where=pq > 0)
+        scalars[0][...] = np.divide(rz, pq, out=np.zeros_like(rz), where=pq > 0)
         parts = blocks.run(update)
         rr_new = sum(p[0] for p in parts)
         rz_new = rr_new if precond is None else sum(p[1] for p in parts)
-        beta.reshape(LANES, c)[:] = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
+        scalars[1][...] = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
         rr, rz = rr_new, rz_new
         it += 1
         if it < maxiter and (rr > tol2).any():
             blocks.run(direction)
-    return X[:k], it, float(np.max(np.sqrt(rr) / bnorm))
+    x = np.ascontiguousarray(X[:, :k].T) if columns else X[:k]
+    return x, it, float(np.max(np.sqrt(rr) / bnorm))
 
 
 class FairingSystem:

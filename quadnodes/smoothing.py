@@ -155,23 +155,30 @@ def _smooth(mesh: QuadMesh, factors: list[float], weights: Weights, fix: Fix | A
             x += step
         return mesh.with_vertices(x)
     # the operator is fixed: x' = (1 − f·moving) x + (f W) x, one product per step,
-    # written row range by row range (in parallel on large meshes) into a second buffer
+    # written row range by row range (in parallel on large meshes) into a second buffer;
+    # small meshes store the coordinates as (3, n), see fairing.COLUMNS_MAX_NNZ
     W = _weights(mesh, weights, None, fixed)
     blocks = _RowBlocks(W)
     scaled = {f: W.data * f for f in set(factors)}
     still = np.flatnonzero(~moving)  # rows that keep their position (f·W is empty there)
+    if blocks.columns:
+        x = np.array(x.T)
     y = np.empty_like(x)
 
     def step(src: np.ndarray, dst: np.ndarray, f: float, lo: int, hi: int) -> None:
-        np.multiply(src[lo:hi], 1.0 - f, out=dst[lo:hi])  # a scalar: no (n, 1) broadcast
         s = still[np.searchsorted(still, lo) : np.searchsorted(still, hi)]
-        dst[s] = src[s]
+        if blocks.columns:
+            np.multiply(src[:, lo:hi], 1.0 - f, out=dst[:, lo:hi])
+            dst[:, s] = src[:, s]
+        else:
+            np.multiply(src[lo:hi], 1.0 - f, out=dst[lo:hi])  # a scalar: no (n, 1) broadcast
+            dst[s] = src[s]
         blocks.matvec(src, dst, lo, hi, data=scaled[f], accumulate=True)
 
     for f in factors:
         blocks.run(partial(step, x, y, f))
         x, y = y, x
-    return mesh.with_vertices(x)
+    return mesh.with_vertices(x.T if blocks.columns else x)
 
 
 def laplacian(

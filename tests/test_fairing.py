@@ -189,8 +189,11 @@ def test_conjugate_gradients_equal_the_direct_solve(make, weight):
 
 @pytest.mark.parametrize("threads", [2, 3])
 @pytest.mark.parametrize("weight", [0.3, 0.01])  # plain CG, block-Jacobi CG
-def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, weight):
+@pytest.mark.parametrize("columns", [True, False])  # (3, n) vectors, (n, 3) vectors
+def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, weight, columns):
     from quadnodes import fairing
+
+    monkeypatch.setattr(fairing, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
 
     m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
@@ -204,7 +207,7 @@ def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, wei
     xp = par.solve(m.vertices[free])
     assert len(par._cg[0].ranges) == threads and len(one._cg[0].ranges) == 1
     assert par.iterations == one.iterations and par.residual <= 1e-9
-    assert (par._cg[1] is not None) == (weight < 0.1)
+    assert (par._cg[1] is not None) == (weight < 0.1) and par._cg[0].columns == columns
     np.testing.assert_allclose(xp, x1, rtol=0, atol=1e-10 * np.ptp(m.vertices))
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
     assert np.abs(xp - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
@@ -263,10 +266,13 @@ def test_patch_order_and_permutation():
     np.testing.assert_array_equal(P.toarray(), M.toarray()[order][:, order])
     bj = _BlockJacobi(P, 16)
     D = P.toarray()
-    R = np.zeros((bj.inv.shape[0] * 16, 3))
-    R[: s.n_free] = np.random.default_rng(0).normal(size=(s.n_free, 3))
+    R = np.zeros((3, bj.inv.shape[0] * 16))  # (c, n) layout, zero padding
+    R[:, : s.n_free] = np.random.default_rng(0).normal(size=(3, s.n_free))
     Z = np.empty_like(R)
-    bj.apply(R, Z, 0, len(R))
+    bj.apply(R, Z, 0, R.shape[1], True)
+    Zr = np.empty_like(R.T)
+    bj.apply(np.ascontiguousarray(R.T), Zr, 0, R.shape[1], False)  # (n, c) layout
+    np.testing.assert_allclose(Zr, Z.T, rtol=1e-12, atol=1e-12)
     for b in range(s.n_free // 16):
         blk = slice(16 * b, 16 * b + 16)
-        np.testing.assert_allclose(D[blk, blk] @ Z[blk], R[blk], rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(D[blk, blk] @ Z[:, blk].T, R[:, blk].T, rtol=1e-10, atol=1e-10)

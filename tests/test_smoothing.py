@@ -110,8 +110,11 @@ def test_mask_fixing_and_errors():
 
 
 @pytest.mark.parametrize("fix", ["none", "corners", "boundary"])
-def test_threaded_taubin_equals_dense_steps(monkeypatch, fix):
+@pytest.mark.parametrize("columns", [True, False])  # (3, n) or (n, 3) coordinates
+def test_threaded_taubin_equals_dense_steps(monkeypatch, fix, columns):
     from quadnodes import fairing
+
+    monkeypatch.setattr(fairing, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
 
     m = perturb(grid(30, 40), tangential=0.3, normal=0.1, seed=2)
     fixed = fixed_mask(m, fix)
