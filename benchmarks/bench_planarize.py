@@ -17,6 +17,11 @@ Rows
 - quadnodes, reference = face: the same with ``reference=`` the build123d face
   (sampled 4× finer inside ``planarize``; the sampling is part of the time);
 - quadnodes, no reference: ``planarize(faired)`` — closeness to the input vertices;
+- quadnodes Newton: ``planarize(faired, reference=clean, method="newton")`` —
+  planarity as a hard constraint, Gauss–Newton/SQP steps (one KKT factorization
+  each); on F100 only with ``--slow``. (The default ``method="auto"`` rows above
+  fall back to Newton steps only where local/global misses the tolerance with
+  at most 5,000 free vertices; the iterations column then says so);
 - libigl default: ``igl.planarize_quad_mesh(V, F, 100, 0.005)`` (ShapeUp
   projection, planarity only, mean re-centred at the end, nothing held fixed);
 - libigl at our tolerance: ``igl.planarize_quad_mesh(V, F, 1000, 1e-3)``.
@@ -46,7 +51,7 @@ Columns
 
 Run:  python benchmarks/bench_planarize.py [--quick] [--slow]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
-      --slow adds libigl at threshold 1e-3 on F100)
+      --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
 
 from __future__ import annotations
@@ -62,12 +67,13 @@ import numpy as np
 
 EXAMPLES = ("E1", "E2", "E3", "E4")
 FREEFORM = "F100"
-KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "igl_default", "igl_tol")
+KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "qn_newton", "igl_default", "igl_tol")
 LABELS = {
     "input": "input (faired)",
     "qn_mesh": "quadnodes, reference = clean mesh",
     "qn_face": "quadnodes, reference = face",
     "qn_none": "quadnodes, no reference",
+    "qn_newton": "quadnodes Newton, reference = clean mesh",
     "igl_default": "libigl, maxIter 100, threshold 5e-3 (default)",
     "igl_tol": "libigl, maxIter 1000, threshold 1e-3",
 }
@@ -118,9 +124,15 @@ def run_row(name: str, kind: str) -> dict:
     if kind == "input":
         out = faired
     elif kind.startswith("qn_"):
-        ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None}[kind]
-        out, rep = planarize(faired, reference=ref)
-        iters = f"{rep.iterations} ({rep.factorizations} fact., {'met' if rep.converged else 'NOT met'})"
+        ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean}[kind]
+        out, rep = planarize(faired, reference=ref, method="newton" if kind == "qn_newton" else "auto")
+        met = "met" if rep.converged else "NOT met"
+        if rep.method == "newton" and kind != "qn_newton":
+            iters = f"{rep.iterations} + {rep.newton_steps} Newton ({met})"
+        elif rep.method == "newton":
+            iters = f"{rep.newton_steps} Newton steps ({met})"
+        else:
+            iters = f"{rep.iterations} ({rep.factorizations} fact., {met})"
     else:
         max_iter, thr = (100, 0.005) if kind == "igl_default" else (1000, 1e-3)
         v = igl.planarize_quad_mesh(faired.vertices, faired.faces, max_iter, thr)
@@ -165,7 +177,7 @@ def main() -> None:
         worst = 0.0
         lines = []
         for kind in KINDS:
-            if name == FREEFORM and kind == "igl_tol" and not args.slow:
+            if name == FREEFORM and kind in ("igl_tol", "qn_newton") and not args.slow:
                 continue
             out = subprocess.run([sys.executable, __file__, "--row", name, kind],
                                  capture_output=True, text=True, check=True)
