@@ -304,34 +304,45 @@ def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
     pred = np.full(D, -1, dtype=np.int64)
     pred[dst] = src
 
-    g = sp.csr_matrix((np.ones(src.size, dtype=np.int8), (src, dst)), shape=(D, D))
-    _, comp = connected_components(g, directed=True, connection="weak")
-    ids = np.arange(D)
-    keep = comp < comp[ids ^ 1]  # one of each line and its reverse
-    # break each cycle at its smallest directed edge
-    n_comp = int(comp.max()) + 1
-    heads = np.zeros(n_comp, dtype=bool)
-    heads[comp[keep & (pred < 0)]] = True
-    cut = np.full(n_comp, D, dtype=np.int64)
-    np.minimum.at(cut, comp[keep], ids[keep])
-    closed_comp = ~heads & (cut < D)
-    p = np.where(keep, pred, -1)
-    p[cut[closed_comp]] = -1
+    # open lines: a depth-first walk from a virtual root joined to every chain's first
+    # edge visits the chains (each line in both directions) one after the other, whole
+    heads = np.flatnonzero(pred < 0)
+    order = _walk(src, dst, heads, D)
+    seg = np.flatnonzero(pred[order] < 0)
+    seg_len = np.diff(np.r_[seg, order.size])
+    # keep one direction of each line: the one whose first edge has the smaller id
+    # than the reverse's first edge (the reverse of its last edge)
+    keep = order[seg] < (order[seg + seg_len - 1] ^ 1)
+    order = order[np.repeat(keep, seg_len)]
+    n_edges = seg_len[keep]
+    closed = np.zeros(n_edges.size, dtype=bool)
 
-    # order along the lines: a depth-first walk from a virtual root joined to every
-    # line's first edge visits the lines one after the other, each from its start
-    first = np.flatnonzero(keep & (p < 0))
-    link = np.flatnonzero(keep & has)
-    link = link[p[succ[link]] == link]  # not the edge closing a cycle
-    walk = sp.csr_matrix(
-        (np.ones(link.size + first.size, dtype=np.int8),
-         (np.r_[link, np.full(first.size, D)], np.r_[succ[link], first])),
-        shape=(D + 1, D + 1),
-    )
-    order = depth_first_order(walk, D, directed=True, return_predecessors=False)[1:]
-    starts = np.flatnonzero(p[order] < 0)
-    n_edges = np.diff(np.r_[starts, order.size])
-    closed = closed_comp[comp[order[starts]]]
+    # closed lines: the edges no chain reached lie on cycles (both directions of each)
+    seen = np.zeros(D, dtype=bool)
+    seen[order] = True
+    seen[order ^ 1] = True
+    cyc = np.flatnonzero(~seen)
+    if cyc.size:
+        local = np.full(D, -1, dtype=np.int64)
+        local[cyc] = np.arange(cyc.size)
+        g = sp.csr_matrix((np.ones(cyc.size, dtype=np.int8), (np.arange(cyc.size), local[succ[cyc]])),
+                          shape=(cyc.size, cyc.size))
+        _, comp = connected_components(g, directed=True, connection="weak")
+        kept = comp < comp[local[cyc ^ 1]]  # one direction of each cycle
+        cut = np.full(int(comp.max()) + 1, D, dtype=np.int64)
+        np.minimum.at(cut, comp[kept], cyc[kept])  # broken at its smallest directed edge
+        cut = cut[cut < D]
+        is_cut = np.zeros(D, dtype=bool)
+        is_cut[cut] = True
+        nodes = cyc[kept]
+        nodes = nodes[~is_cut[succ[nodes]]]
+        loops = _walk(nodes, succ[nodes], np.sort(cut), D)
+        starts = np.flatnonzero(is_cut[loops])
+        order = np.r_[order, loops]
+        n_edges = np.r_[n_edges, np.diff(np.r_[starts, loops.size])]
+        closed = np.r_[closed, np.ones(starts.size, dtype=bool)]
+
+    starts = np.r_[0, np.cumsum(n_edges)[:-1]].astype(np.int64)
     n_vert = n_edges + (~closed)
     offsets = np.r_[0, np.cumsum(n_vert)].astype(np.int64)
     # an open line has one vertex more than edges: shift the later lines by one each
@@ -344,6 +355,16 @@ def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
     last = starts + n_edges - 1
     flat[offsets[1:][~closed] - 1] = dend[order[last[~closed]]]
     return _canonical(flat, offsets, closed)
+
+
+def _walk(src: np.ndarray, dst: np.ndarray, first: np.ndarray, D: int) -> np.ndarray:
+    """Depth-first order of the chains ``src -> dst`` from a virtual root joined to ``first``."""
+    walk = sp.csr_matrix(
+        (np.ones(src.size + first.size, dtype=np.int8),
+         (np.r_[src, np.full(first.size, D)], np.r_[dst, first])),
+        shape=(D + 1, D + 1),
+    )
+    return depth_first_order(walk, D, directed=True, return_predecessors=False)[1:]
 
 
 def _canonical(flat: np.ndarray, offsets: np.ndarray, closed: np.ndarray) -> StructureLines:
