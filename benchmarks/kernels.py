@@ -1,0 +1,75 @@
+"""The NumPy/SciPy kernel choices behind the fairing solver, timed on the bench_core grids.
+
+For each size (the bench_core surface, every window-middle vertex free, ω = 0.3):
+- gather of (n, 3) rows: fancy indexing ``V[idx]`` against ``np.take(V, idx, axis=0)``;
+- per-coordinate scalar times a vector: ``(k, 3) * (3,)`` against the ``(k/64, 192)`` view and the
+  ``(3, k)`` layout;
+- the matrix applied to x, y and z: SciPy's multi-vector kernel on ``(k, 3)`` (one pass over the matrix)
+  against its one-vector kernel three times on ``(3, k)``, and the first with float32 values and vectors.
+
+Best of 20 runs each, one thread, in milliseconds.
+
+Run:  python benchmarks/kernels.py [--sizes 100 300 1000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.sparse._sparsetools import csr_matvec, csr_matvecs
+
+from quadnodes.fairing import FairingSystem
+from quadnodes.zigzag import detect
+
+from bench_core import _mesh
+
+
+def _best(f, reps: int = 20) -> float:
+    f()
+    best = np.inf
+    for _ in range(reps):
+        t = time.perf_counter()
+        f()
+        best = min(best, time.perf_counter() - t)
+    return best * 1e3
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000])
+    args = ap.parse_args()
+    print("| grid | gather V[idx] | np.take | α·(k,3) | α·(k/64,192) | α·(3,k) | matvecs (k,3) | "
+          "3× matvec (3,k) | matvecs float32 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for n in args.sizes:
+        m = _mesh(n)
+        free = detect(m, 0.0).free
+        s = FairingSystem(m.vertices, m.topology.windows, free, 0.3 / m.mean_edge_length**2, solver="cg")
+        M = s.matrix
+        k = M.shape[0]
+        V, idx = m.vertices, np.ascontiguousarray(m.topology.windows[:, 1])
+        kp = -(-k // 64) * 64
+        P, T = np.random.rand(kp, 3), np.empty((kp, 3))
+        PT, TT = np.ascontiguousarray(P.T), np.empty((3, kp))
+        a = np.random.rand(3)
+        aw, ac = np.tile(a, 64), a[:, None]
+        X, Y = np.random.rand(k, 3), np.zeros((k, 3))
+        XT, YT = np.ascontiguousarray(X.T), np.zeros((3, k))
+        M32, X32, Y32 = M.data.astype(np.float32), X.astype(np.float32), Y.astype(np.float32)
+        row = [
+            _best(lambda: V[idx]),
+            _best(lambda: np.take(V, idx, axis=0)),
+            _best(lambda: np.multiply(P, a, out=T)),
+            _best(lambda: np.multiply(P.reshape(-1, 192), aw, out=T.reshape(-1, 192))),
+            _best(lambda: np.multiply(PT, ac, out=TT)),
+            _best(lambda: csr_matvecs(k, k, 3, M.indptr, M.indices, M.data, X.reshape(-1), Y.reshape(-1))),
+            _best(lambda: [csr_matvec(k, k, M.indptr, M.indices, M.data, XT[i], YT[i]) for i in range(3)]),
+            _best(lambda: csr_matvecs(k, k, 3, M.indptr, M.indices, M32, X32.reshape(-1), Y32.reshape(-1))),
+        ]
+        print(f"| {n}×{n} | " + " | ".join(f"{t:.3f}" for t in row) + " |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
