@@ -21,7 +21,7 @@ Rows
   planarity as a hard constraint, Gauss–Newton/SQP steps (one KKT factorization
   each); on F100 only with ``--slow``. (The default ``method="auto"`` rows above
   fall back to Newton steps only where local/global misses the tolerance with
-  at most 5,000 free vertices; the iterations column then says so);
+  at most 20,000 free vertices; the iterations column then says so);
 - libigl default: ``igl.planarize_quad_mesh(V, F, 100, 0.005)`` (ShapeUp
   projection, planarity only, mean re-centred at the end, nothing held fixed);
 - libigl at our tolerance: ``igl.planarize_quad_mesh(V, F, 1000, 1e-3)``.
