@@ -188,14 +188,16 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
               tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = 2000,
               planarity_weight: float = 1.0, fairness_weight: float = 0.1, closeness_weight: float = 0.1,
               input_weight: float | None = None, fix: Literal["none", "corners", "boundary"] = "corners",
-              reference_samples: int = 4) -> tuple[QuadMesh, PlanarizeReport]:
+              reference_samples: int = 4, method: Literal["auto", "local-global", "newton"] = "auto",
+              newton_steps: int = 30) -> tuple[QuadMesh, PlanarizeReport]:
     """Make every quad planar (diagonal distance / mean diagonal <= tolerance) while keeping structure lines
     fair and the vertices close to a reference surface (a face or a mesh; they may slide along it) or to
-    their input positions; corners, boundary or a mask held fixed."""
+    their input positions; corners, boundary or a mask held fixed. method: local/global projection, Newton
+    steps with planarity as a hard constraint, or auto (local/global, Newton where it stalls)."""
     return _planarize(mesh, reference=reference, tolerance=tolerance, max_iterations=max_iterations,
                       planarity_weight=planarity_weight, fairness_weight=fairness_weight,
                       closeness_weight=closeness_weight, input_weight=input_weight, fix=fix, fixed=fixed,
-                      reference_samples=reference_samples)
+                      reference_samples=reference_samples, method=method, newton_steps=newton_steps)
 
 
 def _fix(mesh: QuadMesh, fix: FixMode, fixed: np.ndarray | None) -> np.ndarray:
