@@ -276,3 +276,37 @@ def test_patch_order_and_permutation():
     for b in range(s.n_free // 16):
         blk = slice(16 * b, 16 * b + 16)
         np.testing.assert_allclose(D[blk, blk] @ Z[:, blk].T, R[:, blk].T, rtol=1e-10, atol=1e-10)
+
+
+def _threaded_solve_in_child(queue):
+    from quadnodes import fairing
+
+    fairing.PARALLEL_MIN_ROWS = 10
+    fairing._thread_count = lambda: 2
+    m = perturb(grid(20, 20), tangential=0.2, seed=1)
+    free = detect(m, 0.0).free
+    s = FairingSystem(m.vertices, m.topology.windows, free, 1.0, solver="cg")
+    s.solve(m.vertices[free])
+    queue.put((len(s._cg[0].ranges), s.residual))
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_threaded_solve_works_in_a_forked_child(monkeypatch):
+    import multiprocessing
+
+    from quadnodes import fairing
+
+    monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(fairing, "_thread_count", lambda: 2)
+    m = perturb(grid(20, 20), tangential=0.2, seed=1)
+    free = detect(m, 0.0).free
+    FairingSystem(m.vertices, m.topology.windows, free, 1.0, solver="cg").solve(m.vertices[free])
+    assert fairing._POOL is not None  # the parent's pool exists before the fork
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_threaded_solve_in_child, args=(queue,))
+    child.start()
+    child.join(timeout=60)
+    assert child.exitcode == 0
+    ranges, residual = queue.get(timeout=5)
+    assert ranges == 2 and residual <= 1e-9
