@@ -25,7 +25,9 @@ It alternates a *local* step (project every quad, find closest points) with a
 *global* step (one sparse linear solve for x, y and z; the matrix depends only
 on the weights, so its factorization is reused while they stay fixed). When
 the planarity stops improving before the tolerance is met, the planarity
-weight is doubled (and the matrix factorized again). Weights are relative to
+weight is doubled (and the matrix factorized again). Where that still ends above
+the tolerance, ``method="auto"`` takes Gauss–Newton (SQP) steps from the input
+instead, with planarity as a hard constraint (:func:`_newton`). Weights are relative to
 the mean edge length ``h`` of the input, so ``planarize(s·P) == s·planarize(P)``.
 Fixed vertices never move.
 """
