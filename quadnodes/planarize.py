@@ -45,11 +45,12 @@ from scipy.sparse.linalg import splu
 
 from . import _validate
 from .errors import InputError
-from .fairing import window_coefficients
+from .fairing import fairing_matrix
 from .mesh import QuadMesh
 from .planarity import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
+from .smoothing import fixed_mask
 
 __all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "DEFAULT_TOLERANCE"]
 
@@ -133,12 +134,7 @@ class PlanarizeReport:
 
 def _fixed_mask(mesh: QuadMesh, fix: Any, fixed: ArrayLike | None) -> np.ndarray:
     fix = _validate.choice(fix, ("none", "corners", "boundary"), "fix")
-    mask = _validate.vertex_mask(fixed, mesh.n_vertices, "fixed").copy()
-    if fix == "corners":
-        mask |= mesh.topology.corner_vertices
-    elif fix == "boundary":
-        mask |= mesh.topology.boundary_vertices
-    return mask
+    return fixed_mask(mesh, fix) | _validate.vertex_mask(fixed, mesh.n_vertices, "fixed")
 
 
 def _centering_matrix(faces: np.ndarray, n: int) -> sp.csr_matrix:
@@ -204,19 +200,18 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
 
 def _newton(
     x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
-    closest: Any, tol: float, max_steps: int,
+    h: float, closest: Any, tol: float, max_steps: int,
 ) -> tuple[np.ndarray, list[float], int]:
     """Planarity as a hard constraint: Gauss–Newton (SQP) steps on the fairness and closeness energy.
 
     Each step minimizes the quadratic energy subject to the linearized constraints
     ``c + G Δ = 0`` (one sparse KKT solve for x, y and z together), then halves the
     step until the constraint norm decreases (at most 6 times). Works in units of
-    the mean edge length about the centroid, so the system is well scaled.
+    the mean edge length ``h`` about the centroid, so the system is well scaled.
     Returns the positions, the maximum planarity after every step and the number of steps.
     """
     w_f, w_c, w_i = weights
     n = len(x0)
-    h = float(np.mean(np.linalg.norm(x0[faces] - np.roll(x0[faces], 1, axis=1), axis=2)))
     centre = x0.mean(axis=0)
     X0 = (x0 - centre) / h
     k = fi.size
@@ -423,21 +418,19 @@ def planarize(
         )
 
     faces = mesh.faces
-    C = _centering_matrix(faces, n) / h**2
     w = mesh.topology.windows
     if len(w) and w_f > 0:
-        coef = window_coefficients(x0, w)
-        rows = np.repeat(np.arange(len(w)), 4)
-        A = sp.csr_matrix((coef.reshape(-1), (rows, w.reshape(-1))), shape=(len(w), n))
+        A = fairing_matrix(x0, w)
         F = (A.T @ A).tocsr()
     else:
         F = sp.csr_matrix((n, n))
     def run_newton(its: int, history: list[float], facts: int) -> tuple[QuadMesh, PlanarizeReport]:
-        x, steps_h, steps = _newton(x0, faces, fi, F, (w_f, w_c, w_i), closest, tol, newton_steps)
+        x, steps_h, steps = _newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol, newton_steps)
         return finish(x, steps_h[-1] <= tol, its, history + steps_h, w_p, facts + steps, "newton", steps)
 
     if method == "newton":
         return run_newton(0, [], 0)
+    C = _centering_matrix(faces, n) / h**2
     Cff, Cfx = C[fi][:, fi], C[fi][:, ~free]
     Fff, Ffx = F[fi][:, fi], F[fi][:, ~free]
     I = sp.identity(fi.size, format="csc") / h**2
@@ -452,26 +445,26 @@ def planarize(
     lu = factor(w_p)
     facts = 1
 
-    def step(xf: np.ndarray) -> np.ndarray:
-        """One local/global step from free positions ``xf`` (the fixed-point map)."""
-        x = x0.copy()
-        x[fi] = xf
-        q = quad_plane_projection(x, faces)
-        qv = np.zeros((n, 3))
-        np.add.at(qv, faces.reshape(-1), q.reshape(-1, 3))
+    # sums each vertex's projected corner positions over its quads: (n, 4m) of ones
+    m4 = faces.size
+    gather = sp.csr_matrix((np.ones(m4), (faces.reshape(-1), np.arange(m4))), shape=(n, m4))
+
+    def step(x: np.ndarray) -> np.ndarray:
+        """One local/global step from positions ``x``: new free positions (the fixed-point map)."""
+        qv = gather @ quad_plane_projection(x, faces).reshape(-1, 3)
         target, _ = closest(x)
         rhs = (w_p / h**2) * qv[fi] - w_p * fixed_C - w_f * fixed_F + (w_c / h**2) * target[fi] + (w_i / h**2) * x0[fi]
         return lu.solve(rhs)
 
-    xf = x0[fi].copy()
+    x = x0.copy()
+    xf = x0[fi]
     acc = _Anderson(anderson) if anderson else None
     history: list[float] = []
     converged = False
     it = last_change = 0
     for it in range(1, max_iterations + 1):
-        g = step(xf)
+        g = step(x)
         xf = acc.update(xf, g) if acc is not None else g
-        x = x0.copy()
         x[fi] = xf
         pmax = float(quad_diagonal_distance(x, faces).max())
         history.append(pmax)
@@ -489,8 +482,6 @@ def planarize(
             last_change = it
             if acc is not None:
                 acc.reset()
-    x = x0.copy()
-    x[fi] = xf
     result = finish(x, converged, it, history, w_p, facts)
     if converged or method != "auto" or fi.size > NEWTON_LIMIT:
         return result
