@@ -401,12 +401,14 @@ def grid_cells(faces: np.ndarray, rows: int, cols: int) -> int:
     >>> grid_cells(np.array([[0, 1, 3, 4]]), 2, 3)  # the cell's corners, crossed
     0
     """
-    r, c = np.divmod(faces, cols)
-    dr = r - r.min(axis=1, keepdims=True)
-    dc = c - c.min(axis=1, keepdims=True)
-    ok = (dr <= 1).all(axis=1) & (dc <= 1).all(axis=1) & (r.max(axis=1) < rows)
-    ok &= (np.sort(2 * dr + dc, axis=1) == np.arange(4)).all(axis=1)
-    step = np.abs(np.roll(dr, -1, axis=1) - dr) + np.abs(np.roll(dc, -1, axis=1) - dc)
-    ok &= (step == 1).all(axis=1)
+    faces = np.asarray(faces, dtype=np.int64)
+    if len(faces) and (rows < 2 or cols < 2):
+        return 0  # a grid of one row or column has no cells
+    low = faces.min(axis=1)
+    d = faces - low[:, None]  # a cell's corners sit at low + {0, 1, cols, cols + 1}
+    code = (d == 0).astype(np.int8) + 2 * (d == 1) + 4 * (d == cols) + 8 * (d == cols + 1)
+    ok = code.sum(axis=1) == 15  # each of the four corners exactly once
+    ok &= (d[:, 0] + d[:, 2] == cols + 1) & (d[:, 1] + d[:, 3] == cols + 1)  # diagonals opposite
+    ok &= (low % cols != cols - 1) & (low + cols + 1 < rows * cols)
     bad = np.flatnonzero(~ok)
     return int(bad[0]) if bad.size else -1

@@ -272,13 +272,27 @@ class Topology:
         return succ
 
     @cached_property
+    def grid_shape(self) -> tuple[int, int] | None:
+        """``(rows, cols)`` when the faces are every cell of a ``rows × cols`` vertex grid, else None.
+
+        Vertex ``i*cols + j`` sits at row ``i``, column ``j`` (the layout of
+        :func:`quadnodes.mesh.grid_faces` and of sampled surfaces; faces in any order
+        and orientation). Such a mesh's structure lines are its rows and columns.
+        """
+        return _grid_shape(self.faces, self.n_vertices)
+
+    @cached_property
     def structure_lines(self) -> StructureLines:
         """All structure lines, canonically ordered and oriented.
 
         Open lines run from their smaller end vertex; closed lines start at their
         smallest vertex and go towards its smaller neighbour. Lines are sorted by
-        their first two vertices.
+        their first two vertices. A complete vertex grid (:attr:`grid_shape`) gets
+        its rows and columns without tracing (the same lines in the same order).
         """
+        shape = self.grid_shape
+        if shape is not None:
+            return _grid_lines(*shape)
         return _trace_lines(self.edges, self._successor)
 
     @cached_property
@@ -292,6 +306,46 @@ class Topology:
         mask = np.zeros(self.n_vertices, dtype=bool)
         mask[self.windows[:, 1:3].reshape(-1)] = True
         return mask
+
+
+def _grid_shape(faces: np.ndarray, n: int) -> tuple[int, int] | None:
+    """``(rows, cols)`` if ``faces`` are the ``(rows-1)(cols-1)`` distinct unit cells of a vertex grid."""
+    from ._validate import grid_cells
+
+    if len(faces) == 0:
+        return None
+    f0 = faces[0]
+    cols = int(f0.max() - f0.min()) - 1  # a unit cell spans (i, j) .. (i+1, j+1)
+    if cols < 2 or n % cols:
+        return None
+    rows = n // cols
+    if rows < 2 or (rows - 1) * (cols - 1) != len(faces):
+        return None
+    if grid_cells(faces, rows, cols) >= 0 or np.bincount(faces.min(axis=1), minlength=n).max() > 1:
+        return None  # not all unit cells, or one cell twice
+    return rows, cols
+
+
+def _grid_lines(rows: int, cols: int) -> StructureLines:
+    """The rows and columns of a ``rows × cols`` vertex grid in canonical order.
+
+    Sorted by their first two vertices: row 0 ``(0, 1, …)``, column 0 ``(0, cols, …)``,
+    columns ``1 … cols-1``, then rows ``1 … rows-1``.
+
+    Examples
+    --------
+    >>> [l.tolist() for l in _grid_lines(2, 3)]
+    [[0, 1, 2], [0, 3], [1, 4], [2, 5], [3, 4, 5]]
+    """
+    n = rows * cols
+    ids = np.arange(n, dtype=np.int64)
+    flat = np.concatenate([ids[:cols], ids.reshape(rows, cols).T.reshape(-1), ids[cols:]])
+    lengths = np.r_[cols, np.full(cols, rows), np.full(rows - 1, cols)]
+    offsets = np.r_[0, np.cumsum(lengths)].astype(np.int64)
+    closed = np.zeros(rows + cols, dtype=bool)
+    for a in (flat, offsets, closed):
+        a.setflags(write=False)
+    return StructureLines(flat, offsets, closed)
 
 
 def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:

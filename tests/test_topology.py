@@ -121,3 +121,38 @@ def test_line_indexing():
     assert lines[-1].tolist() == [3, 4, 5]
     with pytest.raises(IndexError):
         lines[5]
+
+
+@given(st.integers(2, 9), st.integers(2, 9), st.integers(0, 10_000), st.booleans())
+def test_grid_fast_path_equals_tracing(rows, cols, seed, reverse):
+    """A complete vertex grid skips the tracing; the lines are exactly the traced ones,
+    whatever the faces' order, starting corner and orientation."""
+    from quadnodes.topology import Topology, _trace_lines
+
+    rng = np.random.default_rng(seed)
+    f = grid(rows, cols).faces[rng.permutation((rows - 1) * (cols - 1))]
+    f = np.take_along_axis(f, (np.arange(4) + rng.integers(0, 4, len(f))[:, None]) % 4, axis=1)
+    if reverse:
+        f = f[:, ::-1]
+    topo = Topology.from_faces(f, rows * cols)
+    assert topo.grid_shape == (rows, cols)
+    fast, traced = topo.structure_lines, _trace_lines(topo.edges, topo._successor)
+    assert np.array_equal(fast.indices, traced.indices) and np.array_equal(fast.offsets, traced.offsets)
+    assert not fast.closed.any() and not traced.closed.any()
+
+
+@pytest.mark.parametrize("kind", ["missing cell", "cylinder", "extraordinary", "lhole", "transposed numbering"])
+def test_grid_shape_only_for_complete_grids(kind):
+    if kind == "missing cell":
+        m = QuadMesh(grid(4, 5).vertices, grid(4, 5).faces[1:])
+    elif kind == "transposed numbering":  # vertex j*rows + i: a grid, but not in row-major layout
+        g = grid(4, 5)
+        r, c = np.divmod(g.faces, 5)
+        m = QuadMesh(g.vertices, c * 4 + r)
+    else:
+        m = {"cylinder": cylinder(4, 6), "extraordinary": extraordinary_mesh(), "lhole": l_shape_with_hole()}[kind]
+    if kind == "transposed numbering":
+        assert m.topology.grid_shape == (5, 4)  # read as a 5 × 4 grid: still a complete grid
+    else:
+        assert m.topology.grid_shape is None
+    _every_edge_once(m)
