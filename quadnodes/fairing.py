@@ -27,6 +27,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
+from scipy.linalg.blas import daxpy as _daxpy, ddot as _ddot, dscal as _dscal
 from scipy.sparse.linalg import splu
 
 try:  # SciPy's own CSR kernels (y += A x on a row range); they release the GIL
@@ -382,7 +383,8 @@ def _block_cg(
                 out[:k] = a
         return out
 
-    X, B, R, P, Q, T = padded(X0), padded(B), padded(None), padded(None), padded(None), padded(None)
+    X, B, R, P, Q = padded(X0), padded(B), padded(None), padded(None), padded(None)
+    T = None if columns and len(blocks.ranges) == 1 else padded(None)
     Z = R if precond is None else padded(None)
 
     if columns:
@@ -423,23 +425,57 @@ def _block_cg(
     rz = sum(p[2] for p in parts)
     tol2 = (rtol * bnorm) ** 2
 
-    def product(lo: int, hi: int) -> np.ndarray:
-        blocks.matvec(P, Q, lo, hi)
-        return dot(part(P, lo, hi), part(Q, lo, hi))
+    if columns and len(blocks.ranges) == 1:
+        # one contiguous vector per coordinate: BLAS level 1 updates in place, one
+        # pass each (NumPy's α·p then x += t makes three and a temporary). Only on one
+        # thread: OpenBLAS's own threads would spin against the pool's.
+        def product(lo: int, hi: int) -> np.ndarray:
+            blocks.matvec(P, Q, lo, hi)
+            hi = kp if hi == k else hi
+            return np.array([_ddot(P[i, lo:hi], Q[i, lo:hi]) for i in range(c)])
 
-    def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
-        t, r = part(T, lo, hi), part(R, lo, hi)
-        np.multiply(part(P, lo, hi), alpha, out=t)
-        part(X, lo, hi)[...] += t
-        np.multiply(part(Q, lo, hi), alpha, out=t)
-        r -= t
-        precondition(lo, hi)
-        return dot(r, r), (None if precond is None else dot(r, part(Z, lo, hi)))
+        def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
+            hi = kp if hi == k else hi
+            rr_, rz_ = np.empty(c), np.empty(c)
+            for i in range(c):
+                a = float(alpha[i, 0])
+                _daxpy(P[i, lo:hi], X[i, lo:hi], a=a)
+                _daxpy(Q[i, lo:hi], R[i, lo:hi], a=-a)
+            precondition(lo, hi)
+            for i in range(c):
+                r = R[i, lo:hi]
+                rr_[i] = _ddot(r, r)
+                if precond is not None:
+                    rz_[i] = _ddot(r, Z[i, lo:hi])
+            return rr_, (None if precond is None else rz_)
 
-    def direction(lo: int, hi: int) -> None:
-        p = part(P, lo, hi)
-        p *= beta
-        p += part(Z, lo, hi)
+        def direction(lo: int, hi: int) -> None:
+            hi = kp if hi == k else hi
+            for i in range(c):
+                p = P[i, lo:hi]
+                _dscal(float(beta[i, 0]), p)
+                _daxpy(Z[i, lo:hi], p)
+    else:
+        if T is None:
+            T = padded(None)
+
+        def product(lo: int, hi: int) -> np.ndarray:
+            blocks.matvec(P, Q, lo, hi)
+            return dot(part(P, lo, hi), part(Q, lo, hi))
+
+        def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
+            t, r = part(T, lo, hi), part(R, lo, hi)
+            np.multiply(part(P, lo, hi), alpha, out=t)
+            part(X, lo, hi)[...] += t
+            np.multiply(part(Q, lo, hi), alpha, out=t)
+            r -= t
+            precondition(lo, hi)
+            return dot(r, r), (None if precond is None else dot(r, part(Z, lo, hi)))
+
+        def direction(lo: int, hi: int) -> None:
+            p = part(P, lo, hi)
+            p *= beta
+            p += part(Z, lo, hi)
 
     it = 0
     while it < maxiter and (rr > tol2).any():
@@ -819,6 +855,7 @@ def fair(
     h = mesh.mean_edge_length
     scale = 1.0 / h**2 if weight_scale == "normalized" else 1.0
     w = topo.windows
+    walk = topo.window_walk
     x0 = mesh.vertices
     x = x0
     reports: list[IterationReport] = []
@@ -826,7 +863,7 @@ def fair(
     for it in range(iterations):
         current = mesh if x is x0 else mesh.with_vertices(x)
         if geometry is None:
-            geometry = _window_geometry(x, w)
+            geometry = _window_geometry(x, w, walk)
         zz = _detect(current, float(thresholds[it]), user, fix_boundary, geometry[0])
         dev_before = float(zz.window_deviation.sum())
         e_before = dev_before  # lengths frozen at x: each window's term is its eq. 30 deviation
@@ -847,7 +884,7 @@ def fair(
         x_new = x.copy()
         x_new[system.free_index] = new_free
         disp = np.linalg.norm(new_free - x[system.free_index], axis=1)
-        geometry = _window_geometry(x_new, w)
+        geometry = _window_geometry(x_new, w, walk)
         reports.append(
             IterationReport(
                 iteration=it,

@@ -297,8 +297,19 @@ class Topology:
 
     @cached_property
     def windows(self) -> np.ndarray:
-        """``(w, 4)`` consecutive vertex quadruples of all structure lines."""
-        return windows(self.structure_lines)
+        """``(w, 4)`` consecutive vertex quadruples of all structure lines (as :func:`windows`)."""
+        ext, start = self.window_walk
+        return ext[start[:, None] + np.arange(4)]
+
+    @cached_property
+    def window_walk(self) -> tuple[np.ndarray, np.ndarray]:
+        """The lines as one vertex sequence ``ext`` and every window's start in it.
+
+        Closed lines repeat their first three vertices, so window ``i`` is
+        ``ext[start[i] : start[i] + 4]`` and consecutive windows of a line share
+        edges: per-edge quantities are computed once per line edge, not per window.
+        """
+        return _window_walk(self.structure_lines)
 
     @cached_property
     def window_middle(self) -> np.ndarray:
@@ -509,6 +520,26 @@ def windows(lines: StructureLines, *, return_line: bool = False) -> np.ndarray |
         pos[wrap] %= n[line[wrap]][:, None]
     w = lines.indices[lines.offsets[:-1][line][:, None] + pos]
     return (w, line) if return_line else w
+
+
+def _window_walk(lines: StructureLines) -> tuple[np.ndarray, np.ndarray]:
+    """``(ext, start)`` of :attr:`Topology.window_walk`."""
+    n = lines.lengths
+    closed = lines.closed
+    wraps = closed & (n >= 3)
+    ext_len = n + 3 * wraps
+    ext_off = np.r_[0, np.cumsum(ext_len)].astype(np.int64)
+    line = np.repeat(np.arange(len(n)), ext_len)
+    q = np.arange(ext_off[-1], dtype=np.int64) - ext_off[line]
+    nl = n[line]
+    q[q >= nl] -= nl[q >= nl]  # the repeated head of a closed line
+    ext = lines.indices[lines.offsets[:-1][line] + q]
+    count = np.where(closed, np.where(n >= 3, n, 0), np.maximum(n - 3, 0))
+    first = np.cumsum(count) - count
+    start = np.repeat(ext_off[:-1] - first, count) + np.arange(count.sum(), dtype=np.int64)
+    for a in (ext, start):
+        a.setflags(write=False)
+    return ext, start
 
 
 def structure_lines(mesh: QuadMesh) -> StructureLines:

@@ -54,11 +54,28 @@ def window_deviation(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
     return _window_geometry(vertices, windows)[0]
 
 
-def _window_geometry(vertices: np.ndarray, windows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _window_geometry(
+    vertices: np.ndarray, windows: np.ndarray, walk: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Deviation ``(w,)`` of every window and the inverse lengths ``(w, 3)`` of its edges.
 
     One pass serves detection and the fairing coefficients (which freeze these lengths).
+    With the topology's ``walk`` (:attr:`quadnodes.topology.Topology.window_walk`, whose
+    windows are ``windows``) every line edge is measured once instead of in each of
+    the up to three windows that hold it.
     """
+    if walk is not None:
+        ext, start = walk
+        g = np.take(vertices, ext, axis=0)
+        e = g[1:] - g[:-1]  # ext[j] -> ext[j+1]; where two lines meet, a meaningless edge
+        with np.errstate(divide="ignore", invalid="ignore"):  # (that may have length 0)
+            inv = 1.0 / np.sqrt(np.einsum("ij,ij->i", e, e))
+            e *= inv[:, None]
+        r = e[:-2] + e[2:]
+        r *= 0.5
+        r -= e[1:-1]
+        dev = np.einsum("ij,ij->i", r, r)
+        return np.take(dev, start), np.take(inv, start[:, None] + np.arange(3))
     u = window_edges(vertices, windows)
     inverse = np.empty((len(windows), 3))
     for k, d in enumerate(u):
@@ -184,7 +201,8 @@ def detect(
     """
     threshold = _validate.nonnegative_number(threshold, "threshold")
     user = _validate.vertex_mask(fixed, mesh.n_vertices, "fixed")
-    return _detect(mesh, threshold, user, fix_boundary, window_deviation(mesh.vertices, mesh.topology.windows))
+    topo = mesh.topology
+    return _detect(mesh, threshold, user, fix_boundary, _window_geometry(mesh.vertices, topo.windows, topo.window_walk)[0])
 
 
 def _detect(mesh: QuadMesh, threshold: float, user: np.ndarray, fix_boundary: bool, wd: np.ndarray) -> ZigzagReport:

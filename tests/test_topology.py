@@ -156,3 +156,13 @@ def test_grid_shape_only_for_complete_grids(kind):
     else:
         assert m.topology.grid_shape is None
     _every_edge_once(m)
+
+
+@pytest.mark.parametrize("kind", ["grid", "cylinder", "torus", "extraordinary", "lhole", "thin torus"])
+def test_window_walk_spells_the_windows(kind):
+    m = {"grid": grid(5, 7), "cylinder": cylinder(4, 6), "torus": torus(4, 5), "thin torus": torus(3, 3),
+         "extraordinary": extraordinary_mesh(), "lhole": l_shape_with_hole()}[kind]
+    topo = m.topology
+    ext, start = topo.window_walk
+    assert np.array_equal(topo.windows, windows(topo.structure_lines))
+    assert np.array_equal(ext[start[:, None] + np.arange(4)], windows(topo.structure_lines))
