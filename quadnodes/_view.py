@@ -15,7 +15,7 @@ import numpy as np
 from . import _validate
 from .errors import InputError
 from .mesh import QuadMesh
-from .zigzag import window_deviation
+from .zigzag import _mesh_window_deviation
 
 __all__ = ["edge_ids", "edge_deviation", "face_edges", "face_deviation", "camera", "light", "face_normals"]
 
@@ -90,7 +90,7 @@ def edge_deviation(mesh: QuadMesh, *, deviation: np.ndarray | None = None) -> np
     if len(w) == 0:
         return out
     if deviation is None:
-        wd = window_deviation(mesh.vertices, w)
+        wd = _mesh_window_deviation(mesh)
     else:
         wd = np.asarray(deviation, dtype=np.float64)
         if wd.shape != (len(w),):

@@ -34,6 +34,10 @@ try:  # SciPy's own CSR kernels (y += A x on a row range); they release the GIL
     from scipy.sparse._sparsetools import csr_matvec as _csr_matvec, csr_matvecs as _csr_matvecs
 except ImportError:  # pragma: no cover - a SciPy that moved them: fall back to row blocks
     _csr_matvec = _csr_matvecs = None
+try:  # and its diagonal-storage kernel (y += A x, one contiguous pass per diagonal)
+    from scipy.sparse._sparsetools import dia_matvec as _dia_matvec
+except ImportError:  # pragma: no cover - then grids use CSR like every other mesh
+    _dia_matvec = None
 
 from . import _validate
 from .errors import InputError
@@ -70,6 +74,10 @@ BLOCK_SIZE = 16
 BLOCK_JACOBI_RATIO = 50.0
 #: Rows per thread below which a system is solved on one thread.
 PARALLEL_MIN_ROWS = 25000
+#: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
+#: (13 diagonals, 1.3-1.7x faster products than CSR) when at least this share of the
+#: vertices is free (fixed vertices become identity rows there, so their rows cost too).
+GRID_MIN_FREE = 0.6
 
 #: Default dimensionless penalty weight (in units of the mean edge length).
 #: Chosen from ``benchmarks/weight_sweep.py``; see ``docs/fairing.md``.
@@ -248,6 +256,80 @@ class _RowBlocks:
             if not accumulate:
                 y.fill(0.0)
             _csr_matvec(hi - lo, M.shape[1], indptr, self._indices, data, x, y)
+
+
+class _DiagonalBlocks(_RowBlocks):
+    """A matrix in diagonal storage (``data[d, j] = M[j - offsets[d], j]``), cut into row ranges.
+
+    The same interface as :class:`_RowBlocks` for :func:`_block_cg`, with ``(c, n)``
+    vectors; a row range is the sub-matrix with offsets shifted by its first row.
+    """
+
+    def __init__(self, offsets: np.ndarray, data: np.ndarray, *, threads: int | None = None) -> None:
+        n = data.shape[1]
+        t = _thread_count() if threads is None else max(1, int(threads))
+        t = max(1, min(t, n // PARALLEL_MIN_ROWS))
+        cuts = (np.arange(1, t) * n // t) // RANGE_ALIGN * RANGE_ALIGN  # every row costs the same
+        self.ranges = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, n].tolist()))
+        self.offsets = offsets.astype(np.int32 if n < 2**31 - 1 else np.int64)
+        self.data = data
+        self.M = sp.dia_matrix((data, self.offsets), shape=(n, n))
+        self.columns = True
+
+    def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
+               accumulate: bool = False) -> None:
+        n = self.data.shape[1]
+        hi = min(hi, n)
+        off = self.offsets + self.offsets.dtype.type(lo)
+        for x, y in zip(X, Y):
+            y = y[lo:hi]
+            if not accumulate:
+                y.fill(0.0)
+            _dia_matvec(hi - lo, n, off.size, n, off, self.data, x, y)
+
+
+def _grid_normal_matrix(ext: np.ndarray, start: np.ndarray, coef: np.ndarray, free: np.ndarray, cols: int,
+                        weight: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """``AᵀA + ωI`` of a vertex grid in its own numbering, as 13 diagonals ``(offsets, data)``.
+
+    ``ext, start``: the topology's window walk (rows run ``+1``, columns ``+cols``);
+    ``coef``: eq. 32 coefficients of every window. Rows and columns of fixed vertices
+    are those of the identity, so the free block is exactly the free-index system.
+    Entry ``(ext[q], ext[q+d])`` sums ``c_i c_{i+d}`` over the (up to ``4 - d``)
+    windows that hold both, read off shifted products along the walk: no sparse
+    product and no sort. Returns None if the walk is not a grid's rows and columns.
+    """
+    n, m = free.size, ext.size
+    on = free[ext]
+    C = np.zeros((4, m))
+    C[:, start] = coef.T
+    for i in range(4):
+        C[i, : m - i] *= on[i:]  # slot i of the window at s is ext[s + i]; fixed: no entries
+    starts = np.zeros(m, dtype=bool)
+    starts[start] = True
+    offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
+    data = np.zeros((13, n))
+    flat = data.reshape(-1)
+    for d in range(4):
+        val = np.zeros(m)
+        held = np.zeros(m, dtype=bool)  # a window holds positions q and q + d
+        for i in range(4 - d):
+            val[i:] += C[i, : m - i] * C[i + d, : m - i]
+            held[i:] |= starts[: m - i]
+        if d == 0:
+            data[6] = np.bincount(ext[held], weights=val[held], minlength=n)
+            continue
+        q = np.flatnonzero(held[: m - d])
+        a, b = ext[q], ext[q + d]
+        row = b - a == d
+        if not (row | (b - a == d * cols)).all():
+            return None
+        up = np.where(row, 6 + d, 9 + d)
+        v = val[q]
+        flat[up * n + b] = v  # M[a, b], stored at column b
+        flat[(12 - up) * n + a] = v  # M[b, a], stored at column a
+    data[6] += np.where(free, weight, 1.0)
+    return offsets, data
 
 
 def _with_weight(AtA: sp.csr_matrix, weight: float) -> sp.csr_matrix:
@@ -549,6 +631,8 @@ class FairingSystem:
         solver: Literal["auto", "direct", "cg"] = "auto",
         rtol: float = 1e-9,
         _inverse_lengths: np.ndarray | None = None,
+        _walk: tuple[np.ndarray, np.ndarray] | None = None,
+        _grid: tuple[int, int] | None = None,
     ) -> None:
         weight = _validate.positive_number(weight, "weight")
         free = np.asarray(free, dtype=bool)
@@ -558,15 +642,20 @@ class FairingSystem:
         if k == 0:
             raise InputError("free: no vertex is free; nothing to solve")
         is_free = free[windows]
-        active = is_free.any(axis=1)
+        # a window's four flags as one 32-bit word (NumPy reduces over an axis of 4 slowly)
+        word = is_free.view(np.uint32).reshape(-1)
+        active = word != 0
         win = windows if active.all() else windows[active]
         if win is not windows:
-            is_free = is_free[active]
+            is_free, word = is_free[active], word[active]
         if _inverse_lengths is None:  # else (w, 3) for all windows, from fair()'s detection pass
-            coef = window_coefficients(vertices, win)
+            coef_all = window_coefficients(vertices, windows) if _walk is not None else None
+            coef = window_coefficients(vertices, win) if coef_all is None or win is not windows else coef_all
         else:
-            il = _inverse_lengths if win is windows else _inverse_lengths[active]
-            coef = _coefficients(il[:, 0], il[:, 1], il[:, 2])
+            coef_all = _coefficients(_inverse_lengths[:, 0], _inverse_lengths[:, 1], _inverse_lengths[:, 2])
+            coef = coef_all if win is windows else coef_all[active]
+        # a complete vertex grid whose windows are ``_walk``'s: see _cg_setup
+        self._grid = (_walk, coef_all, free, int(_grid[1])) if _walk is not None and _grid is not None else None
         idx = np.int32 if max(n, 4 * len(win)) < 2**31 - 1 else np.int64
         col = np.full(n, -1, dtype=idx)
         col[self.free_index] = np.arange(k, dtype=idx)
@@ -574,13 +663,15 @@ class FairingSystem:
         # rows are the windows in order, so the CSR arrays come straight out of the
         # row-major masks: no COO sort (a row may hold one column twice on a 3-ring;
         # sparse products add such duplicates, as the sum of squares requires)
-        partial = np.flatnonzero(~is_free.all(axis=1))  # windows with a fixed vertex
+        partial = np.flatnonzero(word != np.frombuffer(b"\x01" * 4, np.uint32)[0])  # windows with a fixed vertex
         if partial.size == 0:
             indptr = np.arange(0, 4 * len(win) + 1, 4, dtype=idx)
             A = sp.csr_matrix((coef.reshape(-1), cols.reshape(-1), indptr), shape=(len(win), k))
         else:
+            count = np.full(len(win), 4, dtype=idx)
+            count[partial] = is_free[partial].sum(axis=1)
             indptr = np.zeros(len(win) + 1, dtype=idx)
-            np.cumsum(is_free.sum(axis=1), out=indptr[1:])
+            np.cumsum(count, out=indptr[1:])
             A = sp.csr_matrix((coef[is_free], cols[is_free], indptr), shape=(len(win), k))
         # fixed vertices' contribution to every active row (zero where all four are free)
         b = np.zeros((len(win), 3))
@@ -591,7 +682,6 @@ class FairingSystem:
         self._windows = win
         self.active = active
         self.A = A
-        self.At = A.T.tocsr()
         self.b = b
         self._rhs = -(A[partial].T @ b[partial]) if partial.size else np.zeros((k, 3))
         if solver not in ("auto", "direct", "cg"):
@@ -606,7 +696,7 @@ class FairingSystem:
     def matrix(self) -> sp.csr_matrix:
         """The normal matrix ``AᵀA + ω I`` (assembled on first use)."""
         if self._matrix is None:
-            self._matrix = _with_weight(self.At @ self.A, self.weight)
+            self._matrix = _with_weight(self.A.T.tocsr() @ self.A, self.weight)
         return self._matrix
 
     _matrix: sp.csr_matrix | None = None
@@ -641,8 +731,18 @@ class FairingSystem:
                 M = _permuted(self.matrix, order)
                 self._cg = (_RowBlocks(M), _BlockJacobi(M, BLOCK_SIZE), order)
             else:
-                self._cg = (_RowBlocks(self.matrix), None, None)
+                self._cg = (self._grid_blocks() or _RowBlocks(self.matrix), None, None)
         return self._cg
+
+    def _grid_blocks(self) -> _DiagonalBlocks | None:
+        """Diagonal storage in the grid's numbering, if this is a mostly free vertex grid."""
+        if self._grid is None or _dia_matvec is None:
+            return None
+        (ext, start), coef, free, cols = self._grid
+        if cols < 4 or self.n_free < GRID_MIN_FREE * free.size:
+            return None  # (narrower grids have no row windows; few free: the free-index system is smaller)
+        built = _grid_normal_matrix(ext, start, coef, free, cols, self.weight)
+        return None if built is None else _DiagonalBlocks(*built)
 
     _cg: tuple | None = None
 
@@ -673,14 +773,25 @@ class FairingSystem:
             # rule is relative to the mesh's extent, not to its distance from the origin
             c = a.mean(axis=0)
             blocks, precond, order = self._cg_setup()
-            rhs_cg, a_cg = rhs, a
-            if order is not None:  # unknowns along the Morton curve
-                rhs_cg, a_cg = np.take(rhs, order, axis=0), np.take(a, order, axis=0)
-            shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
-            y, its, res = _block_cg(blocks, shifted, a_cg - c, rtol=self.rtol, maxiter=MAX_CG_ITERATIONS,
+            if isinstance(blocks, _DiagonalBlocks):  # the grid's numbering: fixed rows are identity
+                fi = self.free_index
+                shifted = np.zeros((blocks.M.shape[0], 3))
+                shifted[fi] = rhs
+                shifted[fi] -= np.take(blocks.M @ np.ones(blocks.M.shape[0]), fi)[:, None] * c  # M c = (M 1) c
+                x0 = np.zeros_like(shifted)
+                x0[fi] = a - c
+            else:
+                rhs_cg, a_cg = rhs, a
+                if order is not None:  # unknowns along the Morton curve
+                    rhs_cg, a_cg = np.take(rhs, order, axis=0), np.take(a, order, axis=0)
+                shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
+                x0 = a_cg - c
+            y, its, res = _block_cg(blocks, shifted, x0, rtol=self.rtol, maxiter=MAX_CG_ITERATIONS,
                                     precond=precond)
             if res <= self.rtol:
                 self.iterations, self.residual = its, res
+                if isinstance(blocks, _DiagonalBlocks):
+                    y = np.take(y, self.free_index, axis=0)
                 y += c
                 if order is not None:
                     out = np.empty_like(y)
@@ -875,7 +986,8 @@ def fair(
             report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: no zigzag above {thresholds[it]:g}")
             continue
         w_eff = float(weights[it] * scale)
-        system = FairingSystem(x, w, zz.free, w_eff, solver=solver, _inverse_lengths=geometry[1])
+        system = FairingSystem(x, w, zz.free, w_eff, solver=solver, _inverse_lengths=geometry[1], _walk=walk,
+                               _grid=topo.grid_shape)
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
         else:

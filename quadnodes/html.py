@@ -45,7 +45,7 @@ from .errors import InputError
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .planarity import angle_defect, diagonal_distance
-from .zigzag import vertex_deviation, window_deviation
+from .zigzag import _mesh_window_deviation, vertex_deviation
 
 if TYPE_CHECKING:
     import plotly.graph_objects as go
@@ -114,7 +114,7 @@ class _MeshData:
         self.mesh = mesh
         topo = mesh.topology
         w = topo.windows
-        wd = window_deviation(mesh.vertices, w)
+        wd = _mesh_window_deviation(mesh)
         self.window_dev = wd
         self.vertex_dev = vertex_deviation(wd, w, mesh.n_vertices)
         self.edge_dev = edge_deviation(mesh, deviation=wd)

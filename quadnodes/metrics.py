@@ -9,7 +9,7 @@ import numpy as np
 from . import planarity as _planarity
 from .errors import InputError
 from .mesh import QuadMesh
-from .zigzag import vertex_deviation, window_deviation
+from .zigzag import _mesh_window_deviation, vertex_deviation
 
 __all__ = ["zigzag_stats", "distance_to_mesh", "compare"]
 
@@ -27,7 +27,7 @@ def zigzag_stats(mesh: QuadMesh, thresholds: Sequence[float] = (0.1, 0.01)) -> d
     {'zigzag_mean': 0.0, 'zigzag_max': 0.0, 'vertices_above_0.1': 0, 'vertices_above_0.01': 0}
     """
     w = mesh.topology.windows
-    wd = window_deviation(mesh.vertices, w)
+    wd = _mesh_window_deviation(mesh)
     vd = vertex_deviation(wd, w, mesh.n_vertices)
     out: dict[str, float] = {
         "zigzag_mean": float(wd.mean()) if wd.size else 0.0,

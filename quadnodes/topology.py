@@ -140,29 +140,32 @@ class Topology:
         return he_dir, dir_he
 
     @cached_property
-    def _edge_data(self) -> tuple[np.ndarray, np.ndarray]:
-        n = self.n_vertices
-        lo = np.minimum(self.he_start, self.he_end)
-        hi = np.maximum(self.he_start, self.he_end)
+    def _edge_matrix_(self) -> sp.csr_matrix:
+        """Upper-triangular canonical CSR of the undirected edges; values: faces per edge."""
         und = self.__dict__.pop("_edge_matrix", None)
         if und is None:
+            n = self.n_vertices
+            lo = np.minimum(self.he_start, self.he_end)
+            hi = np.maximum(self.he_start, self.he_end)
             und = sp.csr_matrix((np.ones(lo.size, dtype=np.int32), (lo, hi)), shape=(n, n))
             und.sum_duplicates()  # canonical: rows and the columns within them sorted
-        edges = np.stack([np.repeat(np.arange(n), np.diff(und.indptr)), und.indices.astype(np.int64)], axis=1)
-        ids = sp.csr_matrix((np.arange(1, len(edges) + 1), und.indices, und.indptr), shape=(n, n))
-        he_edge = np.asarray(ids[lo, hi]).ravel() - 1
-        self.__dict__["edge_face_count"] = und.data.astype(np.int64)  # faces per edge, in edge order
-        return edges, he_edge
+        return und
 
-    @property
+    @cached_property
     def edges(self) -> np.ndarray:
         """Undirected edges ``(E, 2) int64``, each as ``(low, high)`` vertex index, sorted."""
-        return self._edge_data[0]
+        und = self._edge_matrix_
+        return np.stack([np.repeat(np.arange(self.n_vertices), np.diff(und.indptr)),
+                         und.indices.astype(np.int64)], axis=1)
 
-    @property
+    @cached_property
     def he_edge(self) -> np.ndarray:
         """Undirected edge id of every half-edge, ``(4m,)``."""
-        return self._edge_data[1]
+        und, n = self._edge_matrix_, self.n_vertices
+        ids = sp.csr_matrix((np.arange(1, und.nnz + 1), und.indices, und.indptr), shape=(n, n))
+        lo = np.minimum(self.he_start, self.he_end)
+        hi = np.maximum(self.he_start, self.he_end)
+        return np.asarray(ids[lo, hi]).ravel() - 1
 
     @cached_property
     def ring(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -183,7 +186,7 @@ class Topology:
     @cached_property
     def edge_face_count(self) -> np.ndarray:
         """Number of faces (1 or 2) holding each edge, ``(E,)``."""
-        return np.bincount(self.he_edge, minlength=len(self.edges))
+        return self._edge_matrix_.data.astype(np.int64)  # the edges' counts, in edge order
 
     @cached_property
     def boundary_edges(self) -> np.ndarray:

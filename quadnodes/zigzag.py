@@ -75,7 +75,10 @@ def _window_geometry(
         r *= 0.5
         r -= e[1:-1]
         dev = np.einsum("ij,ij->i", r, r)
-        return np.take(dev, start), np.take(inv, start[:, None] + np.arange(3))
+        inverse = np.empty((3, start.size))
+        for k in range(3):
+            np.take(inv[k:], start, out=inverse[k])
+        return np.take(dev, start), inverse.T
     u = window_edges(vertices, windows)
     inverse = np.empty((len(windows), 3))
     for k, d in enumerate(u):
@@ -87,6 +90,13 @@ def _window_geometry(
     r *= 0.5
     r -= u[1]
     return np.einsum("ij,ij->i", r, r), inverse
+
+
+def _mesh_window_deviation(mesh: QuadMesh) -> np.ndarray:
+    """:func:`window_deviation` of ``mesh.topology.windows`` along the topology's window walk
+    (the numbers that :func:`detect` and :func:`quadnodes.fairing.fair` use, to the last bit)."""
+    topo = mesh.topology
+    return _window_geometry(mesh.vertices, topo.windows, topo.window_walk)[0]
 
 
 def vertex_deviation(deviation: np.ndarray, windows: np.ndarray, n: int) -> np.ndarray:
@@ -201,8 +211,7 @@ def detect(
     """
     threshold = _validate.nonnegative_number(threshold, "threshold")
     user = _validate.vertex_mask(fixed, mesh.n_vertices, "fixed")
-    topo = mesh.topology
-    return _detect(mesh, threshold, user, fix_boundary, _window_geometry(mesh.vertices, topo.windows, topo.window_walk)[0])
+    return _detect(mesh, threshold, user, fix_boundary, _mesh_window_deviation(mesh))
 
 
 def _detect(mesh: QuadMesh, threshold: float, user: np.ndarray, fix_boundary: bool, wd: np.ndarray) -> ZigzagReport:

@@ -310,3 +310,94 @@ def test_threaded_solve_works_in_a_forked_child(monkeypatch):
     assert child.exitcode == 0
     ranges, residual = queue.get(timeout=5)
     assert ranges == 2 and residual <= 1e-9
+
+
+def _grid_system(m, free, weight, **kw):
+    """The system as fair() builds it: with the topology's window walk and grid shape."""
+    from quadnodes.zigzag import _window_geometry
+
+    t = m.topology
+    _, inverse = _window_geometry(m.vertices, t.windows, t.window_walk)
+    return FairingSystem(m.vertices, t.windows, free, weight, solver="cg", _inverse_lengths=inverse,
+                         _walk=t.window_walk, _grid=t.grid_shape, **kw)
+
+
+@given(st.integers(4, 9), st.integers(4, 9), st.floats(0.0, 0.4), st.integers(0, 10_000))
+def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_share, seed):
+    """On a vertex grid the normal matrix in diagonal storage (grid numbering, fixed rows
+    identity) holds exactly AᵀA + ωI of the free vertices."""
+    from quadnodes.fairing import _grid_normal_matrix
+
+    rng = np.random.default_rng(seed)
+    m = perturb(grid(rows, cols), tangential=0.2, normal=0.1, seed=seed)
+    free = m.topology.window_middle & (rng.random(m.n_vertices) >= fixed_share)
+    if not free.any():
+        return
+    s = FairingSystem(m.vertices, m.topology.windows, free, 0.7)
+    t = m.topology
+    offsets, data = _grid_normal_matrix(*t.window_walk, window_coefficients_all(m), free, cols, 0.7)
+    import scipy.sparse as sp
+
+    D = sp.dia_matrix((data, offsets), shape=(m.n_vertices,) * 2).toarray()
+    fi = s.free_index
+    np.testing.assert_allclose(D[np.ix_(fi, fi)], s.matrix.toarray(), rtol=1e-13, atol=1e-13 * np.abs(D).max())
+    fixed = np.flatnonzero(~free)
+    np.testing.assert_array_equal(D[fixed][:, fixed], np.eye(fixed.size))
+    assert not D[np.ix_(fixed, fi)].any() and not D[np.ix_(fi, fixed)].any()
+
+
+def window_coefficients_all(m):
+    from quadnodes.fairing import window_coefficients
+
+    return window_coefficients(m.vertices, m.topology.windows)
+
+
+@pytest.mark.parametrize("weight", [0.3, 10.0])
+@pytest.mark.parametrize("fix", ["corners", "boundary", "random"])
+@pytest.mark.parametrize("threads", [1, 2])
+def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, threads):
+    from quadnodes import fairing
+
+    m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
+    m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
+    free = m.topology.window_middle.copy()
+    if fix == "boundary":
+        free &= ~m.topology.boundary_vertices
+    elif fix == "random":
+        free &= np.random.default_rng(0).random(m.n_vertices) > 0.3
+    if threads > 1:
+        monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(fairing, "_thread_count", lambda: threads)
+    w = weight / m.mean_edge_length**2
+    s = _grid_system(m, free, w)
+    x = s.solve(m.vertices[free])
+    blocks = s._cg[0]
+    assert isinstance(blocks, fairing._DiagonalBlocks) and len(blocks.ranges) == threads
+    assert s.residual <= 1e-9
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
+def test_grid_diagonal_path_only_when_it_pays():
+    from quadnodes import fairing
+
+    m = perturb(grid(40, 50), tangential=0.25, seed=3)
+    free = m.topology.window_middle.copy()
+    w = 0.3 / m.mean_edge_length**2
+    few = free & (np.random.default_rng(0).random(m.n_vertices) < 0.3)  # mostly fixed: free-index CSR
+    s = _grid_system(m, few, w)
+    s.solve(m.vertices[few])
+    assert isinstance(s._cg[0], fairing._RowBlocks) and not isinstance(s._cg[0], fairing._DiagonalBlocks)
+    s = _grid_system(m, free, 0.003 / m.mean_edge_length**2)  # small weight: block-Jacobi CG
+    s.solve(m.vertices[free])
+    assert s._cg[1] is not None and not isinstance(s._cg[0], fairing._DiagonalBlocks)
+    c = perturb(cylinder(30, 40), tangential=0.2, seed=5)  # not a complete open grid
+    assert c.topology.grid_shape is None
+
+
+def test_fair_on_a_grid_uses_diagonal_storage_and_agrees_with_the_direct_solver():
+    m = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
+    a, ra = fair(m, iterations=2, deviation=0.0)
+    b, rb = fair(m, iterations=2, deviation=0.0, solver="direct")
+    assert [r.solver for r in ra.iterations] == ["cg", "cg"]
+    assert np.abs(a.vertices - b.vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
