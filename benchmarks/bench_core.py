@@ -1,8 +1,10 @@
 """Core benchmark: fairing and Taubin smoothing on square grids, beside trimesh.
 
-Every row runs in a fresh subprocess, so "peak MB" is that process's peak
-resident memory (ru_maxrss) minus the resident memory right after the mesh was
-built — the cost of the operation itself, not of Python and its imports.
+Every row runs in fresh subprocesses (``--repeat``, default 3) and the table shows
+the median run's wall time (the range in brackets) and memory: "peak MB" is that
+process's peak resident memory (ru_maxrss) minus the resident memory right after
+the mesh was built and the modules imported — the cost of the operation itself,
+not of Python and its imports.
 
 Rows
 - structure lines: ``structure_lines`` + ``windows`` on a fresh mesh;
@@ -19,7 +21,7 @@ Rows
 - trimesh filter_taubin, 10 steps: ``trimesh.smoothing.filter_taubin(iterations=10)``
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
-Run:  python benchmarks/bench_core.py [--sizes 100 300 1000] [--only fair taubin ...]
+Run:  python benchmarks/bench_core.py [--sizes 100 300 1000] [--only fair taubin ...] [--repeat 3]
 """
 
 from __future__ import annotations
@@ -128,6 +130,8 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000])
     ap.add_argument("--slow", action="store_true", help="also run SuperLU at sizes above 300")
     ap.add_argument("--only", nargs="+", choices=list(LABELS), help="run only these rows")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="fresh processes per row; the table shows the median time (default 3)")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
@@ -146,10 +150,15 @@ def main() -> None:
                 continue
             if kind == "pyamg" and not have_pyamg:
                 continue
-            out = subprocess.run([sys.executable, __file__, "--row", kind, str(n)],
-                                 capture_output=True, text=True, check=True)
-            r = json.loads(out.stdout.strip().splitlines()[-1])
-            print(f"| {n}×{n} | {LABELS[kind]} | {r['wall_s']:.3f} | {r['peak_mb']:.0f} | {r['note']} |",
+            runs = []
+            for _ in range(max(1, args.repeat)):
+                out = subprocess.run([sys.executable, __file__, "--row", kind, str(n)],
+                                     capture_output=True, text=True, check=True)
+                runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            walls = sorted(r["wall_s"] for r in runs)
+            r = runs[[x["wall_s"] for x in runs].index(walls[len(walls) // 2])]  # the median run
+            spread = f" ({walls[0]:.3f}–{walls[-1]:.3f})" if len(walls) > 1 else ""
+            print(f"| {n}×{n} | {LABELS[kind]} | {r['wall_s']:.3f}{spread} | {r['peak_mb']:.0f} | {r['note']} |",
                   flush=True)
 
 

@@ -288,48 +288,86 @@ class _DiagonalBlocks(_RowBlocks):
             _dia_matvec(hi - lo, n, off.size, n, off, self.data, x, y)
 
 
-def _grid_normal_matrix(ext: np.ndarray, start: np.ndarray, coef: np.ndarray, free: np.ndarray, cols: int,
-                        weight: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """``AᵀA + ωI`` of a vertex grid in its own numbering, as 13 diagonals ``(offsets, data)``.
+class _GridPattern:
+    """Where every entry of a vertex grid's ``AᵀA`` goes in diagonal storage (topology only).
 
-    ``ext, start``: the topology's window walk (rows run ``+1``, columns ``+cols``);
-    ``coef``: eq. 32 coefficients of every window. Rows and columns of fixed vertices
-    are those of the identity, so the free block is exactly the free-index system.
-    Entry ``(ext[q], ext[q+d])`` sums ``c_i c_{i+d}`` over the (up to ``4 - d``)
-    windows that hold both, read off shifted products along the walk: no sparse
-    product and no sort. Returns None if the walk is not a grid's rows and columns.
+    Entry ``(ext[q], ext[q+d])`` of the window walk ``ext`` sums ``c_i c_{i+d}`` over
+    the (up to ``4 - d``) windows that hold both positions; ``q[d]`` lists those
+    positions and ``target[d]`` their places in the flattened ``(13, n)`` diagonals
+    (for ``d > 0`` the entry above and its mirror below the main diagonal; for ``d = 0``
+    the vertex, whose diagonal entries are summed). Made once
+    per mesh and reused by every iteration and every weight.
     """
-    n, m = free.size, ext.size
-    on = free[ext]
-    C = np.zeros((4, m))
-    C[:, start] = coef.T
-    for i in range(4):
-        C[i, : m - i] *= on[i:]  # slot i of the window at s is ext[s + i]; fixed: no entries
-    starts = np.zeros(m, dtype=bool)
-    starts[start] = True
-    offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
-    data = np.zeros((13, n))
-    flat = data.reshape(-1)
-    for d in range(4):
-        val = np.zeros(m)
-        held = np.zeros(m, dtype=bool)  # a window holds positions q and q + d
-        for i in range(4 - d):
-            val[i:] += C[i, : m - i] * C[i + d, : m - i]
-            held[i:] |= starts[: m - i]
-        if d == 0:
-            data[6] = np.bincount(ext[held], weights=val[held], minlength=n)
-            continue
-        q = np.flatnonzero(held[: m - d])
-        a, b = ext[q], ext[q + d]
-        row = b - a == d
-        if not (row | (b - a == d * cols)).all():
-            return None
-        up = np.where(row, 6 + d, 9 + d)
-        v = val[q]
-        flat[up * n + b] = v  # M[a, b], stored at column b
-        flat[(12 - up) * n + a] = v  # M[b, a], stored at column a
-    data[6] += np.where(free, weight, 1.0)
-    return offsets, data
+
+    def __init__(self, ext: np.ndarray, start: np.ndarray, n: int, cols: int) -> None:
+        m = ext.size
+        idx = np.int32 if 13 * n < 2**31 - 1 else np.int64  # (kept per mesh: half the memory of int64)
+        starts = np.zeros(m, dtype=bool)
+        starts[start] = True
+        self.valid = True
+        self.q: list[np.ndarray] = []
+        self.target: list[tuple[np.ndarray, ...]] = []
+        for d in range(4):
+            held = np.zeros(m, dtype=bool)  # a window holds positions q and q + d
+            for i in range(4 - d):
+                held[i:] |= starts[: m - i]
+            q = np.flatnonzero(held[: m - d]).astype(idx)
+            a, b = ext[q].astype(idx), ext[q + d].astype(idx)
+            if d == 0:
+                self.q.append(q)
+                self.target.append((a,))
+                continue
+            row = b - a == d
+            if not (row | (b - a == d * cols)).all():  # not rows (+1) and columns (+cols)
+                self.valid = False
+                return
+            up = np.where(row, 6 + d, 9 + d)
+            self.q.append(q)
+            up = up.astype(idx)
+            self.target.append((up * idx(n) + b, (12 - up) * idx(n) + a))  # M[a, b] at column b, M[b, a] at column a
+        self.offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
+        self.n, self.start, self.ext = n, start, ext
+
+    @classmethod
+    def of(cls, topology: object) -> _GridPattern | None:
+        """The pattern of a topology with a :attr:`~quadnodes.topology.Topology.grid_shape`, cached on it."""
+        cache = topology.__dict__
+        if "_fairing_grid_pattern" not in cache:
+            shape = topology.grid_shape
+            pattern = None
+            if shape is not None and shape[1] >= 4:  # narrower: no row windows, offsets would collide
+                pattern = cls(*topology.window_walk, topology.n_vertices, shape[1])
+            cache["_fairing_grid_pattern"] = pattern if pattern is not None and pattern.valid else None
+        return cache["_fairing_grid_pattern"]
+
+    def normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray]:
+        """``AᵀA + ωI`` in the grid's numbering as ``(offsets, data)``; fixed rows and columns are the identity's.
+
+        ``coef``: eq. 32 coefficients of every window; a fixed vertex's are dropped,
+        so the free block is exactly the free-index system. Shifted products along
+        the walk: no sparse product and no sort.
+        """
+        n, m, start = self.n, self.ext.size, self.start
+        on = free[self.ext]
+        C = np.zeros((4, m))
+        C[:, start] = coef.T
+        for i in range(4):
+            C[i, : m - i] *= on[i:]  # slot i of the window at s is ext[s + i]
+        data = np.zeros((13, n))
+        flat = data.reshape(-1)
+        val = np.empty(m)
+        for d in range(4):
+            np.multiply(C[0], C[d], out=val)
+            for i in range(1, 4 - d):
+                val[i:] += C[i, : m - i] * C[i + d, : m - i]
+            v = np.take(val, self.q[d])
+            if d == 0:
+                data[6] = np.bincount(self.target[0][0], weights=v, minlength=n)
+            else:
+                flat[self.target[d][0]] = v
+                flat[self.target[d][1]] = v
+        data[6] += np.where(free, weight, 1.0)
+        return self.offsets, data
 
 
 def _with_weight(AtA: sp.csr_matrix, weight: float) -> sp.csr_matrix:
@@ -466,7 +504,6 @@ def _block_cg(
         return out
 
     X, B, R, P, Q = padded(X0), padded(B), padded(None), padded(None), padded(None)
-    T = None if columns and len(blocks.ranges) == 1 else padded(None)
     Z = R if precond is None else padded(None)
 
     if columns:
@@ -508,56 +545,54 @@ def _block_cg(
     tol2 = (rtol * bnorm) ** 2
 
     if columns and len(blocks.ranges) == 1:
-        # one contiguous vector per coordinate: BLAS level 1 updates in place, one
-        # pass each (NumPy's α·p then x += t makes three and a temporary). Only on one
-        # thread: OpenBLAS's own threads would spin against the pool's.
-        def product(lo: int, hi: int) -> np.ndarray:
-            blocks.matvec(P, Q, lo, hi)
-            hi = kp if hi == k else hi
-            return np.array([_ddot(P[i, lo:hi], Q[i, lo:hi]) for i in range(c)])
+        # one thread, one contiguous vector per coordinate: a plain loop with BLAS level 1
+        # in place (one pass per update; NumPy's α·p then x += t makes three and a
+        # temporary) and Python floats for the per-coordinate scalars. Not on threads:
+        # OpenBLAS's own threads would spin against the pool's.
+        rows = [(X[i], R[i], P[i], Q[i], Z[i]) for i in range(c)]
+        rr_, rz_, tol_ = rr.tolist(), rz.tolist(), tol2.tolist()
+        step = [0.0] * c
+        it = 0
+        while it < maxiter and any(rr_[i] > tol_[i] for i in range(c)):
+            blocks.matvec(P, Q, 0, kp)
+            for i, (x, r, p, q, _) in enumerate(rows):
+                pq = _ddot(p, q)
+                a = rz_[i] / pq if pq > 0 else 0.0
+                _daxpy(p, x, a=a)
+                _daxpy(q, r, a=-a)
+            precondition(0, kp)
+            for i, (_, r, _, _, z) in enumerate(rows):
+                rr_i = _ddot(r, r)
+                rz_i = rr_i if precond is None else _ddot(r, z)
+                step[i] = rz_i / rz_[i] if rz_[i] > 0 else 0.0
+                rr_[i], rz_[i] = rr_i, rz_i
+            it += 1
+            if it < maxiter and any(rr_[i] > tol_[i] for i in range(c)):
+                for i, (_, _, p, _, z) in enumerate(rows):
+                    _dscal(step[i], p)
+                    _daxpy(z, p)
+        x = np.ascontiguousarray(X[:, :k].T)
+        return x, it, float(np.max(np.sqrt(np.array(rr_)) / bnorm))
 
-        def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
-            hi = kp if hi == k else hi
-            rr_, rz_ = np.empty(c), np.empty(c)
-            for i in range(c):
-                a = float(alpha[i, 0])
-                _daxpy(P[i, lo:hi], X[i, lo:hi], a=a)
-                _daxpy(Q[i, lo:hi], R[i, lo:hi], a=-a)
-            precondition(lo, hi)
-            for i in range(c):
-                r = R[i, lo:hi]
-                rr_[i] = _ddot(r, r)
-                if precond is not None:
-                    rz_[i] = _ddot(r, Z[i, lo:hi])
-            return rr_, (None if precond is None else rz_)
+    T = padded(None)  # (threaded runs: NumPy updates through a temporary)
 
-        def direction(lo: int, hi: int) -> None:
-            hi = kp if hi == k else hi
-            for i in range(c):
-                p = P[i, lo:hi]
-                _dscal(float(beta[i, 0]), p)
-                _daxpy(Z[i, lo:hi], p)
-    else:
-        if T is None:
-            T = padded(None)
+    def product(lo: int, hi: int) -> np.ndarray:
+        blocks.matvec(P, Q, lo, hi)
+        return dot(part(P, lo, hi), part(Q, lo, hi))
 
-        def product(lo: int, hi: int) -> np.ndarray:
-            blocks.matvec(P, Q, lo, hi)
-            return dot(part(P, lo, hi), part(Q, lo, hi))
+    def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
+        t, r = part(T, lo, hi), part(R, lo, hi)
+        np.multiply(part(P, lo, hi), alpha, out=t)
+        part(X, lo, hi)[...] += t
+        np.multiply(part(Q, lo, hi), alpha, out=t)
+        r -= t
+        precondition(lo, hi)
+        return dot(r, r), (None if precond is None else dot(r, part(Z, lo, hi)))
 
-        def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
-            t, r = part(T, lo, hi), part(R, lo, hi)
-            np.multiply(part(P, lo, hi), alpha, out=t)
-            part(X, lo, hi)[...] += t
-            np.multiply(part(Q, lo, hi), alpha, out=t)
-            r -= t
-            precondition(lo, hi)
-            return dot(r, r), (None if precond is None else dot(r, part(Z, lo, hi)))
-
-        def direction(lo: int, hi: int) -> None:
-            p = part(P, lo, hi)
-            p *= beta
-            p += part(Z, lo, hi)
+    def direction(lo: int, hi: int) -> None:
+        p = part(P, lo, hi)
+        p *= beta
+        p += part(Z, lo, hi)
 
     it = 0
     while it < maxiter and (rr > tol2).any():
@@ -631,8 +666,7 @@ class FairingSystem:
         solver: Literal["auto", "direct", "cg"] = "auto",
         rtol: float = 1e-9,
         _inverse_lengths: np.ndarray | None = None,
-        _walk: tuple[np.ndarray, np.ndarray] | None = None,
-        _grid: tuple[int, int] | None = None,
+        _topology: object | None = None,
     ) -> None:
         weight = _validate.positive_number(weight, "weight")
         free = np.asarray(free, dtype=bool)
@@ -649,13 +683,14 @@ class FairingSystem:
         if win is not windows:
             is_free, word = is_free[active], word[active]
         if _inverse_lengths is None:  # else (w, 3) for all windows, from fair()'s detection pass
-            coef_all = window_coefficients(vertices, windows) if _walk is not None else None
+            coef_all = window_coefficients(vertices, windows) if _topology is not None else None
             coef = window_coefficients(vertices, win) if coef_all is None or win is not windows else coef_all
         else:
             coef_all = _coefficients(_inverse_lengths[:, 0], _inverse_lengths[:, 1], _inverse_lengths[:, 2])
             coef = coef_all if win is windows else coef_all[active]
-        # a complete vertex grid whose windows are ``_walk``'s: see _cg_setup
-        self._grid = (_walk, coef_all, free, int(_grid[1])) if _walk is not None and _grid is not None else None
+        # ``_topology``: the mesh's, whose windows ``windows`` are (fair() passes it): see _grid_blocks
+        pattern = None if _topology is None else _GridPattern.of(_topology)
+        self._grid = None if pattern is None else (pattern, coef_all, free)
         idx = np.int32 if max(n, 4 * len(win)) < 2**31 - 1 else np.int64
         col = np.full(n, -1, dtype=idx)
         col[self.free_index] = np.arange(k, dtype=idx)
@@ -683,7 +718,16 @@ class FairingSystem:
         self.active = active
         self.A = A
         self.b = b
-        self._rhs = -(A[partial].T @ b[partial]) if partial.size else np.zeros((k, 3))
+        # -Aᵀb: only the windows with a fixed vertex have b ≠ 0
+        rhs = np.zeros((k, 3))
+        if partial.size:
+            pf = is_free[partial]
+            at = cols[partial][pf]
+            w_coef = coef[partial][pf]
+            wb = np.repeat(b[partial], pf.sum(axis=1), axis=0)
+            for j in range(3):
+                rhs[:, j] = -np.bincount(at, weights=w_coef * wb[:, j], minlength=k)
+        self._rhs = rhs
         if solver not in ("auto", "direct", "cg"):
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
         self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
@@ -738,11 +782,10 @@ class FairingSystem:
         """Diagonal storage in the grid's numbering, if this is a mostly free vertex grid."""
         if self._grid is None or _dia_matvec is None:
             return None
-        (ext, start), coef, free, cols = self._grid
-        if cols < 4 or self.n_free < GRID_MIN_FREE * free.size:
-            return None  # (narrower grids have no row windows; few free: the free-index system is smaller)
-        built = _grid_normal_matrix(ext, start, coef, free, cols, self.weight)
-        return None if built is None else _DiagonalBlocks(*built)
+        pattern, coef, free = self._grid
+        if self.n_free < GRID_MIN_FREE * free.size:
+            return None  # few free: the free-index system is smaller
+        return _DiagonalBlocks(*pattern.normal_matrix(coef, free, self.weight))
 
     _cg: tuple | None = None
 
@@ -771,13 +814,16 @@ class FairingSystem:
         if self.solver == "cg":
             # translation equivariance: solve about the anchor's centroid, so the stopping
             # rule is relative to the mesh's extent, not to its distance from the origin
-            c = a.mean(axis=0)
+            c = np.ones(len(a)) @ a / len(a)  # (NumPy's mean over axis 0 of (k, 3) is ~15x slower)
             blocks, precond, order = self._cg_setup()
             if isinstance(blocks, _DiagonalBlocks):  # the grid's numbering: fixed rows are identity
                 fi = self.free_index
                 shifted = np.zeros((blocks.M.shape[0], 3))
                 shifted[fi] = rhs
-                shifted[fi] -= np.take(blocks.M @ np.ones(blocks.M.shape[0]), fi)[:, None] * c  # M c = (M 1) c
+                ones = np.ones((1, shifted.shape[0]))
+                row_sums = np.empty_like(ones)
+                blocks.matvec(ones, row_sums, 0, shifted.shape[0])
+                shifted[fi] -= np.take(row_sums[0], fi)[:, None] * c  # M c = (M 1) c
                 x0 = np.zeros_like(shifted)
                 x0[fi] = a - c
             else:
@@ -986,16 +1032,17 @@ def fair(
             report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: no zigzag above {thresholds[it]:g}")
             continue
         w_eff = float(weights[it] * scale)
-        system = FairingSystem(x, w, zz.free, w_eff, solver=solver, _inverse_lengths=geometry[1], _walk=walk,
-                               _grid=topo.grid_shape)
+        system = FairingSystem(x, w, zz.free, w_eff, solver=solver, _inverse_lengths=geometry[1],
+                               _topology=topo)
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
         else:
-            target = (x if anchor == "current" else x0)[system.free_index]
+            target = np.take(x if anchor == "current" else x0, system.free_index, axis=0)
         new_free = system.solve(target)
         x_new = x.copy()
         x_new[system.free_index] = new_free
-        disp = np.linalg.norm(new_free - x[system.free_index], axis=1)
+        moved = new_free - np.take(x, system.free_index, axis=0)
+        disp = np.sqrt(np.einsum("ij,ij->i", moved, moved))
         geometry = _window_geometry(x_new, w, walk)
         reports.append(
             IterationReport(

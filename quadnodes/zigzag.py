@@ -75,9 +75,7 @@ def _window_geometry(
         r *= 0.5
         r -= e[1:-1]
         dev = np.einsum("ij,ij->i", r, r)
-        inverse = np.empty((3, start.size))
-        for k in range(3):
-            np.take(inv[k:], start, out=inverse[k])
+        inverse = np.stack([np.take(inv[k:], start) for k in range(3)])
         return np.take(dev, start), inverse.T
     u = window_edges(vertices, windows)
     inverse = np.empty((len(windows), 3))

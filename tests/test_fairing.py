@@ -319,14 +319,14 @@ def _grid_system(m, free, weight, **kw):
     t = m.topology
     _, inverse = _window_geometry(m.vertices, t.windows, t.window_walk)
     return FairingSystem(m.vertices, t.windows, free, weight, solver="cg", _inverse_lengths=inverse,
-                         _walk=t.window_walk, _grid=t.grid_shape, **kw)
+                         _topology=t, **kw)
 
 
 @given(st.integers(4, 9), st.integers(4, 9), st.floats(0.0, 0.4), st.integers(0, 10_000))
 def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_share, seed):
     """On a vertex grid the normal matrix in diagonal storage (grid numbering, fixed rows
     identity) holds exactly AᵀA + ωI of the free vertices."""
-    from quadnodes.fairing import _grid_normal_matrix
+    from quadnodes.fairing import _GridPattern
 
     rng = np.random.default_rng(seed)
     m = perturb(grid(rows, cols), tangential=0.2, normal=0.1, seed=seed)
@@ -335,7 +335,7 @@ def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_sha
         return
     s = FairingSystem(m.vertices, m.topology.windows, free, 0.7)
     t = m.topology
-    offsets, data = _grid_normal_matrix(*t.window_walk, window_coefficients_all(m), free, cols, 0.7)
+    offsets, data = _GridPattern.of(t).normal_matrix(window_coefficients_all(m), free, 0.7)
     import scipy.sparse as sp
 
     D = sp.dia_matrix((data, offsets), shape=(m.n_vertices,) * 2).toarray()
