@@ -70,8 +70,11 @@ RANGE_ALIGN = 64
 COLUMNS_MAX_NNZ = 2_000_000
 #: Unknowns per block of the block-Jacobi preconditioner (a patch of about 4 × 4 vertices).
 BLOCK_SIZE = 16
-#: Precondition when the mean diagonal of AᵀA exceeds this many times ω (else plain CG wins).
+#: Precondition when the mean diagonal of AᵀA exceeds this many times ω (else plain CG wins);
+#: about ω < 0.2 (normalized) — or ω < 0.02 where the grid's faster diagonal storage applies
+#: (``benchmarks/cg_weights.py``).
 BLOCK_JACOBI_RATIO = 50.0
+GRID_BLOCK_JACOBI_RATIO = 500.0
 #: Rows per thread below which a system is solved on one thread.
 PARALLEL_MIN_ROWS = 25000
 #: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
@@ -688,7 +691,7 @@ class FairingSystem:
         else:
             coef_all = _coefficients(_inverse_lengths[:, 0], _inverse_lengths[:, 1], _inverse_lengths[:, 2])
             coef = coef_all if win is windows else coef_all[active]
-        # ``_topology``: the mesh's, whose windows ``windows`` are (fair() passes it): see _grid_blocks
+        # ``_topology``: the mesh's, whose windows ``windows`` are (fair() passes it): see _cg_setup
         pattern = None if _topology is None else _GridPattern.of(_topology)
         self._grid = None if pattern is None else (pattern, coef_all, free)
         idx = np.int32 if max(n, 4 * len(win)) < 2**31 - 1 else np.int64
@@ -763,29 +766,28 @@ class FairingSystem:
         """The CG operator (row ranges), its preconditioner and the unknowns' order, made once.
 
         When the weight is small next to the fairing term (mean diagonal of AᵀA
-        above :data:`BLOCK_JACOBI_RATIO` ω), the unknowns are renumbered in
-        patches (:func:`_patch_order`) and preconditioned by :class:`_BlockJacobi`; otherwise plain
-        CG on ``AᵀA + ωI`` in ``free_index`` order.
+        above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
+        grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
+        preconditioned by :class:`_BlockJacobi`; otherwise plain CG on ``AᵀA + ωI``:
+        on a mostly free complete vertex grid (``_topology`` given) in the grid's
+        numbering with diagonal storage (:class:`_GridPattern`), else in
+        ``free_index`` order.
         """
         if self._cg is None:
             A, k = self.A, self.n_free
             mean_diag = float(np.einsum("i,i->", A.data, A.data)) / k
-            if k >= BLOCK_SIZE and mean_diag > BLOCK_JACOBI_RATIO * self.weight:
+            grid = self._grid is not None and _dia_matvec is not None and k >= GRID_MIN_FREE * self._grid[2].size
+            ratio = GRID_BLOCK_JACOBI_RATIO if grid else BLOCK_JACOBI_RATIO
+            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight:
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = _permuted(self.matrix, order)
                 self._cg = (_RowBlocks(M), _BlockJacobi(M, BLOCK_SIZE), order)
+            elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
+                pattern, coef, free = self._grid
+                self._cg = (_DiagonalBlocks(*pattern.normal_matrix(coef, free, self.weight)), None, None)
             else:
-                self._cg = (self._grid_blocks() or _RowBlocks(self.matrix), None, None)
+                self._cg = (_RowBlocks(self.matrix), None, None)
         return self._cg
-
-    def _grid_blocks(self) -> _DiagonalBlocks | None:
-        """Diagonal storage in the grid's numbering, if this is a mostly free vertex grid."""
-        if self._grid is None or _dia_matvec is None:
-            return None
-        pattern, coef, free = self._grid
-        if self.n_free < GRID_MIN_FREE * free.size:
-            return None  # few free: the free-index system is smaller
-        return _DiagonalBlocks(*pattern.normal_matrix(coef, free, self.weight))
 
     _cg: tuple | None = None
 

@@ -401,3 +401,17 @@ def test_fair_on_a_grid_uses_diagonal_storage_and_agrees_with_the_direct_solver(
     b, rb = fair(m, iterations=2, deviation=0.0, solver="direct")
     assert [r.solver for r in ra.iterations] == ["cg", "cg"]
     assert np.abs(a.vertices - b.vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
+def test_iterations_reuse_the_grid_pattern(monkeypatch):
+    """Multi-iteration runs build the grid's diagonal pattern once per mesh, not per iteration."""
+    from quadnodes import fairing
+
+    made = []
+    init = fairing._GridPattern.__init__
+    monkeypatch.setattr(fairing._GridPattern, "__init__", lambda self, *a: (made.append(1), init(self, *a))[1])
+    m = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
+    _, rep = fair(m, iterations=3, deviation=0.0)
+    assert [r.solver for r in rep.iterations] == ["cg"] * 3 and len(made) == 1
+    fair(m, iterations=2, deviation=0.0, weight=1.0)  # same mesh, other weight: still the one pattern
+    assert len(made) == 1
