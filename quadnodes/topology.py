@@ -23,6 +23,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, depth_first_order
 
+from ._validate import grid_cells
+
 if TYPE_CHECKING:
     from .mesh import QuadMesh
 
@@ -140,7 +142,7 @@ class Topology:
         return he_dir, dir_he
 
     @cached_property
-    def _edge_matrix_(self) -> sp.csr_matrix:
+    def _undirected(self) -> sp.csr_matrix:
         """Upper-triangular canonical CSR of the undirected edges; values: faces per edge."""
         und = self.__dict__.pop("_edge_matrix", None)
         if und is None:
@@ -154,14 +156,14 @@ class Topology:
     @cached_property
     def edges(self) -> np.ndarray:
         """Undirected edges ``(E, 2) int64``, each as ``(low, high)`` vertex index, sorted."""
-        und = self._edge_matrix_
+        und = self._undirected
         return np.stack([np.repeat(np.arange(self.n_vertices), np.diff(und.indptr)),
                          und.indices.astype(np.int64)], axis=1)
 
     @cached_property
     def he_edge(self) -> np.ndarray:
         """Undirected edge id of every half-edge, ``(4m,)``."""
-        und, n = self._edge_matrix_, self.n_vertices
+        und, n = self._undirected, self.n_vertices
         ids = sp.csr_matrix((np.arange(1, und.nnz + 1), und.indices, und.indptr), shape=(n, n))
         lo = np.minimum(self.he_start, self.he_end)
         hi = np.maximum(self.he_start, self.he_end)
@@ -186,7 +188,7 @@ class Topology:
     @cached_property
     def edge_face_count(self) -> np.ndarray:
         """Number of faces (1 or 2) holding each edge, ``(E,)``."""
-        return self._edge_matrix_.data.astype(np.int64)  # the edges' counts, in edge order
+        return self._undirected.data.astype(np.int64)  # the edges' counts, in edge order
 
     @cached_property
     def boundary_edges(self) -> np.ndarray:
@@ -324,8 +326,6 @@ class Topology:
 
 def _grid_shape(faces: np.ndarray, n: int) -> tuple[int, int] | None:
     """``(rows, cols)`` if ``faces`` are the ``(rows-1)(cols-1)`` distinct unit cells of a vertex grid."""
-    from ._validate import grid_cells
-
     if len(faces) == 0:
         return None
     f0 = faces[0]
