@@ -65,6 +65,8 @@ import time
 
 import numpy as np
 
+from bench_core import _rss_mb
+
 EXAMPLES = ("E1", "E2", "E3", "E4")
 FREEFORM = "F100"
 KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "qn_newton", "igl_default", "igl_tol")
@@ -78,10 +80,6 @@ LABELS = {
     "igl_tol": "libigl, maxIter 1000, threshold 1e-3",
 }
 
-
-def _rss_mb() -> float:
-    with open("/proc/self/statm") as fh:
-        return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
 
 
 def _case(name: str):

@@ -685,11 +685,15 @@ class FairingSystem:
         win = windows if active.all() else windows[active]
         if win is not windows:
             is_free, word = is_free[active], word[active]
-        if _inverse_lengths is None:  # else (w, 3) for all windows, from fair()'s detection pass
-            coef_all = window_coefficients(vertices, windows) if _topology is not None else None
-            coef = window_coefficients(vertices, win) if coef_all is None or win is not windows else coef_all
-        else:
+        if _inverse_lengths is not None:  # (w, 3) for all windows, from fair()'s detection pass
             coef_all = _coefficients(_inverse_lengths[:, 0], _inverse_lengths[:, 1], _inverse_lengths[:, 2])
+        elif _topology is not None:  # the grid path needs every window's coefficients
+            coef_all = window_coefficients(vertices, windows)
+        else:
+            coef_all = None
+        if coef_all is None:
+            coef = window_coefficients(vertices, win)
+        else:
             coef = coef_all if win is windows else coef_all[active]
         # ``_topology``: the mesh's, whose windows ``windows`` are (fair() passes it): see _cg_setup
         pattern = None if _topology is None else _GridPattern.of(_topology)

@@ -314,7 +314,7 @@ class Topology:
         ``ext[start[i] : start[i] + 4]`` and consecutive windows of a line share
         edges: per-edge quantities are computed once per line edge, not per window.
         """
-        return _window_walk(self.structure_lines)
+        return _window_walk(self.structure_lines)[:2]
 
     @cached_property
     def window_middle(self) -> np.ndarray:
@@ -512,21 +512,13 @@ def windows(lines: StructureLines, *, return_line: bool = False) -> np.ndarray |
     >>> windows(structure_lines(grid(1 + 1, 5))).tolist()
     [[0, 1, 2, 3], [1, 2, 3, 4], [5, 6, 7, 8], [6, 7, 8, 9]]
     """
-    n = lines.lengths
-    closed = lines.closed
-    count = np.where(closed, np.where(n >= 3, n, 0), np.maximum(n - 3, 0))
-    line = np.repeat(np.arange(len(n)), count)
-    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    pos = k[:, None] + np.arange(4)
-    wrap = np.flatnonzero(closed[line])  # only closed lines' windows wrap around
-    if wrap.size:
-        pos[wrap] %= n[line[wrap]][:, None]
-    w = lines.indices[lines.offsets[:-1][line][:, None] + pos]
-    return (w, line) if return_line else w
+    ext, start, count = _window_walk(lines)
+    w = ext[start[:, None] + np.arange(4)]
+    return (w, np.repeat(np.arange(len(count)), count)) if return_line else w
 
 
-def _window_walk(lines: StructureLines) -> tuple[np.ndarray, np.ndarray]:
-    """``(ext, start)`` of :attr:`Topology.window_walk`."""
+def _window_walk(lines: StructureLines) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(ext, start)`` of :attr:`Topology.window_walk`, and the number of windows of every line."""
     n = lines.lengths
     closed = lines.closed
     wraps = closed & (n >= 3)
@@ -542,7 +534,7 @@ def _window_walk(lines: StructureLines) -> tuple[np.ndarray, np.ndarray]:
     start = np.repeat(ext_off[:-1] - first, count) + np.arange(count.sum(), dtype=np.int64)
     for a in (ext, start):
         a.setflags(write=False)
-    return ext, start
+    return ext, start, count
 
 
 def structure_lines(mesh: QuadMesh) -> StructureLines:
