@@ -43,7 +43,7 @@ def _rss_mb() -> float:
 
 def _mesh(n: int):
     from quadnodes.mesh import grid
-    from quadnodes.perturb import perturb
+    from quadnodes.noise import perturb
 
     y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
     return perturb(grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y)),

@@ -32,7 +32,7 @@ Rows
   iterations there (~7 s) and always runs.
 
 Columns
-- planarity max / mean: ``quadnodes.planarity.diagonal_distance`` (distance between
+- planarity max / mean: ``quadnodes.flatness.diagonal_distance`` (distance between
   the diagonals over their mean length); the script checks on every row that it
   equals ``|igl.quad_planarity|`` (libigl's measure is the same number with a sign)
   and prints the largest difference under each table;
@@ -86,7 +86,7 @@ def _case(name: str):
     """(face, clean mesh, 4× finer sample of the face, faired noisy mesh) of one benchmark case."""
     from quadnodes import surfaces
     from quadnodes.fairing import fair
-    from quadnodes.perturb import perturb
+    from quadnodes.noise import perturb
 
     if name == FREEFORM:
         face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
@@ -108,8 +108,8 @@ def run_row(name: str, kind: str) -> dict:
     import igl
 
     from quadnodes.metrics import distance_to_mesh
-    from quadnodes.planarity import diagonal_distance
-    from quadnodes.planarize import planarize
+    from quadnodes.flatness import diagonal_distance
+    from quadnodes.planarization import planarize
     from quadnodes.zigzag import window_deviation
 
     face, clean, fine, faired = _case(name)

@@ -18,7 +18,7 @@ import numpy as np
 
 from quadnodes.fairing import FairingSystem
 from quadnodes.mesh import cylinder, grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.zigzag import detect
 
 from bench_core import _mesh

@@ -18,7 +18,7 @@ from scipy.sparse.linalg import LinearOperator, cg
 
 from quadnodes.fairing import FairingSystem
 from quadnodes.mesh import grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.zigzag import detect
 
 

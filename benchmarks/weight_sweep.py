@@ -15,7 +15,7 @@ import numpy as np
 
 from quadnodes.fairing import fair
 from quadnodes.mesh import grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.metrics import zigzag_stats
 
 # (name, rows, cols, f, grad f) on [0, cols-1] x [0, rows-1] with unit spacing

@@ -28,9 +28,9 @@ from .errors import ExportError, GraphError, InputError, NodeError, QuadnodesErr
 from .fairing import fair
 from .mesh import QuadMesh, from_grid_points, grid
 from .metrics import compare
-from .perturb import perturb
-from .planarity import planarity
-from .planarize import planarize
+from .noise import perturb
+from .flatness import planarity
+from .planarization import planarize
 from .smoothing import laplacian, taubin
 from .topology import structure_lines, windows
 from .zigzag import detect

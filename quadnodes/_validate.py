@@ -185,12 +185,15 @@ def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
 def vertex_mask(mask: ArrayLike | None, n: int, name: str = "fixed") -> np.ndarray:
     """Return a boolean ``(n,)`` mask from a boolean mask or an index list.
 
-    ``None`` gives all False. Integer input is read as vertex indices.
+    ``None`` gives all False. Integer input is read as vertex indices. An
+    integer array of length ``n`` holding only 0 and 1 (``mask.astype(int)``) is
+    ambiguous — a 0/1 mask or the indices 0 and 1 — and refused.
 
     Raises
     ------
     InputError
-        On a wrong length, an index out of range, or an unusable dtype.
+        On a wrong length, an index out of range, an ambiguous 0/1 integer array,
+        or an unusable dtype.
     """
     out = np.zeros(n, dtype=bool)
     if mask is None:
@@ -206,6 +209,11 @@ def vertex_mask(mask: ArrayLike | None, n: int, name: str = "fixed") -> np.ndarr
     if a.dtype.kind not in "iu":
         raise InputError(f"{name}: expected a boolean mask or vertex indices, got dtype {a.dtype}")
     a = a.reshape(-1).astype(np.int64)
+    if n > 2 and a.size == n and np.isin(a, (0, 1)).all():
+        raise InputError(
+            f"{name}: an integer array of {n} zeros and ones looks like a 0/1 mask; pass a boolean "
+            f"mask (e.g. mask.astype(bool)) or a list of vertex indices"
+        )
     bad = (a < 0) | (a >= n)
     if bad.any():
         raise InputError(f"{name}: vertex index {int(a[bad][0])} is outside 0..{n - 1}")
@@ -378,11 +386,31 @@ def quad_meshes(meshes: Any, name: str = "meshes") -> list[Any]:
 
 
 def choice(value: Any, options: Iterable[str], name: str) -> str:
-    """Return ``value`` lower-cased if it is one of ``options``, else raise :class:`InputError`."""
+    """Return ``value`` if it is exactly one of ``options``, else raise :class:`InputError`.
+
+    The one rule for every choice setting in quadnodes: exact, case-sensitive
+    match (choices are lower-case); a near miss is named in the message.
+
+    Examples
+    --------
+    >>> choice("newton", ("auto", "newton"), "method")
+    'newton'
+    >>> choice("NEWTON", ("auto", "newton"), "method")
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: method: expected one of 'auto', 'newton', got 'NEWTON' (did you mean 'newton'?)
+    """
     opts = tuple(options)
-    if isinstance(value, str) and value.lower() in opts:
-        return value.lower()
-    raise InputError(f"{name}: expected one of {', '.join(map(repr, opts))}, got {value!r}")
+    if isinstance(value, str) and value in opts:
+        return value
+    hint = ""
+    if isinstance(value, str):
+        import difflib
+
+        near = [o for o in opts if o == value.lower().strip()] or difflib.get_close_matches(value, opts, n=1)
+        if near:
+            hint = f" (did you mean {near[0]!r}?)"
+    raise InputError(f"{name}: expected one of {', '.join(map(repr, opts))}, got {value!r}{hint}")
 
 
 def grid_cells(faces: np.ndarray, rows: int, cols: int) -> int:

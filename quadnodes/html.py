@@ -19,7 +19,7 @@ Examples
 --------
 >>> import tempfile, pathlib
 >>> from quadnodes.mesh import grid
->>> from quadnodes.perturb import perturb
+>>> from quadnodes.noise import perturb
 >>> from quadnodes.fairing import fair
 >>> noisy = perturb(grid(6, 8), tangential=0.2, seed=1)
 >>> faired, _ = fair(noisy, iterations=2)
@@ -44,7 +44,7 @@ from ._view import camera, edge_deviation, face_deviation, face_normals, light
 from .errors import InputError
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
-from .planarity import angle_defect, diagonal_distance
+from .flatness import angle_defect, diagonal_distance
 from .zigzag import _mesh_window_deviation, vertex_deviation
 
 if TYPE_CHECKING:

@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike
 
 from . import _validate
 from .errors import InputError
+from .units import DEFAULT_UNIT, check_unit
 
 if TYPE_CHECKING:
     from .topology import Topology
@@ -32,6 +33,9 @@ class QuadMesh:
     grid_shape : (rows, cols) or None
         Set when the mesh is a regular grid whose vertex ``i*cols + j`` sits in
         row ``i`` and column ``j``.
+    unit : str
+        Unit of the coordinates, one of :data:`quadnodes.units.UNITS` (default
+        ``"mm"``); exporters write it into every file that can carry it.
 
     Raises
     ------
@@ -50,8 +54,10 @@ class QuadMesh:
     vertices: np.ndarray
     faces: np.ndarray
     grid_shape: tuple[int, int] | None = field(default=None)
+    unit: str = field(default=DEFAULT_UNIT)
 
     def __post_init__(self) -> None:
+        unit = check_unit(self.unit)
         v = _validate.vertices_array(self.vertices)
         f = _validate.faces_array(self.faces, v.shape[0])
         edge_matrix = _validate.check_quad_mesh(v, f)
@@ -70,6 +76,7 @@ class QuadMesh:
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
         object.__setattr__(self, "grid_shape", gs)
+        object.__setattr__(self, "unit", unit)
         self.__dict__["_edge_matrix"] = edge_matrix  # counted by the validation; topology reuses it
 
     @property
@@ -97,6 +104,21 @@ class QuadMesh:
         d -= np.take(self.vertices, e[:, 0], axis=0)
         return float(np.sqrt(np.einsum("ij,ij->i", d, d)).mean())
 
+    def with_unit(self, unit: str) -> QuadMesh:
+        """The same mesh with its coordinates converted to ``unit`` (scaled), topology shared.
+
+        Examples
+        --------
+        >>> grid(2, 2, spacing=1000.0).with_unit("m").vertices[-1].tolist()
+        [1.0, 1.0, 0.0]
+        """
+        from .units import to_unit
+
+        factor = to_unit(1.0, self.unit, check_unit(unit))
+        new = self.with_vertices(self.vertices * factor)
+        object.__setattr__(new, "unit", unit)
+        return new
+
     def with_vertices(self, vertices: ArrayLike) -> QuadMesh:
         """Return a mesh with the same faces and new vertex positions.
 
@@ -114,6 +136,7 @@ class QuadMesh:
         object.__setattr__(new, "vertices", v)
         object.__setattr__(new, "faces", self.faces)
         object.__setattr__(new, "grid_shape", self.grid_shape)
+        object.__setattr__(new, "unit", self.unit)
         topo = self.__dict__.get("topology")
         if topo is not None:
             new.__dict__["topology"] = topo
@@ -123,7 +146,8 @@ class QuadMesh:
 
     def __repr__(self) -> str:
         gs = f", grid_shape={self.grid_shape}" if self.grid_shape else ""
-        return f"QuadMesh(n_vertices={self.n_vertices}, n_faces={self.n_faces}{gs})"
+        unit = f", unit={self.unit!r}" if self.unit != DEFAULT_UNIT else ""
+        return f"QuadMesh(n_vertices={self.n_vertices}, n_faces={self.n_faces}{gs}{unit})"
 
 
 def grid_faces(rows: int, cols: int, *, wrap_cols: bool = False, wrap_rows: bool = False) -> np.ndarray:

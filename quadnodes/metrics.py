@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from . import planarity as _planarity
+from . import flatness as _planarity
 from .errors import InputError
 from .mesh import QuadMesh
 from .zigzag import _mesh_window_deviation, vertex_deviation

@@ -25,11 +25,11 @@ from .graph import node
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .mesh import grid as _grid
-from .perturb import perturb as _perturb
-from .planarity import planarity as _planarity_of
-from .planarize import DEFAULT_TOLERANCE, PlanarizeReport
-from .planarize import planarize as _planarize
-from .planarity import summary as _summary
+from .noise import perturb as _perturb
+from .flatness import planarity as _planarity_of
+from .planarization import DEFAULT_TOLERANCE, PlanarizeReport
+from .planarization import planarize as _planarize
+from .flatness import summary as _summary
 from .zigzag import ZigzagReport
 from .zigzag import detect as _detect
 

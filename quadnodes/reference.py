@@ -1,6 +1,6 @@
 """Closest points on a design surface: a build123d face or a reference quad mesh.
 
-:func:`quadnodes.planarize.planarize` and :func:`quadnodes.fairing.fair` (option
+:func:`quadnodes.planarization.planarize` and :func:`quadnodes.fairing.fair` (option
 ``reference``) pull vertices towards the design surface rather than towards
 their old positions, so that they may slide along it. Both ask a
 :class:`Reference` for the closest surface point of many points at once.

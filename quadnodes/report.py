@@ -42,7 +42,7 @@ from .fairing import fair as _fair
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .metrics import compare, distance_to_mesh
-from .perturb import perturb, vertex_normals
+from .noise import perturb, vertex_normals
 from .smoothing import laplacian, taubin
 from .zigzag import detect
 

@@ -36,6 +36,8 @@ __all__ = [
     "boundary_vertices",
     "corner_vertices",
     "adjacency",
+    "fixed_vertices",
+    "FIX_MODES",
 ]
 
 
@@ -575,3 +577,53 @@ def adjacency(mesh: QuadMesh) -> sp.csr_matrix:
     indptr, indices, _ = mesh.topology.ring
     n = mesh.n_vertices
     return sp.csr_matrix((np.ones(indices.size), indices, indptr), shape=(n, n))
+
+
+#: The names of the fixing modes accepted by every method (``fix=``).
+FIX_MODES: tuple[str, ...] = ("none", "corners", "boundary")
+
+
+def fixed_vertices(mesh: QuadMesh, fix: str = "none", fixed: object = None) -> np.ndarray:
+    """The vertices a method holds in place: a fixing mode plus the user's own selection.
+
+    The one fixing vocabulary of quadnodes: every method, node and report takes
+    ``fix`` (a mode) and ``fixed`` (more vertices) and resolves them here.
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+    fix : {"none", "corners", "boundary"}
+        ``"corners"``: the boundary corners (:func:`corner_vertices`);
+        ``"boundary"``: every boundary vertex.
+    fixed : (n,) bool or int indices, optional
+        More vertices to hold (a boolean mask or a list of indices; an integer
+        array of zeros and ones of length ``n`` is refused as ambiguous).
+
+    Returns
+    -------
+    (n,) bool
+        A new array.
+
+    Raises
+    ------
+    InputError
+        On an unknown mode or a malformed ``fixed``.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> int(fixed_vertices(grid(4, 4), "boundary").sum())
+    12
+    >>> np.flatnonzero(fixed_vertices(grid(3, 3), "corners", fixed=[4])).tolist()
+    [0, 2, 4, 6, 8]
+    """
+    from . import _validate
+
+    mode = _validate.choice(fix, FIX_MODES, "fix")
+    n = mesh.n_vertices
+    mask = _validate.vertex_mask(fixed, n, "fixed")
+    if mode == "corners":
+        mask |= mesh.topology.corner_vertices
+    elif mode == "boundary":
+        mask |= mesh.topology.boundary_vertices
+    return mask

@@ -181,7 +181,7 @@ def render_png(
         boundary as a dark dashed line on top.
     planarity : bool or sequence of bool
         Colour the faces by planarity (distance between the diagonals over the
-        mean diagonal, :func:`quadnodes.planarity.diagonal_distance`) instead of
+        mean diagonal, :func:`quadnodes.flatness.diagonal_distance`) instead of
         shading them, on a logarithmic scale shared by these panels, with its own
         colour bar.
     vmin, vmax : float
@@ -217,7 +217,7 @@ def render_png(
     --------
     >>> import tempfile, pathlib
     >>> from quadnodes.mesh import grid
-    >>> from quadnodes.perturb import perturb
+    >>> from quadnodes.noise import perturb
     >>> from quadnodes.zigzag import detect
     >>> noisy = perturb(grid(6, 8), tangential=0.2, seed=1)
     >>> p = render_png([noisy, noisy], pathlib.Path(tempfile.mkdtemp()) / "a.png",
@@ -423,7 +423,7 @@ def _save(fig: Any, tmp: str, palette: int | None) -> None:
 
 
 def _planarity_values(mesh: QuadMesh) -> np.ndarray:
-    from .planarity import diagonal_distance
+    from .flatness import diagonal_distance
 
     return diagonal_distance(mesh)
 

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import strategies as st
 
 from quadnodes.mesh import QuadMesh, grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from meshes import extraordinary_mesh, l_shape_with_hole
 
 

@@ -5,7 +5,7 @@ from hypothesis import given, strategies as st
 from quadnodes.errors import InputError
 from quadnodes.fairing import FairingSystem, fair, fairing_energy, fairing_matrix
 from quadnodes.mesh import cylinder, grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.zigzag import detect, window_deviation
 from meshes import extraordinary_mesh, l_shape_with_hole
 from strategies import meshes

@@ -20,8 +20,8 @@ from quadnodes.fairing import fair
 from quadnodes.graph import Graph
 from quadnodes.html import build_html, figure, render_html
 from quadnodes.mesh import grid
-from quadnodes.perturb import perturb
-from quadnodes.planarity import diagonal_distance
+from quadnodes.noise import perturb
+from quadnodes.flatness import diagonal_distance
 from quadnodes.zigzag import detect
 
 # --- helpers ------------------------------------------------------------------------------------------

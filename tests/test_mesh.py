@@ -97,3 +97,15 @@ def test_grid_shape_faces_must_be_grid_cells():
     flat = grid(2, 3)  # a 2 x 3 grid declared as 3 x 2
     with pytest.raises(InputError, match=r"face 0 \[0, 1, 4, 3\] is not a cell of a 3 x 2"):
         QuadMesh(flat.vertices, flat.faces, grid_shape=(3, 2))
+
+
+def test_unit_is_carried_and_converted():
+    m = grid(3, 3, spacing=1000.0)
+    assert m.unit == "mm"
+    mm = m.with_vertices(m.vertices + 1.0)
+    assert mm.unit == "mm"
+    metres = m.with_unit("m")
+    assert metres.unit == "m" and np.allclose(metres.vertices, m.vertices / 1000.0)
+    assert metres.topology is m.topology or metres.faces is m.faces
+    with pytest.raises(InputError, match="unit: expected one of"):
+        QuadMesh(m.vertices, m.faces, unit="furlong")

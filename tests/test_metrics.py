@@ -4,7 +4,7 @@ import pytest
 from quadnodes.errors import InputError
 from quadnodes.mesh import grid
 from quadnodes.metrics import compare, distance_to_mesh, zigzag_stats
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.smoothing import laplacian
 
 

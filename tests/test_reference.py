@@ -12,7 +12,7 @@ from quadnodes.errors import InputError
 from quadnodes.fairing import fair
 from quadnodes.mesh import grid
 from quadnodes.metrics import distance_to_mesh
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.reference import Reference, as_reference
 
 

@@ -5,7 +5,7 @@ from hypothesis import given, strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.mesh import grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.smoothing import fixed_mask, laplacian, laplacian_operator, taubin, taubin_lambda
 from meshes import l_shape_with_hole
 from strategies import meshes

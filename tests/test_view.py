@@ -8,7 +8,7 @@ from meshes import extraordinary_mesh, l_shape_with_hole
 from quadnodes._view import edge_deviation, edge_ids, face_deviation, face_edges
 from quadnodes.errors import InputError
 from quadnodes.mesh import cylinder, grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.zigzag import detect, window_deviation
 
 

@@ -4,7 +4,7 @@ from hypothesis import given
 
 from quadnodes.errors import InputError
 from quadnodes.mesh import grid
-from quadnodes.perturb import perturb
+from quadnodes.noise import perturb
 from quadnodes.zigzag import detect, vertex_deviation, window_deviation
 from strategies import meshes
 

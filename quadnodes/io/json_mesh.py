@@ -6,6 +6,7 @@ The document is an object with a format tag and version first, then the mesh::
       "format": "quadnodes.QuadMesh",
       "version": 1,
       "grid_shape": [rows, cols] or null,
+      "unit": "mm" (optional; one of quadnodes.units.UNITS),
       "vertices": [
         [x, y, z],
         ...
@@ -29,6 +30,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..mesh import QuadMesh
+from ..units import DEFAULT_UNIT
 from .. import _validate
 from ._atomic import write_text_atomic
 
@@ -56,6 +58,7 @@ def mesh_to_json(mesh: QuadMesh) -> str:
       "format": "quadnodes.QuadMesh",
       "version": 1,
       "grid_shape": [2, 2],
+      "unit": "mm",
       "vertices": [
         [0.0, 0.0, 0.0],
         [0.1, 0.0, 0.0],
@@ -77,6 +80,7 @@ def mesh_to_json(mesh: QuadMesh) -> str:
         f'  "format": {json.dumps(JSON_FORMAT)},\n'
         f'  "version": {JSON_VERSION},\n'
         f'  "grid_shape": {gs},\n'
+        f'  "unit": {json.dumps(mesh.unit)},\n'
         f'  "vertices": [\n{verts}\n  ],\n'
         f'  "faces": [\n{faces}\n  ]\n'
         "}\n"
@@ -155,7 +159,8 @@ def mesh_from_json(text: str, *, name: str = "<string>") -> QuadMesh:
     ):
         raise InputError(f"{name}: \"grid_shape\" must be null or [rows, cols], got {gs!r}")
     try:
-        return QuadMesh(doc["vertices"], doc["faces"], grid_shape=None if gs is None else tuple(gs))
+        return QuadMesh(doc["vertices"], doc["faces"], grid_shape=None if gs is None else tuple(gs),
+                        unit=doc.get("unit", DEFAULT_UNIT))
     except InputError as exc:
         raise InputError(f"{name}: {exc}") from None
 

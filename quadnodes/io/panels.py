@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import _validate
 from ..mesh import QuadMesh
-from ..planarity import diagonal_distance
+from ..flatness import diagonal_distance
 
 __all__ = [
     "DEFAULT_PLANAR_TOL",
@@ -25,7 +25,7 @@ __all__ = [
 DEFAULT_PLANAR_TOL: float = 1e-6
 """Default planarity tolerance: relative diagonal distance (distance between the
 two diagonal lines divided by the mean diagonal length, see
-:func:`quadnodes.planarity.diagonal_distance`)."""
+:func:`quadnodes.flatness.diagonal_distance`)."""
 
 _GAUSS_N = 8
 _GX, _GW = np.polynomial.legendre.leggauss(_GAUSS_N)

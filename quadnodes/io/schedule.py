@@ -40,7 +40,7 @@ import numpy as np
 
 from .. import _validate
 from ..mesh import QuadMesh
-from ..planarity import angle_defect, diagonal_distance
+from ..flatness import angle_defect, diagonal_distance
 from ._atomic import write_text_atomic
 from .panels import DEFAULT_PLANAR_TOL, bilinear_area, edge_lengths, panel_labels, panel_rows_cols
 

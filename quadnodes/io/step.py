@@ -2,7 +2,7 @@
 
 Planar or bilinear
 ------------------
-A panel whose relative diagonal distance (:func:`quadnodes.planarity.diagonal_distance`)
+A panel whose relative diagonal distance (:func:`quadnodes.flatness.diagonal_distance`)
 is at most ``planar_tol`` (default ``1e-6``) is written as a **plane** face
 bounded by its four straight edges; every other panel as the **bilinear patch**
 through its four corners, a degree-(1, 1) ``Geom_BezierSurface`` with poles
@@ -65,7 +65,7 @@ from .. import _validate
 from ..progress import report_progress
 from ..errors import ExportError, InputError
 from ..mesh import QuadMesh
-from ..planarity import diagonal_distance
+from ..flatness import diagonal_distance
 from ._atomic import write_atomic
 from .panels import DEFAULT_PLANAR_TOL, panel_labels
 

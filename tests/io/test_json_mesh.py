@@ -38,7 +38,7 @@ def test_document_is_plain_json_with_version_and_grid_shape(tmp_path):
     p = save_json(m, tmp_path / "t.json")
     assert p == tmp_path / "t.json" and os.listdir(tmp_path) == ["t.json"]
     doc = json.loads(p.read_text())
-    assert list(doc) == ["format", "version", "grid_shape", "vertices", "faces"]
+    assert list(doc) == ["format", "version", "grid_shape", "unit", "vertices", "faces"]
     assert doc["format"] == JSON_FORMAT and doc["version"] == JSON_VERSION
     assert doc["grid_shape"] is None
     assert_same(load_json(p), m)

@@ -11,7 +11,7 @@ from quadnodes.io.panels import planar_mask
 from quadnodes.io.schedule import SCHEDULE_COLUMNS, panel_schedule, save_schedule, schedule_csv
 from quadnodes.io.step import step_shape
 from quadnodes.mesh import QuadMesh, grid
-from quadnodes.planarity import angle_defect, diagonal_distance
+from quadnodes.flatness import angle_defect, diagonal_distance
 from strategies import grids
 
 

@@ -1,4 +1,4 @@
-"""quadnodes.planarize: planar panels, fixed vertices, scale invariance, errors, the node and STEP."""
+"""quadnodes.planarization: planar panels, fixed vertices, scale invariance, errors, the node and STEP."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from quadnodes.errors import InputError
 from quadnodes.fairing import fair
 from quadnodes.mesh import grid
-from quadnodes.perturb import perturb
-from quadnodes.planarity import diagonal_distance
-from quadnodes.planarize import planarize, quad_plane_projection
+from quadnodes.noise import perturb
+from quadnodes.flatness import diagonal_distance
+from quadnodes.planarization import planarize, quad_plane_projection
 from quadnodes.zigzag import window_deviation
 
 
@@ -48,7 +48,7 @@ def test_projection_centres_and_flattens_every_quad():
     q = quad_plane_projection(m.vertices, m.faces)
     np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)
     # every projected quad on its own is flat, and each corner moved by half the diagonal gap
-    from quadnodes.planarity import quad_diagonal_distance
+    from quadnodes.flatness import quad_diagonal_distance
 
     v = q.reshape(-1, 3)
     assert quad_diagonal_distance(v, np.arange(len(v)).reshape(-1, 4)).max() < 1e-12

@@ -4,7 +4,7 @@ from hypothesis import given, strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.mesh import cylinder, grid
-from quadnodes.perturb import checkerboard, perturb
+from quadnodes.noise import checkerboard, perturb
 from quadnodes.zigzag import detect
 from strategies import meshes
 

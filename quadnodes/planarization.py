@@ -14,7 +14,7 @@ minimizes, over the vertices that may move,
   diagonals, centred — the closest flat quad up to a translation
   (ShapeUp's projection constraint). That plane leaves both diagonals at equal
   heights, so the projection moves every vertex by half the distance between
-  the diagonals, which is exactly the measure of :func:`quadnodes.planarity.diagonal_distance`;
+  the diagonals, which is exactly the measure of :func:`quadnodes.flatness.diagonal_distance`;
 - **fairness** (``w_f``): the thesis's structure-line term (eq. 32) with the
   edge lengths of the input frozen, so straight, evenly spaced lines cost nothing;
 - **closeness** (``w_c``): ``t_i`` is the input vertex, or with a ``reference``
@@ -47,7 +47,7 @@ from . import _validate
 from .errors import InputError
 from .fairing import fairing_matrix
 from .mesh import QuadMesh
-from .planarity import diagonal_distance, quad_diagonal_distance
+from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
 from .smoothing import fixed_mask

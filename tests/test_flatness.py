@@ -4,7 +4,7 @@ from hypothesis import given, strategies as st
 from scipy.spatial.transform import Rotation
 
 from quadnodes.mesh import QuadMesh, grid
-from quadnodes.planarity import angle_defect, diagonal_distance, planarity, summary
+from quadnodes.flatness import angle_defect, diagonal_distance, planarity, summary
 from strategies import grids
 
 
