@@ -4,9 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _validate
+from .errors import InputError
 from .mesh import QuadMesh
+from .units import parse_length
 
-__all__ = ["diagonal_distance", "quad_diagonal_distance", "angle_defect", "planarity", "summary"]
+__all__ = [
+    "diagonal_distance",
+    "quad_diagonal_distance",
+    "angle_defect",
+    "planarity",
+    "summary",
+    "resolve_planar_tolerance",
+    "planar_panels",
+]
 
 
 def diagonal_distance(mesh: QuadMesh, *, relative: bool = True) -> np.ndarray:
@@ -119,3 +130,62 @@ def summary(values: np.ndarray) -> dict[str, float]:
         "p95": float(np.percentile(a, 95)),
         "max": float(a.max()),
     }
+
+
+def resolve_planar_tolerance(planar_tolerance: float | str, unit: str = "mm") -> tuple[str, float]:
+    """Read a ``planar_tolerance`` setting: relative (a number) or a length (text such as ``"2 mm"``).
+
+    Parameters
+    ----------
+    planar_tolerance : float or str
+        A number (>= 0) is relative: diagonal distance / mean diagonal of the
+        panel. Text ``"<number> <unit>"`` is the diagonal distance as a length.
+    unit : str
+        The mesh's unit, into which a length is converted.
+
+    Returns
+    -------
+    kind : {"relative", "length"}
+    value : float
+        The relative tolerance, or the length in ``unit``.
+
+    Raises
+    ------
+    InputError
+        On a negative, non-finite or unreadable value, naming ``planar_tolerance``.
+
+    Examples
+    --------
+    >>> resolve_planar_tolerance(1e-3)
+    ('relative', 0.001)
+    >>> resolve_planar_tolerance("2 mm", "m")
+    ('length', 0.002)
+    """
+    if isinstance(planar_tolerance, str):
+        kind, value = "length", parse_length(planar_tolerance, unit, "planar_tolerance")
+    else:
+        kind, value = "relative", _validate.finite_number(planar_tolerance, "planar_tolerance")
+    if value < 0:
+        raise InputError(f"planar_tolerance: must be >= 0, got {planar_tolerance!r}")
+    return kind, value
+
+
+def planar_panels(mesh: QuadMesh, planar_tolerance: float | str) -> np.ndarray:
+    """Which panels are planar within ``planar_tolerance`` (relative, or a length such as ``"2 mm"``).
+
+    The one test every exporter and the panel schedule use, so they agree on
+    which panels are planar.
+
+    Returns
+    -------
+    (m,) bool
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> m = grid(2, 3, spacing=1000.0, height=[[0, 0, 0], [0, 0, 1]])  # mm, one corner up 1 mm
+    >>> planar_panels(m, "2 mm").tolist(), planar_panels(m, 1e-4).tolist()
+    ([True, True], [True, False])
+    """
+    kind, value = resolve_planar_tolerance(planar_tolerance, mesh.unit)
+    return diagonal_distance(mesh, relative=(kind == "relative")) <= value
