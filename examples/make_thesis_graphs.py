@@ -20,10 +20,10 @@ HERE = Path(__file__).parent
 
 # name, file, laplace steps, taubin iterations, fair settings, noise
 EXAMPLES = [
-    ("E1", "e1_saddle", 3, 40, dict(iterations=3, deviation=0.1, weight=0.001), (0.25, 0.1)),
-    ("E2", "e2_s_shape", 1, 20, dict(iterations=3, deviation=0.1, weight=0.005), (0.25, 0.1)),
-    ("E3", "e3_wavy", 4, 50, dict(iterations=10, deviation=1.0, deviation_decay=0.5, weight=0.001), (0.25, 0.1)),
-    ("E4", "e4_dome", 4, 30, dict(iterations=5, deviation=1.0, weight=0.0005), (0.6, 0.2)),
+    ("E1", "e1_saddle", 3, 40, dict(iterations=3, threshold=0.1, weight=0.001), (0.25, 0.1)),
+    ("E2", "e2_s_shape", 1, 20, dict(iterations=3, threshold=0.1, weight=0.005), (0.25, 0.1)),
+    ("E3", "e3_wavy", 4, 50, dict(iterations=10, threshold=1.0, threshold_decay=0.5, weight=0.001), (0.25, 0.1)),
+    ("E4", "e4_dome", 4, 30, dict(iterations=5, threshold=1.0, weight=0.0005), (0.6, 0.2)),
 ]
 
 
