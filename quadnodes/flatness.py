@@ -49,6 +49,7 @@ def diagonal_distance(mesh: QuadMesh, *, relative: bool = True) -> np.ndarray:
     >>> round(float(diagonal_distance(m)[0]), 4)  # one lifted corner
     0.2595
     """
+    _validate.quad_mesh(mesh)
     return quad_diagonal_distance(mesh.vertices, mesh.faces, relative=relative)
 
 
@@ -96,6 +97,8 @@ def angle_defect(mesh: QuadMesh) -> np.ndarray:
     >>> abs(float(angle_defect(grid(2, 2))[0])) < 1e-12
     True
     """
+    _validate.quad_mesh(mesh)
+    _validate.quad_mesh(mesh)
     p = mesh.vertices[mesh.faces]
     a = np.roll(p, 1, axis=1) - p
     b = np.roll(p, -1, axis=1) - p
@@ -112,6 +115,7 @@ def planarity(mesh: QuadMesh) -> dict[str, np.ndarray]:
         ``"diagonal"``: relative diagonal distance ``(m,)``; ``"angle_defect"``:
         angle-sum defect in radians ``(m,)``.
     """
+    _validate.quad_mesh(mesh)
     return {"diagonal": diagonal_distance(mesh), "angle_defect": angle_defect(mesh)}
 
 

@@ -28,6 +28,10 @@ def zigzag_stats(mesh: QuadMesh, thresholds: Sequence[float] = (0.1, 0.01)) -> d
     >>> zigzag_stats(grid(4, 5))
     {'zigzag_mean': 0.0, 'zigzag_max': 0.0, 'vertices_above_0.1': 0, 'vertices_above_0.01': 0}
     """
+    _validate.quad_mesh(mesh)
+    if isinstance(thresholds, (str, bytes)) or not isinstance(thresholds, Sequence):
+        raise InputError(f"thresholds: expected a list of numbers, got {thresholds!r}")
+    thresholds = [_validate.nonnegative_number(t, f"thresholds[{i}]") for i, t in enumerate(thresholds)]
     w = mesh.topology.windows
     wd = _mesh_window_deviation(mesh)
     vd = vertex_deviation(wd, w, mesh.n_vertices)

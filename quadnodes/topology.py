@@ -552,12 +552,16 @@ def structure_lines(mesh: QuadMesh) -> StructureLines:
     >>> int(lines.closed.sum()), len(lines)
     (3, 8)
     """
-    return mesh.topology.structure_lines
+    from . import _validate
+
+    return _validate.quad_mesh(mesh).topology.structure_lines
 
 
 def boundary_vertices(mesh: QuadMesh) -> np.ndarray:
     """Mask of vertices on the boundary, ``(n,) bool``."""
-    return mesh.topology.boundary_vertices.copy()
+    from . import _validate
+
+    return _validate.quad_mesh(mesh).topology.boundary_vertices.copy()
 
 
 def corner_vertices(mesh: QuadMesh) -> np.ndarray:
@@ -569,7 +573,9 @@ def corner_vertices(mesh: QuadMesh) -> np.ndarray:
     >>> np.flatnonzero(corner_vertices(grid(3, 3))).tolist()
     [0, 2, 6, 8]
     """
-    return mesh.topology.corner_vertices.copy()
+    from . import _validate
+
+    return _validate.quad_mesh(mesh).topology.corner_vertices.copy()
 
 
 def adjacency(mesh: QuadMesh) -> sp.csr_matrix:
@@ -619,6 +625,7 @@ def fixed_vertices(mesh: QuadMesh, fix: str = "none", fixed: object = None) -> n
     """
     from . import _validate
 
+    _validate.quad_mesh(mesh)
     mode = _validate.choice(fix, FIX_MODES, "fix")
     n = mesh.n_vertices
     mask = _validate.vertex_mask(fixed, n, "fixed")
