@@ -62,6 +62,8 @@ _SHADE_MIN = 0.55  # the shade of a panel seen edge-on to the light (1: facing i
 _FLAT = 0.15  # the shortest box side, as a fraction of the longest (flat meshes get some depth)
 _LIFT = 0.03  # structure lines float this many mean edge lengths off the surface (see _mesh_traces)
 _VIEW = (2.3, 1.6)  # width and height of the initial picture of the box, in plotly's scene units
+#: Meshes with more panels than this are drawn in compact detail by default (see :func:`figure`).
+COMPACT_FACES = 2500
 
 
 # ----------------------------------------------------------------------------
@@ -120,6 +122,7 @@ class _MeshData:
         self.edge_dev = edge_deviation(mesh, deviation=wd)
         self.face_dev = face_deviation(mesh, edge_dev=self.edge_dev)
         self.planarity = diagonal_distance(mesh)
+        self.planarity_length = diagonal_distance(mesh, relative=False)
         self.angle_defect = np.degrees(angle_defect(mesh))
         vp = np.zeros(mesh.n_vertices)
         np.maximum.at(vp, mesh.faces.reshape(-1), np.repeat(self.planarity, 4))
@@ -154,14 +157,15 @@ class _MeshData:
         return cd, "edge %{customdata[0]}–%{customdata[1]}<br>zigzag deviation %{customdata[2]:.3~g}<extra></extra>"
 
     def face_hover(self) -> tuple[np.ndarray, str]:
-        """``customdata (m, 8) float32`` (id, corners, deviation, planarity, angle defect) and the template."""
+        """``customdata (m, 9) float32`` (id, corners, deviation, planarity, angle defect, gap) and the template."""
         m = self.mesh
-        cd = np.column_stack([np.arange(m.n_faces), m.faces, self.face_dev, self.planarity, self.angle_defect])
+        cd = np.column_stack([np.arange(m.n_faces), m.faces, self.face_dev, self.planarity, self.angle_defect,
+                              self.planarity_length])
         template = (
             "<b>panel %{customdata[0]}</b> (vertices %{customdata[1]}, %{customdata[2]}, %{customdata[3]}, "
             "%{customdata[4]})<br>zigzag deviation %{customdata[5]:.3~g}"
-            "<br>planarity %{customdata[6]:.3~g} (diagonal gap / diagonal)"
-            "<br>angle defect %{customdata[7]:.2f}°<extra></extra>"
+            "<br>planarity %{customdata[6]:.3~g} (diagonal gap / diagonal), gap %{customdata[8]:.3~g} "
+            + _html.escape(m.unit) + "<br>angle defect %{customdata[7]:.2f}°<extra></extra>"
         )
         return cd.astype(np.float32), template
 
@@ -171,7 +175,8 @@ class _MeshData:
         zmean = _g(float(wd.mean())) if wd.size else "–"
         return (
             f"{self.mesh.n_vertices} vertices, {self.mesh.n_faces} panels  ·  zigzag max {zmax}, mean {zmean}"
-            f"  ·  planarity max {_g(float(self.planarity.max()))}"
+            f"  ·  planarity max {_g(float(self.planarity.max()))} "
+            f"({_g(float(self.planarity_length.max()))} {_html.escape(self.mesh.unit)} diagonal gap)"
         )
 
 
@@ -303,6 +308,62 @@ def _mesh_traces(data: _MeshData, title: str, vmin: float, vmax: float, show_ver
     return traces
 
 
+def _compact_traces(data: _MeshData, title: str, vmin: float, vmax: float, line_width: float,
+                    light: np.ndarray, eye: np.ndarray) -> list[Any]:
+    """The traces of a large mesh in a few bytes per vertex (see :data:`COMPACT_FACES`).
+
+    Panels share their vertices (no per-panel hover); the structure lines are
+    polylines through their own vertices, lifted once towards the initial camera
+    and coloured by the vertices' zigzag deviation, and carry the vertex hover
+    (id, deviation, planarity); no separate vertex dots. About 60 bytes per vertex
+    instead of about 1 kB.
+    """
+    import plotly.graph_objects as go
+
+    m = data.mesh
+    f = m.faces.astype(np.uint16 if m.n_vertices < 2**16 else np.int32)  # typed arrays: 2 bytes an index
+    shade = _shade(m, light).astype(np.float32)
+    faces = go.Mesh3d(
+        **_xyz(m.vertices), i=np.concatenate([f[:, 0], f[:, 0]]), j=np.concatenate([f[:, 1], f[:, 2]]),
+        k=np.concatenate([f[:, 2], f[:, 3]]), name=f"{title}: panels",
+        intensity=np.concatenate([shade, shade]), intensitymode="cell", cmin=_SHADE_MIN, cmax=1.0,
+        colorscale=[[0.0, _rgb(_SHADE_MIN * _FACE_RGB)], [1.0, _rgb(_FACE_RGB)]], showscale=False,
+        flatshading=True, lighting=_BAKED, hoverinfo="skip",
+    )
+    up, down = _lifted(m, eye)
+    # one copy of every vertex: the one on the side of the initial camera
+    front = np.where(((up - m.vertices) @ eye >= 0)[:, None], up, down)
+    lines = m.topology.structure_lines
+    idx, ln = lines.indices, lines.lengths
+    off = lines.offsets[: len(ln)]
+    closed = lines.closed
+    # each line's vertices (closed lines repeat their first), then a gap
+    extra = closed.astype(np.int64) + 1
+    total = int(ln.sum() + extra.sum())
+    order = np.full(total, -1, dtype=np.int64)
+    start = np.concatenate([[0], np.cumsum(ln + extra)[:-1]])
+    pos = np.repeat(start, ln) + (np.arange(idx.size) - np.repeat(off, ln))
+    order[pos] = idx
+    first = idx[off[closed]] if closed.any() else np.zeros(0, dtype=np.int64)
+    order[(start + ln)[closed]] = first
+    gap = order < 0
+    pts = front[np.where(gap, 0, order)].astype(np.float64)
+    pts[gap] = np.nan
+    vid = np.where(gap, 0, order)
+    c = _log_scale(data.vertex_dev[vid], vmin, vmax).astype(np.float32)
+    cd = np.column_stack([vid, data.vertex_dev[vid], data.vertex_planarity[vid]]).astype(np.float32)
+    where = ""
+    poly = go.Scatter3d(
+        **_xyz(pts), mode="lines", name=f"{title}: structure lines", connectgaps=False,
+        line={"color": c, "width": line_width, "colorscale": _COLORSCALE, "cmin": np.log10(vmin),
+              "cmax": np.log10(vmax), "showscale": True, "colorbar": _colorbar(vmin, vmax)},
+        customdata=cd,
+        hovertemplate=(f"<b>vertex %{{customdata[0]}}</b>{where}<br>zigzag deviation %{{customdata[1]:.3~g}}"
+                       "<br>max planarity of its panels %{customdata[2]:.3~g}<extra></extra>"),
+    )
+    return [faces, poly]
+
+
 def _reference_traces(ref: QuadMesh) -> list[Any]:
     """The reference as thin grey edges and its boundary dashed.
 
@@ -323,7 +384,7 @@ def _reference_traces(ref: QuadMesh) -> list[Any]:
     return [wire, border]
 
 
-def _scene(points: np.ndarray, elev: float, azim: float) -> dict[str, Any]:
+def _scene(points: np.ndarray, elev: float, azim: float, unit: str = "mm") -> dict[str, Any]:
     lo, hi = points.min(axis=0), points.max(axis=0)
     size = hi - lo
     longest = float(size.max()) or 1.0
@@ -343,9 +404,9 @@ def _scene(points: np.ndarray, elev: float, azim: float) -> dict[str, Any]:
             "showspikes": False, "tickfont": {"size": 10, "color": "#8a8f98"},
             "title": {"font": {"size": 12, "color": "#8a8f98"}}}
     return {
-        "xaxis": {**axis, "range": ranges[0], "title": {**axis["title"], "text": "x"}},
-        "yaxis": {**axis, "range": ranges[1], "title": {**axis["title"], "text": "y"}},
-        "zaxis": {**axis, "range": ranges[2], "title": {**axis["title"], "text": "z"}},
+        "xaxis": {**axis, "range": ranges[0], "title": {**axis["title"], "text": f"x ({unit})"}},
+        "yaxis": {**axis, "range": ranges[1], "title": {**axis["title"], "text": f"y ({unit})"}},
+        "zaxis": {**axis, "range": ranges[2], "title": {**axis["title"], "text": f"z ({unit})"}},
         "aspectmode": "manual",
         "aspectratio": {"x": float(ratio[0]), "y": float(ratio[1]), "z": float(ratio[2])},
         "camera": {"eye": eye, "up": {"x": 0, "y": 0, "z": 1},
@@ -374,6 +435,7 @@ def figure(
     azim: float = -60.0,
     show_vertices: bool = True,
     line_width: float | None = None,
+    detail: str = "auto",
 ) -> go.Figure:
     """The interactive view as a plotly figure (for notebooks: ``figure(m).show()``).
 
@@ -407,13 +469,19 @@ def figure(
         Width of the structure lines in pixels (> 0); vertex dots are half as
         wide. Default: 6, less for meshes of more than about 1700 panels (down
         to 1.5 at 28 000).
+    detail : {"auto", "full", "compact"}
+        ``"full"``: every panel, edge and vertex carries its own hover text
+        (about 1 kB per vertex in the page); ``"compact"``: panels share their
+        vertices, structure lines are polylines carrying the vertex hover, no
+        vertex dots (about 60 bytes per vertex); ``"auto"`` (default): compact
+        when a mesh has more than :data:`COMPACT_FACES` panels.
 
     Returns
     -------
     plotly.graph_objects.Figure
         ``fig.data`` holds ``3`` traces per mesh — panels, structure lines,
-        vertices (``2`` without vertices) — in the order of ``meshes``, then ``2``
-        for the reference (its edges and its dashed boundary).
+        vertices (``2`` without vertices or in compact detail) — in the order of
+        ``meshes``, then ``2`` for the reference (its edges and its dashed boundary).
 
     Raises
     ------
@@ -450,12 +518,17 @@ def figure(
         width = _validate.positive_number(line_width, "line_width")
     if not isinstance(show_vertices, (bool, np.bool_)):
         raise InputError(f"show_vertices: expected True or False, got {show_vertices!r}")
+    detail = _validate.choice(detail, ("auto", "full", "compact"), "detail")
+    compact = detail == "compact" or (detail == "auto" and max(m.n_faces for m in ms) > COMPACT_FACES)
 
     data = [_MeshData(m) for m in ms]
     cam = camera(elev_, azim_)
     light_dir = light(cam)
-    groups = [_mesh_traces(d, t, vmin_, vmax_, bool(show_vertices), width, light_dir, cam[2])
-              for d, t in zip(data, names)]
+    if compact:
+        groups = [_compact_traces(d, t, vmin_, vmax_, width, light_dir, cam[2]) for d, t in zip(data, names)]
+    else:
+        groups = [_mesh_traces(d, t, vmin_, vmax_, bool(show_vertices), width, light_dir, cam[2])
+                  for d, t in zip(data, names)]
     ref_traces = _reference_traces(reference) if reference is not None else []
     fig = go.Figure()
     owner: list[int] = []
@@ -482,13 +555,13 @@ def figure(
             "x": 0.0, "xanchor": "left", "y": 1.0, "yanchor": "top", "pad": {"l": 12, "t": 10},
             "bgcolor": "#f3f4f6", "bordercolor": "#b8bdc6", "font": {"size": 13},
         })
-    hint = ("drag: rotate · scroll: zoom · hover a vertex, edge or panel"
+    hint = ("drag: rotate · scroll: zoom · " + ("hover a structure line" if compact else "hover a vertex, edge or panel")
             + (" · buttons: switch meshes" if k > 1 else "")
             + (" · grey edges, dashed boundary: reference" if reference is not None else ""))
     fig.update_layout(
         title={"text": titles_html[0], "x": 0.5, "xanchor": "center", "y": 0.97, "yanchor": "top",
                "font": {"size": 18}},
-        scene=_scene(np.vstack(pts), elev_, azim_),
+        scene=_scene(np.vstack(pts), elev_, azim_, ms[0].unit),
         updatemenus=menus,
         showlegend=False,
         margin={"l": 0, "r": 0, "t": 70, "b": 0},
@@ -522,7 +595,7 @@ def build_html(
         The browser tab's title (default: the titles joined by " / ").
     **options
         Further keyword options of :func:`figure` (``vmin``, ``vmax``, ``elev``,
-        ``azim``, ``show_vertices``, ``line_width``).
+        ``azim``, ``show_vertices``, ``line_width``, ``detail``).
 
     Returns
     -------
@@ -542,7 +615,7 @@ def build_html(
     """
     import plotly.io as pio
 
-    allowed = {"vmin", "vmax", "elev", "azim", "show_vertices", "line_width"}
+    allowed = {"vmin", "vmax", "elev", "azim", "show_vertices", "line_width", "detail"}
     unknown = sorted(set(options) - allowed)
     if unknown:
         raise InputError(f"{unknown[0]}: unknown option; expected one of {', '.join(sorted(allowed))}")
@@ -581,6 +654,7 @@ def render_html(
     azim: float = -60.0,
     show_vertices: bool = True,
     line_width: float | None = None,
+    detail: str = "auto",
 ) -> Path:
     """Write the interactive view of :func:`figure` to a self-contained HTML file, atomically.
 
@@ -590,7 +664,7 @@ def render_html(
         The meshes to switch between with the buttons, e.g. ``[noisy, faired]``.
     path : path-like
         Output file (``.html``; its folder must exist).
-    titles, reference, vmin, vmax, elev, azim, show_vertices, line_width
+    titles, reference, vmin, vmax, elev, azim, show_vertices, line_width, detail
         As in :func:`figure`.
     page_title : str, optional
         As in :func:`build_html`.
@@ -598,8 +672,9 @@ def render_html(
     Returns
     -------
     Path
-        About 4.8 MB of plotly.js plus about 1 kB per vertex of every mesh
-        (a 100 × 100 grid adds 10 MB).
+        About 4.8 MB of plotly.js plus about 1 kB per vertex of every mesh in
+        full detail, about 60 bytes in compact detail (the default above
+        :data:`COMPACT_FACES` panels: a 100 × 100 grid adds about 0.7 MB).
 
     Raises
     ------
@@ -617,5 +692,5 @@ def render_html(
     ('.html', True)
     """
     text = build_html(meshes, titles=titles, reference=reference, page_title=page_title, vmin=vmin, vmax=vmax,
-                      elev=elev, azim=azim, show_vertices=show_vertices, line_width=line_width)
+                      elev=elev, azim=azim, show_vertices=show_vertices, line_width=line_width, detail=detail)
     return write_text_atomic(path, text)

@@ -308,7 +308,7 @@ def export_report(data: Any, data2: Any = None, data3: Any = None, data4: Any = 
 def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | None = None,
                mesh4: QuadMesh | None = None, reference: QuadMesh | None = None,
                zigzag: ZigzagReport | None = None, *, path: str, titles: list[str] | None = None,
-               notes: list[str] | None = None, planarity: bool = False, elev: float = 35.0,
+               notes: list[str] | None = None, planarity: bool | Literal["relative", "length"] = False, elev: float = 35.0,
                azim: float = -60.0, ncols: int | None = None, vmin: float = 1e-4, vmax: float = 1.0,
                size_px: int = 1200) -> Path:
     """Up to four meshes side by side: shaded, structure lines coloured by zigzag deviation (one log

@@ -140,7 +140,7 @@ def render_png(
     free: Any = None,
     fixed: Any = None,
     reference: QuadMesh | Sequence[QuadMesh | None] | None = None,
-    planarity: bool | Sequence[bool] = False,
+    planarity: bool | str | Sequence[bool | str] = False,
     vmin: float = 1e-4,
     vmax: float = 1.0,
     planarity_range: tuple[float, float] | None = None,
@@ -179,11 +179,12 @@ def render_png(
         A clean reference surface drawn faintly in every panel (or per panel):
         its edges in light grey, hidden where the mesh covers them, and its
         boundary as a dark dashed line on top.
-    planarity : bool or sequence of bool
-        Colour the faces by planarity (distance between the diagonals over the
-        mean diagonal, :func:`quadnodes.flatness.diagonal_distance`) instead of
-        shading them, on a logarithmic scale shared by these panels, with its own
-        colour bar.
+    planarity : bool, {"relative", "length"} or a sequence of them
+        Colour the faces by planarity instead of shading them, on a logarithmic
+        scale shared by these panels, with its own colour bar: ``True`` or
+        ``"relative"`` the distance between the diagonals over the mean diagonal
+        (:func:`quadnodes.flatness.diagonal_distance`); ``"length"`` that
+        distance in the mesh's unit (the bar says which unit).
     vmin, vmax : float
         Range of the deviation colour scale (``0 < vmin < vmax``).
     planarity_range : (float, float), optional
@@ -239,10 +240,17 @@ def render_png(
     for i, r in enumerate(refs):
         if r is not None:
             _validate.quad_mesh(r, "reference" if isinstance(reference, QuadMesh) else f"reference[{i}]")
-    plan = _per_panel(planarity, k, "planarity", (bool, np.bool_))
+    plan = _per_panel(planarity, k, "planarity", (bool, np.bool_, str))
     for i, p in enumerate(plan):
-        if not isinstance(p, (bool, np.bool_)):
-            raise InputError(f"planarity[{i}]: expected True or False, got {p!r}")
+        if isinstance(p, str):
+            plan[i] = _validate.choice(p, ("relative", "length"), f"planarity[{i}]" if k > 1 else "planarity")
+        elif isinstance(p, (bool, np.bool_)):
+            plan[i] = "relative" if p else False
+        else:
+            raise InputError(f"planarity[{i}]: expected true, false, 'relative' or 'length', got {p!r}")
+    kinds = {p for p in plan if p}
+    if len(kinds) > 1:
+        raise InputError("planarity: one colour scale for all panels: all 'relative' or all 'length'")
     vmin_ = _validate.positive_number(vmin, "vmin")
     vmax_ = _validate.positive_number(vmax, "vmax")
     if vmin_ >= vmax_:
@@ -255,7 +263,7 @@ def render_png(
         if palette > 256:
             raise InputError(f"palette: at most 256 colours, got {palette}")
     cols = (3 if k == 3 else min(k, 2)) if ncols is None else min(_validate.positive_int(ncols, "ncols"), k)
-    pl_values = [_planarity_values(m) if p else None for m, p in zip(ms, plan)]
+    pl_values = [_planarity_values(m, p == "relative") if p else None for m, p in zip(ms, plan)]
     pl_norm = _planarity_norm(pl_values, planarity_range) if any(plan) else None
 
     import matplotlib
@@ -320,6 +328,8 @@ def render_png(
     cmap = plt.get_cmap("turbo")
     norm = LogNorm(vmin_, vmax_, clip=True)
     pl_cmap = _planarity_cmap()
+    thinned: list[int] = []
+    unit = ms[0].unit
     for i, m in enumerate(ms):
         r, c = divmod(i, cols)
         x0 = margin + c * (pw + gap)
@@ -347,12 +357,17 @@ def render_png(
         else:
             rgb = _FACE_RGB[None, :] * _shade(m, cam)[:, None]
         items.add(proj, depth, np.column_stack([rgb, np.ones(len(rgb))]), np.zeros(4), 0.0)
-        # structure-line edges, just in front of the faces they bound
+        # structure-line edges, just in front of the faces they bound; on a dense mesh only every
+        # step-th structure line, so the picture shows lines instead of a moiré of edges
         e = m.topology.edges
-        seg = m.vertices[e]
         dev = edge_deviation(m)
+        step = _line_step(m.mean_edge_length * scale)
+        keep = _every_kth_line(m, step) if step > 1 else slice(None)
+        seg = m.vertices[e[keep]]
         items.add(seg @ cam[:2].T, (seg @ cam[2]).mean(axis=1) + 0.6 * m.mean_edge_length,
-                  np.zeros(4), cmap(norm(np.clip(dev, vmin_, vmax_))), lw)
+                  np.zeros(4), cmap(norm(np.clip(dev[keep], vmin_, vmax_))), lw)
+        if step > 1:
+            thinned.append(step)
         ref = refs[i]
         if ref is not None:
             rs = ref.vertices[ref.topology.edges]
@@ -373,12 +388,27 @@ def render_png(
             ax.scatter(q[:, 0], q[:, 1], s=square**2 * (72 / _DPI) ** 2, facecolors="none", marker="s",
                        edgecolors="black", linewidths=1.1, zorder=5, clip_on=False)
 
+    # a scale bar in the mesh's unit in the first panel (the views have no axes)
+    length = _nice_length(0.2 * float(span[0]))
+    bar_px = length * scale
+    ybar = 1 - (margin + head + 6) / height  # top left of the first panel, under its title
+    x_left = (margin + 6) / size
+    fig.add_artist(Line2D([x_left, x_left + bar_px / size], [ybar, ybar], transform=fig.transFigure,
+                          color="0.2", lw=2.0))
+    fig.text(x_left + bar_px / size + 6 / size, ybar, f"{length:g} {unit}", va="center", ha="left",
+             fontsize=fs_foot - 1, color="0.2")
+
     # colour bars and legend along the bottom
     from matplotlib.ticker import NullFormatter
 
-    bars = [(norm, cmap, "zigzag deviation ‖(u₀+u₂)/2 − u₁‖² (log scale)")]
+    zig = "zigzag deviation ‖(u₀+u₂)/2 − u₁‖² (log scale)"
+    if thinned:
+        zig += f"; every {max(thinned)}th structure line drawn"
+    bars = [(norm, cmap, zig)]
     if pl_norm is not None:
-        bars.append((pl_norm, pl_cmap, "face planarity: diagonal gap / mean diagonal (log scale)"))
+        what = ("face planarity: diagonal gap / mean diagonal (log scale)" if "relative" in kinds
+                else f"face planarity: diagonal gap in {unit} (log scale)")
+        bars.append((pl_norm, pl_cmap, what))
     for j, (nm, cm, label) in enumerate(bars):
         row = 0 if side else j  # rows counted from the top of the footer
         y = legend_h + (bar_rows - 1 - row) * bar_block + bar_block - 14
@@ -422,10 +452,71 @@ def _save(fig: Any, tmp: str, palette: int | None) -> None:
     q.save(tmp, format="PNG", optimize=True)
 
 
-def _planarity_values(mesh: QuadMesh) -> np.ndarray:
+def _planarity_values(mesh: QuadMesh, relative: bool = True) -> np.ndarray:
     from .flatness import diagonal_distance
 
-    return diagonal_distance(mesh)
+    return diagonal_distance(mesh, relative=relative)
+
+
+#: Structure lines closer than this many pixels are thinned out (see :func:`_line_step`).
+MIN_LINE_GAP_PX = 5.0
+
+
+def _line_step(edge_px: float) -> int:
+    """Draw every k-th structure line when edges are shorter than :data:`MIN_LINE_GAP_PX` pixels.
+
+    Examples
+    --------
+    >>> _line_step(12.0), _line_step(4.0), _line_step(1.2)
+    (1, 2, 5)
+    """
+    return max(1, int(np.ceil(MIN_LINE_GAP_PX / max(edge_px, 1e-9))))
+
+
+def _every_kth_line(mesh: QuadMesh, step: int) -> np.ndarray:
+    """Edges of every ``step``-th structure line of each family (rows/columns of a grid), ``(E,) bool``.
+
+    On a grid (``grid_shape``) the kept lines are rows and columns ``0, step, 2·step, …``;
+    on other meshes every ``step``-th line in the tracing order.
+    """
+    topo = mesh.topology
+    e = topo.edges
+    if mesh.grid_shape is not None:
+        cols = mesh.grid_shape[1]
+        r, c = np.divmod(e, cols)
+        along_row = r[:, 0] == r[:, 1]
+        return np.where(along_row, r[:, 0] % step == 0, c[:, 0] % step == 0)
+    lines = topo.structure_lines
+    keep = np.zeros(len(e), dtype=bool)
+    ln = lines.lengths
+    off = lines.offsets[: len(ln)]
+    chosen = np.flatnonzero(np.arange(len(ln)) % step == 0)
+    for li in chosen:  # a few hundred lines at most: the picture has room for no more
+        v = lines.indices[off[li]: off[li] + ln[li]]
+        a, b = v[:-1], v[1:]
+        if lines.closed[li]:
+            a, b = np.append(a, v[-1]), np.append(b, v[0])
+        from ._view import edge_ids
+
+        keep[edge_ids(mesh, a, b)] = True
+    return keep
+
+
+def _nice_length(x: float) -> float:
+    """The largest 1, 2 or 5 × 10^k not above ``x``.
+
+    Examples
+    --------
+    >>> _nice_length(1234.0), _nice_length(0.07)
+    (1000.0, 0.05)
+    """
+    if x <= 0:
+        return 1.0
+    k = np.floor(np.log10(x))
+    for f in (5.0, 2.0, 1.0):
+        if f * 10**k <= x:
+            return float(f * 10**k)
+    return float(10**k)
 
 
 def _planarity_norm(values: list[np.ndarray | None], given: tuple[float, float] | None) -> Any:

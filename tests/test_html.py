@@ -145,12 +145,14 @@ def test_hover_texts_show_ids_deviation_and_planarity(page, meshes):
     assert f["hovertemplate"].startswith("<b>panel %{customdata[0]}</b> (vertices %{customdata[1]}")
     assert "<br>planarity %{customdata[6]:.3~g}" in f["hovertemplate"]
     cd = _array(f["customdata"])
-    assert cd.shape == (4 * m, 8)
+    assert cd.shape == (4 * m, 9)
     cd = cd[::4]
     np.testing.assert_array_equal(cd[:, 0], np.arange(m))
     np.testing.assert_array_equal(cd[:, 1:5], noisy.faces)
     np.testing.assert_allclose(cd[:, 5], face_deviation(noisy), rtol=1e-6)
     np.testing.assert_allclose(cd[:, 6], plan, rtol=1e-6)
+    np.testing.assert_allclose(cd[:, 8], diagonal_distance(noisy, relative=False), rtol=1e-6)  # gap in mm
+    assert "gap %{customdata[8]:.3~g} mm" in f["hovertemplate"]
 
     # edges: every point of an edge's piece carries the edge's ends and deviation
     e = t["noisy: structure lines"]
@@ -427,3 +429,27 @@ def _unescape(attr: str) -> str:
     import html
 
     return html.unescape(attr)
+
+
+def test_large_meshes_are_sent_compactly(tmp_path):
+    # 100 x 100: was 47 MB (about 1 kB per vertex); compact detail keeps the data under 5 MB for two meshes
+    from quadnodes.fairing import fair
+
+    noisy, _ = perturb(grid(100, 100, spacing=100.0), tangential=0.2, normal=0.1, seed=1)
+    faired, _ = fair(noisy, iterations=1)
+    page = render_html([noisy, faired], tmp_path / "big.html", titles=["noisy", "faired"])
+    text = page.read_text(encoding="utf-8")
+    data, layout = _plot_args(text)
+    plotly_js = len(text) - len(json.dumps(data))
+    assert len(json.dumps(data)) < 5_000_000 and len(data) == 4, (len(json.dumps(data)), plotly_js)
+    t = _by_name(data)
+    lines = t["noisy: structure lines"]
+    assert lines["hovertemplate"].startswith("<b>vertex %{customdata[0]}</b>")
+    cd = _array(lines["customdata"])
+    ok = ~np.isnan(_array(lines["x"]))
+    ids = cd[ok, 0].astype(int)
+    assert set(ids) == set(range(noisy.n_vertices))  # every vertex is on a drawn line
+    np.testing.assert_allclose(cd[ok, 1], detect(noisy, 0.0).vertex_deviation[ids], rtol=1e-6)
+    assert layout["scene"]["xaxis"]["title"]["text"] == "x (mm)"
+    full = figure(grid(5, 5), detail="full")
+    assert len(full.data) == 3 and figure(grid(5, 5), detail="compact").data[1].mode == "lines"

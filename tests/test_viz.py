@@ -165,3 +165,21 @@ def test_render_node_with_reference_and_zigzag(tmp_path):
           titles=["noisy", "faired"], notes=["in", "out"], planarity=True, ncols=2, size_px=500)
     g.run(cache=Cache())
     _check_image(tmp_path / "v.png", 500)
+
+
+def test_dense_meshes_show_every_kth_line_and_a_scale_bar(tmp_path):
+    # 300 x 300 at 1200 px: 4 px per edge drew a moiré of edges; now every k-th structure line
+    from quadnodes.viz import _every_kth_line, _line_step
+
+    m = grid(300, 300, spacing=20.0)
+    step = _line_step(4.0)
+    keep = _every_kth_line(m, step)
+    e = m.topology.edges
+    r, c = np.divmod(e, 300)
+    assert step == 2 and keep.sum() == ((r[:, 0] == r[:, 1]) & (r[:, 0] % 2 == 0)).sum() * 2
+    p = viz.render_png(m, tmp_path / "dense.png", planarity="length")
+    assert p.stat().st_size > 10_000
+    with pytest.raises(InputError, match="planarity"):
+        viz.render_png([m, m], tmp_path / "x.png", planarity=["relative", "length"])
+    with pytest.raises(InputError, match="planarity"):
+        viz.render_png(m, tmp_path / "x.png", planarity="mm")
