@@ -138,10 +138,29 @@ class PlanarizeReport:
     fix: str = "corners"
     n_fixed: int = 0
     regularized: bool = False
+    held_off_reference: float = 0.0
+
+    def notes(self) -> list[str]:
+        """Short sentences for the user: not converged, held vertices far off the reference.
+
+        Examples
+        --------
+        >>> from quadnodes.mesh import grid
+        >>> planarize(grid(3, 3))[1].notes()
+        []
+        """
+        out: list[str] = []
+        if not self.converged:
+            out.append(f"not converged: planarity {self.planarity_max:.3g} (relative) after {self.iterations} "
+                       f"iterations ({self.method}); the tolerance {self.planar_tolerance!r} was not met")
+        if self.held_off_reference > 0.1 * self.length_scale:
+            out.append(f"held vertices (fix={self.fix!r} or fixed) lie up to {self.held_off_reference:.3g} "
+                       f"{self.unit} off the reference surface; they were not moved")
+        return out
 
     def to_dict(self) -> dict:
-        """Plain-Python form (JSON-ready)."""
-        return asdict(self)
+        """Plain-Python form (JSON-ready), with :meth:`notes`."""
+        return {**asdict(self), "notes": self.notes()}
 
 
 def _centering_matrix(faces: np.ndarray, n: int) -> sp.csr_matrix:
@@ -433,6 +452,7 @@ def planarize(
             tolerance=tol, planarity_max_before=p_before,
             planarity_max_length=float(pl_len.max()) if len(pl_len) else 0.0, unit=mesh.unit,
             fix=fix, n_fixed=int(held.sum()), regularized=bool(w_c == 0 and w_i == 0),
+            held_off_reference=float(dist[held].max()) if held.any() else 0.0,
             planarity_max=float(pl.max()) if len(pl) else 0.0, planarity_mean=float(pl.mean()) if len(pl) else 0.0,
             moved_max=float(moved.max()), moved_mean=float(moved.mean()),
             reference="none" if ref is None else ref.source,
