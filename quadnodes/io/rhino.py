@@ -35,7 +35,7 @@ from ._degenerate import check_panel_areas
 from ._polygons import quads_from_blocks
 from .panels import DEFAULT_PLANAR_TOL, panel_labels, panel_rows_cols
 
-__all__ = ["RHINO_UNITS", "LAYERS", "model_3dm", "save_3dm", "load_3dm"]
+__all__ = ["RHINO_UNITS", "LAYERS", "model_3dm", "save_3dm", "load_3dm", "nurbs_face", "rhino_faces"]
 
 RHINO_UNITS: dict[str, str] = {"mm": "Millimeters", "cm": "Centimeters", "m": "Meters", "in": "Inches", "ft": "Feet"}
 """quadnodes unit -> name of Rhino's ``UnitSystem`` member."""
@@ -325,14 +325,7 @@ def load_3dm(
         raise InputError(
             f"name: {p} holds {len(meshes)} meshes ({', '.join(repr(m[0]) for m in meshes[:5])}); pass name= to pick one"
         )
-    unit_system = str(model.Settings.ModelUnitSystem).split(".")[-1]
-    if unit_system in ("None", "Unset"):
-        unit = "mm"
-    else:
-        by_name = {v: k for k, v in RHINO_UNITS.items()}
-        if unit_system not in by_name:
-            raise InputError(f"{p}: the model unit {unit_system} is not one quadnodes works in ({', '.join(UNITS)})")
-        unit = by_name[unit_system]
+    unit = _file_unit(model, p)
     _, rmesh, grid_text = meshes[0]
     pts = rmesh.Vertices.ToPoint3dArray()
     vertices = np.array([(q.X, q.Y, q.Z) for q in pts], dtype=np.float64).reshape(-1, 3)
@@ -347,3 +340,155 @@ def load_3dm(
         return QuadMesh(vertices, quads, unit=unit, grid_shape=grid_shape)
     except InputError as exc:
         raise InputError(f"{p}: {exc}") from None
+
+
+# --- Rhino surfaces in --------------------------------------------------------------------
+
+
+def _occt_flat_knots(rhino_knots: list[float]) -> np.ndarray:
+    """OCCT's flat knot vector from Rhino's: Rhino leaves out the superfluous first and last knot.
+
+    A Rhino surface of order ``k`` with ``n`` control points has ``n + k - 2`` knots; OCCT (and every
+    textbook) wants ``n + k``. The two extra knots do not change the surface on its domain, so they
+    are taken equal to their neighbours.
+    """
+    t = np.asarray(rhino_knots, dtype=np.float64)
+    return np.concatenate([t[:1], t, t[-1:]])
+
+
+def nurbs_face(surface: Any, *, scale: float = 1.0) -> Any:
+    """A build123d face exactly equal to a Rhino surface (any ``rhino3dm.Surface``, as NURBS).
+
+    Control points, weights and knots are carried over as they are (Rhino's homogeneous control
+    points divided by their weights, Rhino's knot vector completed with its two superfluous end
+    knots and turned into OCCT's knots with multiplicities), so the face evaluates the same points
+    as ``surface.PointAt`` at the same parameters.
+
+    Parameters
+    ----------
+    surface : rhino3dm.Surface
+    scale : float
+        Factor applied to the coordinates (a unit conversion).
+
+    Returns
+    -------
+    build123d.Face
+        Over the surface's whole parameter domain.
+
+    Raises
+    ------
+    InputError
+        If the surface has no NURBS form or OCCT refuses its data (the message says why).
+
+    Examples
+    --------
+    >>> import rhino3dm
+    >>> s = rhino3dm.NurbsSurface.Create(3, False, 2, 2, 2, 2)
+    >>> for kl in (s.KnotsU, s.KnotsV):
+    ...     kl[0], kl[1] = 0.0, 1.0
+    >>> for (i, j), p in zip([(0, 0), (1, 0), (0, 1), (1, 1)], [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 1)]):
+    ...     s.Points[(i, j)] = rhino3dm.Point4d(*p, 1.0)
+    >>> f = nurbs_face(s)
+    >>> [round(c, 6) for c in f.position_at(0.5, 0.5)]
+    [0.5, 0.5, 0.25]
+    """
+    import rhino3dm
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+    from OCP.Standard import Standard_Failure
+
+    from ..surfaces import _arrays, _face_from_geom
+
+    ns = surface if isinstance(surface, rhino3dm.NurbsSurface) else surface.ToNurbsSurface()
+    if ns is None:
+        raise InputError(f"face: the Rhino {type(surface).__name__} has no NURBS form")
+    deg_u, deg_v = int(ns.Degree(0)), int(ns.Degree(1))
+    cu, cv = int(ns.Points.CountU), int(ns.Points.CountV)
+    rational = bool(ns.IsRational)
+    h = np.array([[tuple(_xyzw(ns.Points.GetControlPoint(i, j))) for j in range(cv)] for i in range(cu)])
+    weights = h[..., 3]
+    if rational and not (weights > 0).all():
+        raise InputError(f"face: the Rhino surface has a weight <= 0 ({weights.min():g}); OCCT needs positive weights")
+    poles = h[..., :3] / (weights[..., None] if rational else 1.0) * scale
+    Pnt2, Real1, Int1, Real2 = _arrays()
+
+    def knots_mults(t: np.ndarray) -> tuple[Any, Any]:
+        k, m = np.unique(t, return_counts=True)
+        ka, ma = Real1(1, len(k)), Int1(1, len(m))
+        for i, (x, n) in enumerate(zip(k.tolist(), m.tolist(), strict=True)):
+            ka.SetValue(i + 1, x)
+            ma.SetValue(i + 1, n)
+        return ka, ma
+
+    arr = Pnt2(1, cu, 1, cv)
+    for i, row in enumerate(poles.tolist()):
+        for j, p in enumerate(row):
+            arr.SetValue(i + 1, j + 1, gp_Pnt(*p))
+    ku, mu = knots_mults(_occt_flat_knots(ns.KnotsU.ToList()))
+    kv, mv = knots_mults(_occt_flat_knots(ns.KnotsV.ToList()))
+    try:
+        if rational:
+            w = Real2(1, cu, 1, cv)
+            for i, row in enumerate(weights.tolist()):
+                for j, x in enumerate(row):
+                    w.SetValue(i + 1, j + 1, x)
+            geom = Geom_BSplineSurface(arr, w, ku, kv, mu, mv, deg_u, deg_v)
+        else:
+            geom = Geom_BSplineSurface(arr, ku, kv, mu, mv, deg_u, deg_v)
+    except Standard_Failure as exc:
+        raise InputError(f"face: OCCT refuses the Rhino surface's NURBS data ({exc})") from None
+    return _face_from_geom(geom)
+
+
+def _xyzw(p: Any) -> tuple[float, float, float, float]:
+    return (p.X, p.Y, p.Z, p.W)
+
+
+def rhino_faces(path: str | os.PathLike[str]) -> tuple[list[tuple[str, Any, bool, str]], str]:
+    """The surfaces of a .3dm file: ``[(name, rhino surface, trimmed, what)]`` and the file's unit.
+
+    Every surface object is one entry; every face of a polysurface (Brep) one entry, named
+    ``"<object name>[<face index>]"`` when the Brep has several faces. ``trimmed`` is true for a
+    Brep face that is not its whole underlying surface (Rhino's ``IsSurface``).
+
+    Raises
+    ------
+    InputError
+        If the file cannot be read or its unit is not one quadnodes knows.
+    """
+    import rhino3dm
+
+    p = Path(os.fspath(path))
+    model = rhino3dm.File3dm.Read(str(p))
+    if model is None:
+        raise InputError(f"path: {str(p)!r} is not a .3dm file rhino3dm can read")
+    unit = _file_unit(model, p)
+    out: list[tuple[str, Any, bool, str]] = []
+    for o in model.Objects:
+        g = o.Geometry
+        name = o.Attributes.Name or ""
+        if isinstance(g, rhino3dm.Extrusion):
+            g = g.ToBrep(False) if hasattr(g, "ToBrep") else None
+            if g is None:
+                continue
+        if isinstance(g, rhino3dm.Brep):
+            n = len(g.Faces)
+            for k in range(n):
+                f = g.Faces[k]
+                single = f.DuplicateFace(False)
+                trimmed = not bool(single.IsSurface)
+                label = name if n == 1 else f"{name}[{k}]"
+                out.append((label, f.UnderlyingSurface(), trimmed, f"face {k} of a {n}-face polysurface"))
+        elif isinstance(g, rhino3dm.Surface):
+            out.append((name, g, False, f"a {type(g).__name__}"))
+    return out, unit
+
+
+def _file_unit(model: Any, p: Path) -> str:
+    unit_system = str(model.Settings.ModelUnitSystem).split(".")[-1]
+    if unit_system in ("None", "Unset"):
+        return "mm"
+    by_name = {v: k for k, v in RHINO_UNITS.items()}
+    if unit_system not in by_name:
+        raise InputError(f"{p}: the model unit {unit_system} is not one quadnodes works in ({', '.join(UNITS)})")
+    return by_name[unit_system]
