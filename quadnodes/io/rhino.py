@@ -182,6 +182,8 @@ def _add_panels(model: Any, mesh: QuadMesh, planar: np.ndarray, area: np.ndarray
     e = edges.tolist()
     a_ = area.tolist()
     flags = planar.tolist()
+    attrs = Attributes()  # one object, copied by AddSurface: every key is set again for every panel
+    set_text = attrs.SetUserString
     for k, q in enumerate(corners):
         s = template.Duplicate()
         put = s.Points.__setitem__
@@ -189,13 +191,11 @@ def _add_panels(model: Any, mesh: QuadMesh, planar: np.ndarray, area: np.ndarray
         put((1, 0), P4(*q[1]))
         put((1, 1), P4(*q[2]))
         put((0, 1), P4(*q[3]))
-        attrs = Attributes()
         attrs.Name = labels[k]
         attrs.LayerIndex = layer[flags[k]]
         if user_text:
             values = (labels[k], str(rows[k]), str(cols[k]), repr(rel[k]), repr(gap[k]), repr(a_[k]),
                       "%r %r %r %r" % tuple(e[k]), "yes" if flags[k] else "no")
-            set_text = attrs.SetUserString
             for key, value in zip(keys, values):
                 set_text(key, value)
         add(s, attrs)
