@@ -4,11 +4,13 @@ import struct
 
 import numpy as np
 import pytest
+from hypothesis import given
 
 from quadnodes.errors import InputError
 from quadnodes.io import load
 from quadnodes.io.off import parse_off
 from quadnodes.mesh import grid
+from strategies import irregular
 
 POINTS = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0.5), (2, 1, 0.25), (3, 0, 0), (3, 1, 0)]
 
@@ -127,3 +129,11 @@ def test_grid_through_off(tmp_path):
     (tmp_path / "g.off").write_text("\n".join(lines))
     m = load(tmp_path / "g.off")
     assert np.array_equal(m.vertices, g.vertices) and np.array_equal(m.faces, g.faces)
+
+
+@given(irregular())
+def test_off_reads_any_quad_mesh_exactly(m):
+    lines = ["OFF", f"{m.n_vertices} {m.n_faces} 0"] + ["%r %r %r" % tuple(v) for v in m.vertices.tolist()]
+    lines += ["4 %d %d %d %d" % tuple(f) for f in m.faces.tolist()]
+    back = parse_off("\n".join(lines))
+    assert np.array_equal(back.vertices, m.vertices) and np.array_equal(back.faces, m.faces)

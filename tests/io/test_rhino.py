@@ -199,3 +199,10 @@ def test_bad_input_leaves_nothing(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="version"):
         save_3dm(m, tmp_path / "v.3dm", version=3)
     assert sorted(os.listdir(tmp_path)) == ["file"]
+
+
+def test_a_file_that_is_not_3dm(tmp_path):
+    p = tmp_path / "x.3dm"
+    p.write_bytes(b"not a rhino file\x00" * 10)
+    with pytest.raises(InputError, match="not a .3dm file rhino3dm can read"):
+        load(p)
