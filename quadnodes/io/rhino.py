@@ -7,7 +7,7 @@
   label (``P_<row>_<col>`` on a grid, else ``P_<face>``): the degree-1 NURBS surface through its four
   corners (the bilinear patch; a planar panel's surface is flat within the planar tolerance,
   because its corners are), with user text (Rhino's Attribute User Text) ``id`` (the label),
-  ``row``, ``col`` (empty without a grid), ``planarity`` (relative diagonal distance),
+  ``row``, ``col`` (only on a grid), ``planarity`` (relative diagonal distance),
   ``planarity_<unit>`` (the same as a length), ``area_<unit>2``, ``edges_<unit>`` (the four edge
   lengths 01 12 23 30, space-separated) and ``planar`` (``yes``/``no``); numbers as shortest
   round-trip text;
@@ -169,6 +169,8 @@ def _add_panels(model: Any, mesh: QuadMesh, planar: np.ndarray, area: np.ndarray
     rel = diagonal_distance(mesh).tolist()
     gap = diagonal_distance(mesh, relative=False).tolist()
     keys = ("id", "row", "col", "planarity", f"planarity_{u}", f"area_{u}2", f"edges_{u}", "planar")
+    if rc is None:  # Rhino drops a key whose text is empty: no row and col without a grid
+        keys = keys[:1] + keys[3:]
     # corners as homogeneous points; the surface's control points (0,0) (1,0) (1,1) (0,1) are corners 0..3
     corners = np.concatenate([mesh.vertices[mesh.faces], np.ones((mesh.n_faces, 4, 1))], axis=2).tolist()
     template = rhino3dm.NurbsSurface.Create(3, False, 2, 2, 2, 2)
@@ -196,6 +198,8 @@ def _add_panels(model: Any, mesh: QuadMesh, planar: np.ndarray, area: np.ndarray
         if user_text:
             values = (labels[k], str(rows[k]), str(cols[k]), repr(rel[k]), repr(gap[k]), repr(a_[k]),
                       "%r %r %r %r" % tuple(e[k]), "yes" if flags[k] else "no")
+            if rc is None:
+                values = values[:1] + values[3:]
             for key, value in zip(keys, values):
                 set_text(key, value)
         add(s, attrs)

@@ -179,3 +179,17 @@ def test_bad_input_leaves_nothing(tmp_path, monkeypatch):
         with pytest.raises(InputError, match=name):
             save_dxf(g, tmp_path / "k.dxf", **kw)
     assert sorted(os.listdir(tmp_path)) == ["file"]
+
+
+def test_a_closed_mesh_without_grid_unrolls_without_overlaps(tmp_path):
+    from quadnodes.mesh import torus
+
+    t = torus(6, 10, major=2000.0, minor=600.0)
+    m = QuadMesh(t.vertices, t.faces)
+    p = save_dxf(m, tmp_path / "t.dxf")
+    _, polys, _, _, texts = read(p)
+    assert len(polys) == 60 and [x[0] for x in texts] == [f"P_{k}" for k in range(60)]
+    assert_no_overlaps(polys)
+    e3, _ = lengths3d(m)
+    e2, _ = lengths2d(polys)
+    np.testing.assert_allclose(e2, e3, rtol=1e-9)

@@ -206,3 +206,14 @@ def test_a_file_that_is_not_3dm(tmp_path):
     p.write_bytes(b"not a rhino file\x00" * 10)
     with pytest.raises(InputError, match="not a .3dm file rhino3dm can read"):
         load(p)
+
+
+def test_a_mesh_without_grid_is_labelled_by_face(tmp_path):
+    c = cylinder(3, 6, radius=1000.0, height=2000.0)
+    m = QuadMesh(c.vertices, c.faces)  # no grid_shape
+    _, by = objects(save_3dm(m, tmp_path / "c.3dm"))
+    names = [o.Attributes.Name for o, _ in by["NurbsSurface"]]
+    assert names == [f"P_{k}" for k in range(m.n_faces)]
+    text = dict(by["NurbsSurface"][0][0].Attributes.GetUserStrings())
+    assert "row" not in text and "col" not in text and text["id"] == "P_0" and text["planar"] == "yes"
+    assert load_3dm(tmp_path / "c.3dm").grid_shape is None
