@@ -184,11 +184,13 @@ def _add_panels(model: Any, mesh: QuadMesh, planar: np.ndarray, area: np.ndarray
     e = edges.tolist()
     a_ = area.tolist()
     flags = planar.tolist()
-    attrs = Attributes()  # one object, copied by AddSurface: every key is set again for every panel
+    # one surface and one attributes object, both copied by AddSurface: every control point and every
+    # key is set again for every panel
+    attrs = Attributes()
     set_text = attrs.SetUserString
+    put = template.Points.__setitem__
+    s = template
     for k, q in enumerate(corners):
-        s = template.Duplicate()
-        put = s.Points.__setitem__
         put((0, 0), P4(*q[0]))
         put((1, 0), P4(*q[1]))
         put((1, 1), P4(*q[2]))
