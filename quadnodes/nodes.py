@@ -334,6 +334,8 @@ def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh |
 
 # --- Rhino, DXF and surface files (issue 13) ---------------------------------------------
 
+from .io.dxf import DxfReport  # noqa: E402  (kept beside the nodes that use it)
+
 
 @node("read_surface", outputs=("face",), reads=("path",))
 def read_surface(*, path: str, face: int | str | None = None, allow_trimmed: bool = False) -> Face:
@@ -354,7 +356,7 @@ def export_3dm(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io
 @node("export_dxf", outputs=("path", "report"), writes=("path",))
 def export_dxf(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io.DEFAULT_PLANAR_TOL,
                per_row: int | None = None, gap: float | None = None,
-               text_height: float | None = None) -> tuple[Path, Any]:
+               text_height: float | None = None) -> tuple[Path, DxfReport]:
     """DXF unrolls for fabrication: every panel flat (unfolded along a diagonal), in rows without overlaps, on
     layer PANELS (green planar, orange bilinear) with its label on LABELS; the report gives each panel's
     distortion (largest edge or diagonal length change, in the mesh's unit)."""
