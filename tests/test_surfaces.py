@@ -535,3 +535,15 @@ def test_from_file_step_iges_and_bad_paths(tmp_path):
         surfaces.from_file(tmp_path / "x.obj")
     with pytest.raises(InputError, match="face: expected an index or a name"):
         surfaces.from_file(step, face=1.5)
+
+
+def test_from_file_picks_a_step_face_by_its_label(tmp_path):
+    from quadnodes.io import save_step
+    from quadnodes.mesh import grid
+
+    mesh = grid(3, 3, spacing=100.0, height=[[0, 0, 0], [0, 0, 0], [0, 0, 50]])
+    p = save_step(mesh, tmp_path / "a.step", mode="assembly")
+    with pytest.raises(InputError, match=r"holds 4 faces \(0: P_0_0 \(a plane face\).*3: P_1_1 \(a bspline face\)"):
+        surfaces.from_file(p)
+    face = surfaces.from_file(p, face="P_1_1")
+    assert tuple(face.center()) == pytest.approx((150.0, 150.0, 12.5))
