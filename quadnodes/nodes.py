@@ -341,4 +341,36 @@ def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh |
                             vmin=vmin, vmax=vmax)
 
 
+# --- Rhino, DXF and surface files (issue 13) ---------------------------------------------
+
+from .io.dxf import DxfReport  # noqa: E402  (kept beside the nodes that use it)
+
+
+@node("read_surface", outputs=("face",), reads=("path",))
+def read_surface(*, path: str, face: int | str | None = None, allow_trimmed: bool = False) -> Face:
+    """The designer's surface from STEP, IGES or Rhino .3dm (NURBS converted exactly, in mm), by index or name;
+    a file with several faces needs face=, a trimmed face is refused unless allow_trimmed."""
+    return _surfaces.from_file(path, face=face, allow_trimmed=allow_trimmed)
+
+
+@node("export_3dm", outputs=("path",), writes=("path",))
+def export_3dm(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io.DEFAULT_PLANAR_TOL,
+               lines: bool = True, user_text: bool = True) -> Path:
+    """Rhino .3dm in the mesh's unit: the quad mesh, every panel a named degree-1 surface with user text on
+    layer panels::planar or panels::bilinear (planar_tolerance: relative, or a length such as "2 mm"), and
+    the structure lines as polylines."""
+    return _io.save_3dm(mesh, path, planar_tolerance=planar_tolerance, lines=lines, user_text=user_text)
+
+
+@node("export_dxf", outputs=("path", "report"), writes=("path",))
+def export_dxf(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io.DEFAULT_PLANAR_TOL,
+               per_row: int | None = None, gap: float | None = None,
+               text_height: float | None = None) -> tuple[Path, DxfReport]:
+    """DXF unrolls for fabrication: every panel flat (unfolded along a diagonal), in rows without overlaps, on
+    layer PANELS (green planar, orange bilinear) with its label on LABELS; the report gives each panel's
+    distortion (largest edge or diagonal length change, in the mesh's unit)."""
+    return _io.dxf_report(mesh, path, planar_tolerance=planar_tolerance, per_row=per_row, gap=gap,
+                          text_height=text_height)
+
+
 __all__: list[str] = []  # import for the side effect of registering the nodes

@@ -12,7 +12,9 @@ Three ways to get a surface, all returning a build123d ``Face``:
 - :func:`from_points`: a B-spline face *interpolating* a ``(rows, cols, 3)``
   grid of points (``points[i, j]`` lies at ``(u_i, v_j)``: the first index runs
   along ``u``), and :func:`grid_parameters` for those ``(u_i, v_j)``.
-- :func:`from_step`: one face of a STEP file, picked by index.
+- :func:`from_step`: one face of a STEP file, picked by index; :func:`from_file`:
+  one face of a STEP, IGES or Rhino .3dm file (NURBS converted exactly), by index
+  or name, refusing trimmed and ambiguous input with a message.
 
 :func:`sample` turns any untrimmed face into a :class:`~quadnodes.mesh.QuadMesh`
 on an ``nu × nv`` grid of ``(u, v)`` parameters, uniform or user-given. It
@@ -55,6 +57,7 @@ __all__ = [
     "from_points",
     "grid_parameters",
     "from_step",
+    "from_file",
     "sample",
     "EXAMPLES",
     "example",
@@ -697,6 +700,149 @@ def from_step(path: str | os.PathLike[str], *, face: int = 0) -> Face:
             f"face{'s' if n != 1 else ''} (valid indices 0..{n - 1})"
         )
     return faces[int(face)]
+
+
+def from_file(
+    path: str | os.PathLike[str],
+    *,
+    face: int | str | None = None,
+    allow_trimmed: bool = False,
+) -> Face:
+    """The designer's surface from a STEP, IGES or Rhino .3dm file, as a build123d face.
+
+    A .3dm surface (a NURBS surface, or any Rhino surface or polysurface face in its NURBS form)
+    is converted exactly: control points, weights and knots carried over
+    (:func:`quadnodes.io.rhino.nurbs_face`), scaled from the file's unit to millimetres. STEP and
+    IGES are read by OCCT, which gives millimetres too.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.step``/``.stp``, ``.iges``/``.igs`` or ``.3dm``.
+    face : int or str, optional
+        Which face: an index (in file order: OCCT's exploration order for STEP/IGES; object
+        order, every polysurface face in turn, for .3dm) or a name (a .3dm object name, with
+        ``[k]`` for face ``k`` of a polysurface; a STEP label). Default: the only face, and an
+        error naming what was found when there are several.
+    allow_trimmed : bool
+        Accept a trimmed face (a hole, a cut edge); its whole underlying surface is returned.
+        Default: refuse it, saying what was found.
+
+    Returns
+    -------
+    build123d.Face
+
+    Raises
+    ------
+    InputError
+        If the file is missing, of an unknown type or unreadable; holds no face; holds several
+        and ``face`` is not given; ``face`` names none of them; or the face is trimmed (without
+        ``allow_trimmed``). Messages name the file and list the faces found.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from build123d import export_step
+    >>> tmp = pathlib.Path(tempfile.mkdtemp()) / "saddle.step"
+    >>> _ = export_step(saddle(), tmp)
+    >>> from_file(tmp).geom_type.name
+    'BSPLINE'
+    """
+    if face is not None and (isinstance(face, (bool, np.bool_)) or not isinstance(face, (int, np.integer, str))):
+        raise InputError(f"face: expected an index or a name, got {face!r}")
+    fs = os.fspath(path)
+    if not os.path.isfile(fs):
+        raise InputError(f"path: file {fs!r} does not exist")
+    ext = os.path.splitext(fs)[1].lower()
+    if ext == ".3dm":
+        faces, trimmed, found = _faces_3dm(fs)
+    elif ext in (".step", ".stp", ".iges", ".igs"):
+        faces, trimmed, found = _faces_occt(fs, ext)
+    else:
+        raise InputError(f"path: {fs!r} is not a surface file quadnodes reads (.step, .stp, .iges, .igs, .3dm)")
+    names = [n for n, _ in found]
+    listing = ", ".join(f"{i}: {n or '(unnamed)'} ({what})" for i, (n, what) in enumerate(found[:8]))
+    listing += ", ..." if len(found) > 8 else ""
+    if not faces:
+        raise InputError(f"path: {fs!r} holds no surface")
+    if face is None:
+        if len(faces) > 1:
+            raise InputError(
+                f"face: {fs!r} holds {len(faces)} faces ({listing}); pass face= an index or a name"
+            )
+        k = 0
+    elif isinstance(face, str):
+        if face not in names:
+            raise InputError(f"face: {fs!r} has no face named {face!r} (found {listing})")
+        if names.count(face) > 1:
+            raise InputError(f"face: {fs!r} has {names.count(face)} faces named {face!r}; pick one by index ({listing})")
+        k = names.index(face)
+    else:
+        if not 0 <= face < len(faces):
+            raise InputError(
+                f"face: index {face} is out of range, {fs!r} has {len(faces)} face"
+                f"{'s' if len(faces) != 1 else ''} (valid indices 0..{len(faces) - 1})"
+            )
+        k = int(face)
+    result = faces[k]() if callable(faces[k]) else faces[k]
+    if trimmed is not None and not allow_trimmed:
+        if trimmed[k]:
+            raise InputError(
+                f"face: face {k} ({found[k][0] or 'unnamed'}, {found[k][1]}) of {fs!r} is trimmed (not its whole "
+                "underlying surface); split it into four-sided untrimmed surfaces in Rhino (e.g. Untrim or "
+                "ShrinkTrimmedSrf when the trim follows the surface's edges), or pass allow_trimmed=True to use "
+                "the whole underlying surface"
+            )
+    elif trimmed is None and not allow_trimmed:
+        from OCP.BRepTools import BRepTools
+
+        bounds = tuple(float(b) for b in BRepTools.UVBounds_s(result.wrapped))
+        _check_untrimmed(result, _geom_surface(result), bounds)  # type: ignore[arg-type]
+    return result
+
+
+def _faces_3dm(fs: str) -> tuple[list[Any], list[bool], list[tuple[str, str]]]:
+    from .io.rhino import nurbs_face, rhino_faces
+    from .units import to_unit
+
+    entries, unit = rhino_faces(fs)
+    scale = to_unit(1.0, unit, "mm")
+    makers = [(lambda s=s: nurbs_face(s, scale=scale)) for _, s, _, _ in entries]
+    return makers, [t for _, _, t, _ in entries], [(n, what) for n, _, _, what in entries]
+
+
+def _faces_occt(fs: str, ext: str) -> tuple[list[Any], None, list[tuple[str, str]]]:
+    from build123d import Face, Shape
+
+    if ext in (".step", ".stp"):
+        from build123d import import_step
+
+        try:
+            shape = import_step(fs)
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise InputError(f"path: cannot read STEP file {fs!r} ({exc})") from None
+    else:
+        from OCP.IFSelect import IFSelect_RetDone
+        from OCP.IGESControl import IGESControl_Reader
+
+        reader = IGESControl_Reader()
+        if reader.ReadFile(fs) != IFSelect_RetDone:
+            raise InputError(f"path: cannot read IGES file {fs!r}")
+        reader.TransferRoots()
+        shape = Shape.cast(reader.OneShape())
+    faces = shape.faces()
+    labels: dict[int, str] = {}
+
+    def walk(s: Any) -> None:
+        for child in getattr(s, "children", ()) or ():
+            sub = child.faces()
+            if getattr(child, "label", "") and len(sub) == 1:
+                labels[hash(sub[0])] = child.label
+            walk(child)
+
+    walk(shape)
+    found = [(labels.get(hash(f), getattr(f, "label", "") or ""), f"a {f.geom_type.name.lower()} face") for f in faces]
+    return [Face(f.wrapped) if not isinstance(f, Face) else f for f in faces], None, found
 
 
 # ----------------------------------------------------------------------------

@@ -12,7 +12,7 @@ EXPECTED = {
     "saddle", "s_shape", "wavy", "dome", "cylinder_segment", "torus_patch", "read_step_surface", "sample",
     "thesis_example", "grid", "read_mesh", "perturb", "detect", "select_fixed", "fair", "laplacian", "taubin",
     "planarity", "compare", "export_step", "export_obj", "export_csv", "export_json", "export_report",
-    "render_png", "render_html", "planarize",
+    "render_png", "render_html", "planarize", "read_surface", "export_3dm", "export_dxf",
 }
 
 
@@ -80,3 +80,57 @@ def test_node_errors_name_the_node(tmp_path):
     g2.add("read_mesh", id="reader", path="missing.obj")
     with pytest.raises(NodeError, match="reader.*path.*missing.obj"):
         g2.run()
+
+
+def test_rhino_and_dxf_nodes(tmp_path):
+    """read_surface@1 (file hashed for the cache), export_3dm@1 and export_dxf@1 in one graph."""
+    import ezdxf
+    import rhino3dm
+
+    s = rhino3dm.NurbsSurface.Create(3, True, 3, 3, 3, 3)
+    for kl in (s.KnotsU, s.KnotsV):
+        for i, k in enumerate([0.0, 0.0, 1.0, 1.0]):
+            kl[i] = k
+    for i in range(3):
+        for j in range(3):
+            w = 1.0 + 0.3 * (i == 1)
+            s.Points[(i, j)] = rhino3dm.Point4d(2.0 * i * w, 1.5 * j * w, (0.8 if (i, j) == (1, 1) else 0.0) * w, w)
+    model = rhino3dm.File3dm()
+    model.Settings.ModelUnitSystem = rhino3dm.UnitSystem.Meters
+    attrs = rhino3dm.ObjectAttributes()
+    attrs.Name = "roof"
+    model.Objects.AddSurface(s, attrs)
+    model.Write(str(tmp_path / "design.3dm"), 0)
+
+    def graph():
+        g = Graph(base_dir=tmp_path)
+        face = g.add("read_surface", id="surface", path="design.3dm", face="roof")
+        mesh = g.add("sample", face.face, id="mesh", nu=6, nv=5)
+        g.add("export_3dm", mesh.mesh, id="rhino", path="out.3dm", planar_tolerance="2 mm")
+        g.add("export_dxf", mesh.mesh, id="dxf", path="out.dxf", planar_tolerance="2 mm")
+        return g
+
+    cache = Cache()
+    res = graph().run(cache=cache)
+    mesh = res["mesh.mesh"]
+    assert mesh.n_faces == 20
+    assert np.abs(mesh.vertices).max() == pytest.approx(4000.0)  # metres in the file, millimetres here
+    back = rhino3dm.File3dm.Read(str(tmp_path / "out.3dm"))
+    assert sum(isinstance(o.Geometry, rhino3dm.NurbsSurface) for o in back.Objects) == 20
+    report = res["dxf.report"]
+    assert report.n_panels == 20 and len(report.distortion) == 20 and report.to_dict()["unit"] == "mm"
+    assert len(ezdxf.readfile(tmp_path / "out.dxf").modelspace().query("LWPOLYLINE")) == 20
+    # unchanged file: from the cache; an edited file is read again
+    assert graph().run(cache=cache).ran == []
+    s.Points[(1, 1)] = rhino3dm.Point4d(2.6, 1.95, 0.0, 1.3)  # flatten the middle
+    model = rhino3dm.File3dm()
+    model.Settings.ModelUnitSystem = rhino3dm.UnitSystem.Meters
+    model.Objects.AddSurface(s, attrs)
+    model.Write(str(tmp_path / "design.3dm"), 0)
+    again = graph().run(cache=cache)
+    assert {"surface", "mesh", "rhino", "dxf"} <= set(again.ran)
+    assert np.abs(again["mesh.mesh"].vertices[:, 2]).max() < 1e-6
+    g = Graph(base_dir=tmp_path)
+    g.add("read_surface", id="reader", path="design.3dm", face="floor")
+    with pytest.raises(NodeError, match="reader.*no face named 'floor'"):
+        g.run()

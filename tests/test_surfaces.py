@@ -396,3 +396,154 @@ def test_sampled_corners_are_the_face_corners(family_faces, name, nu, nv):
     g = m.vertices.reshape(nu, nv, 3)
     for (a, b), p in zip([(0, 0), (1, 0), (0, 1), (1, 1)], [g[0, 0], g[-1, 0], g[0, -1], g[-1, -1]]):
         np.testing.assert_allclose(p, tuple(face.position_at(a, b)), atol=1e-9 * np.abs(g).max())
+
+
+# --- from_file: STEP, IGES and Rhino .3dm (issue 13) --------------------------------------------
+
+
+def _rhino_surface(rational, knots_u, knots_v, order_u, order_v, seed=0):
+    import rhino3dm
+
+    rng = np.random.default_rng(seed)
+    cu, cv = len(knots_u) - order_u + 2, len(knots_v) - order_v + 2  # Rhino: n + order - 2 knots
+    s = rhino3dm.NurbsSurface.Create(3, rational, order_u, order_v, cu, cv)
+    for i, k in enumerate(knots_u):
+        s.KnotsU[i] = k
+    for i, k in enumerate(knots_v):
+        s.KnotsV[i] = k
+    for i in range(cu):
+        for j in range(cv):
+            w = rng.uniform(0.4, 2.5) if rational else 1.0
+            x, y, z = 1000.0 * i + 90 * rng.normal(), 800.0 * j, 300.0 * rng.normal()
+            s.Points[(i, j)] = rhino3dm.Point4d(x * w, y * w, z * w, w)  # homogeneous
+    assert s.IsValid
+    return s
+
+
+def _write_3dm(path, *surfaces, names=(), unit=None):
+    import rhino3dm
+
+    model = rhino3dm.File3dm()
+    model.Settings.ModelUnitSystem = unit or rhino3dm.UnitSystem.Millimeters
+    for k, s in enumerate(surfaces):
+        attrs = rhino3dm.ObjectAttributes()
+        attrs.Name = names[k] if k < len(names) else ""
+        if isinstance(s, rhino3dm.Brep):
+            model.Objects.AddBrep(s, attrs)
+        else:
+            model.Objects.AddSurface(s, attrs)
+    assert model.Write(str(path), 0)
+    return path
+
+
+def _max_gap(surface, face, scale=1.0):
+    """Largest distance between rhino3dm's PointAt and OCCT's value at the same (u, v), and the size."""
+    from OCP.BRep import BRep_Tool
+
+    g = BRep_Tool.Surface_s(face.wrapped)
+    d0, d1 = surface.Domain(0), surface.Domain(1)
+    gap, size = 0.0, 0.0
+    for a in np.linspace(d0.T0, d0.T1, 9):
+        for b in np.linspace(d1.T0, d1.T1, 9):
+            p, q = surface.PointAt(a, b), g.Value(a, b)
+            r = np.array([p.X, p.Y, p.Z]) * scale
+            gap = max(gap, float(np.abs(r - [q.X(), q.Y(), q.Z()]).max()))
+            size = max(size, float(np.abs(r).max()))
+    return gap, size
+
+
+@pytest.mark.parametrize("rational", [False, True])
+@pytest.mark.parametrize(
+    "knots_u, knots_v, order_u, order_v",
+    [
+        ([0, 0, 0, 0.3, 0.35, 1, 1, 1], [0, 0, 0.25, 0.6, 1, 1], 4, 3),  # clamped, non-uniform
+        ([0, 1, 2, 3.5, 4, 5, 6], [0, 0, 1, 2, 3, 3], 4, 3),  # unclamped in u
+        ([2, 2, 5, 5], [0, 0, 0.5, 0.5, 1, 1], 3, 3),  # a shifted domain, a double inner knot
+    ],
+)
+def test_rhino_nurbs_converts_exactly(tmp_path, rational, knots_u, knots_v, order_u, order_v):
+    s = _rhino_surface(rational, knots_u, knots_v, order_u, order_v)
+    face = surfaces.from_file(_write_3dm(tmp_path / "s.3dm", s))
+    gap, size = _max_gap(s, face)
+    assert gap <= 1e-9 * size
+
+
+def test_rhino_units_become_millimetres(tmp_path):
+    import rhino3dm
+
+    s = _rhino_surface(True, [0, 0, 1, 1], [0, 0, 1, 1], 3, 3)
+    face = surfaces.from_file(_write_3dm(tmp_path / "m.3dm", s, unit=rhino3dm.UnitSystem.Meters))
+    gap, size = _max_gap(s, face, scale=1000.0)
+    assert gap <= 1e-9 * size
+
+
+def test_rhino_faces_by_name_index_and_the_errors(tmp_path):
+    import rhino3dm
+
+    a = _rhino_surface(False, [0, 0, 1, 1], [0, 0, 1, 1], 3, 3, seed=1)
+    b = _rhino_surface(True, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 4, 3, seed=2)
+    p = _write_3dm(tmp_path / "two.3dm", a, b, names=["roof", "wall"])
+    with pytest.raises(InputError, match=r"holds 2 faces \(0: roof \(a NurbsSurface\), 1: wall"):
+        surfaces.from_file(p)
+    assert _max_gap(b, surfaces.from_file(p, face="wall"))[0] < 1e-6
+    assert _max_gap(a, surfaces.from_file(p, face=0))[0] < 1e-6
+    with pytest.raises(InputError, match="no face named 'floor'"):
+        surfaces.from_file(p, face="floor")
+    with pytest.raises(InputError, match=r"index 2 is out of range.*valid indices 0..1"):
+        surfaces.from_file(p, face=2)
+    box = rhino3dm.Brep.CreateFromBoundingBox(rhino3dm.BoundingBox(0, 0, 0, 1000, 2000, 3000))
+    p = _write_3dm(tmp_path / "box.3dm", box, names=["box"])
+    with pytest.raises(InputError, match=r"holds 6 faces \(0: box\[0\] \(face 0 of a 6-face polysurface\)"):
+        surfaces.from_file(p)
+    assert surfaces.from_file(p, face="box[2]").area == pytest.approx(surfaces.from_file(p, face=2).area)
+    assert surfaces.from_file(p, face=2).area in (pytest.approx(2e6), pytest.approx(3e6), pytest.approx(6e6))
+    trimmed = rhino3dm.Brep.CreateTrimmedPlane(
+        rhino3dm.Plane.WorldXY(), rhino3dm.Circle(rhino3dm.Point3d(0, 0, 0), 500.0).ToNurbsCurve()
+    )
+    p = _write_3dm(tmp_path / "disc.3dm", trimmed, names=["disc"])
+    with pytest.raises(InputError, match=r"face 0 \(disc, face 0 of a 1-face polysurface\) .* is trimmed"):
+        surfaces.from_file(p)
+    assert surfaces.from_file(p, allow_trimmed=True).area > 0
+    _write_3dm(tmp_path / "empty.3dm")
+    with pytest.raises(InputError, match="holds no surface"):
+        surfaces.from_file(tmp_path / "empty.3dm")
+
+
+def test_from_file_step_iges_and_bad_paths(tmp_path):
+    from build123d import Box, export_step
+    from OCP.IGESControl import IGESControl_Writer
+
+    face = surfaces.saddle()
+    step = tmp_path / "s.step"
+    export_step(face, step)
+    a, b = surfaces.sample(surfaces.from_file(step), 5, 5), surfaces.sample(surfaces.from_step(step), 5, 5)
+    assert np.array_equal(a.vertices, b.vertices)
+    writer = IGESControl_Writer("MM", 0)
+    writer.AddShape(face.wrapped)
+    writer.ComputeModel()
+    assert writer.Write(str(tmp_path / "s.igs"))
+    c = surfaces.sample(surfaces.from_file(tmp_path / "s.igs"), 5, 5)
+    np.testing.assert_allclose(c.vertices, a.vertices, atol=1e-6 * 5000)
+    export_step(Box(10, 20, 30), tmp_path / "box.step")
+    with pytest.raises(InputError, match="holds 6 faces .*pass face="):
+        surfaces.from_file(tmp_path / "box.step")
+    assert surfaces.from_file(tmp_path / "box.step", face=1).area > 0
+    with pytest.raises(InputError, match="does not exist"):
+        surfaces.from_file(tmp_path / "missing.3dm")
+    (tmp_path / "x.obj").write_text("v 0 0 0\n")
+    with pytest.raises(InputError, match="not a surface file"):
+        surfaces.from_file(tmp_path / "x.obj")
+    with pytest.raises(InputError, match="face: expected an index or a name"):
+        surfaces.from_file(step, face=1.5)
+
+
+def test_from_file_picks_a_step_face_by_its_label(tmp_path):
+    from quadnodes.io import save_step
+    from quadnodes.mesh import grid
+
+    mesh = grid(3, 3, spacing=100.0, height=[[0, 0, 0], [0, 0, 0], [0, 0, 50]])
+    p = save_step(mesh, tmp_path / "a.step", mode="assembly")
+    with pytest.raises(InputError, match=r"holds 4 faces \(0: P_0_0 \(a plane face\).*3: P_1_1 \(a bspline face\)"):
+        surfaces.from_file(p)
+    face = surfaces.from_file(p, face="P_1_1")
+    assert tuple(face.center()) == pytest.approx((150.0, 150.0, 12.5))

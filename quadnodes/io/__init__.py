@@ -11,6 +11,9 @@ returning the path:
   :func:`~.schedule.save_schedule`.
 - ``step`` / ``stp`` (write only; read with ``build123d.import_step``):
   :func:`~.step.step_shape` / :func:`~.step.save_step`.
+- ``3dm`` (Rhino): :func:`~.rhino.model_3dm` / :func:`~.rhino.save_3dm`; read with :func:`~.rhino.load_3dm`.
+- ``dxf`` (flat unrolls, write only): :func:`~.dxf.dxf_document` / :func:`~.dxf.save_dxf`.
+- ``off``, ``ply`` (read only): :func:`~.off.load_off`, :func:`~.ply.load_ply`.
 
 :func:`save` and :func:`load` pick the format from the file extension (or an
 explicit ``file_type``) through the :data:`EXPORTERS` and :data:`LOADERS`
@@ -31,6 +34,10 @@ from .obj import load_obj, obj_text, parse_obj, save_obj
 from .panels import DEFAULT_PLANAR_TOL, panel_labels, planar_mask
 from .schedule import panel_schedule, save_schedule, schedule_csv
 from .step import save_step, step_shape
+from .dxf import dxf_report, panel_distortion, save_dxf, unfold
+from .off import load_off
+from .ply import load_ply
+from .rhino import load_3dm, model_3dm, save_3dm
 
 __all__ = [
     "EXPORTERS",
@@ -52,6 +59,15 @@ __all__ = [
     "panel_labels",
     "planar_mask",
     "DEFAULT_PLANAR_TOL",
+    "save_3dm",
+    "load_3dm",
+    "model_3dm",
+    "save_dxf",
+    "dxf_report",
+    "unfold",
+    "panel_distortion",
+    "load_off",
+    "load_ply",
 ]
 
 EXPORTERS: dict[str, Callable[..., Path]] = {
@@ -60,12 +76,17 @@ EXPORTERS: dict[str, Callable[..., Path]] = {
     "csv": save_schedule,
     "step": save_step,
     "stp": save_step,
+    "3dm": save_3dm,
+    "dxf": save_dxf,
 }
 """File type -> writer ``f(mesh, path, **options) -> Path``."""
 
 LOADERS: dict[str, Callable[..., QuadMesh]] = {
     "obj": load_obj,
     "json": load_json,
+    "3dm": load_3dm,
+    "off": load_off,
+    "ply": load_ply,
 }
 """File type -> reader ``f(path, **options) -> QuadMesh``."""
 
@@ -90,7 +111,7 @@ def save(mesh: QuadMesh, path: str | os.PathLike[str], *, file_type: str | None 
     mesh : QuadMesh
     path : str or path-like
     file_type : str, optional
-        One of :data:`EXPORTERS` (``obj``, ``json``, ``csv``, ``step``, ``stp``);
+        One of :data:`EXPORTERS` (``obj``, ``json``, ``csv``, ``step``, ``stp``, ``3dm``, ``dxf``);
         default: the extension of ``path``.
     **options
         Passed to the writer, e.g. ``mode="assembly"`` for STEP.
@@ -117,7 +138,7 @@ def save(mesh: QuadMesh, path: str | os.PathLike[str], *, file_type: str | None 
     >>> save(grid(3, 3), folder / "g.ply")
     Traceback (most recent call last):
       ...
-    quadnodes.errors.InputError: file_type: cannot write 'ply' files; known types: csv, json, obj, step, stp
+    quadnodes.errors.InputError: file_type: cannot write 'ply' files; known types: 3dm, csv, dxf, json, obj, step, stp
     """
     key = _file_type(path, file_type, EXPORTERS, "write")
     try:
@@ -135,7 +156,7 @@ def load(path: str | os.PathLike[str], *, file_type: str | None = None, **option
     ----------
     path : str or path-like
     file_type : str, optional
-        One of :data:`LOADERS` (``obj``, ``json``); default: the extension.
+        One of :data:`LOADERS` (``obj``, ``json``, ``3dm``, ``off``, ``ply``); default: the extension.
     **options
         Passed to the reader, e.g. ``non_quads="drop"`` for OBJ.
 

@@ -7,7 +7,12 @@ Writing: ``v x y z`` lines with shortest round-trip float text (``repr``), so
 the coordinates read back bit for bit, and ``f a b c d`` lines with 1-based
 indices. A comment ``# quadnodes grid_shape <rows> <cols>`` records the grid
 (other readers ignore comments; :func:`load_obj` restores ``grid_shape`` from
-it when the faces are still that grid's faces).
+it when the faces are still that grid's faces), and ``# quadnodes unit <unit>``
+the mesh's unit (OBJ itself has none), which :func:`load_obj` reads back.
+
+The text may start with a byte-order mark and use ``\n``, ``\r\n`` or ``\r``
+line ends and tabs between tokens; :func:`load_obj` also reads UTF-16 files
+that start with their byte-order mark.
 
 Reading supports ``v`` (the first three numbers; a fourth weight or trailing
 vertex colours are ignored), ``f`` with corners written ``a``, ``a/b``,
@@ -30,15 +35,17 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..mesh import QuadMesh
+from ..units import DEFAULT_UNIT, check_unit
 from .. import _validate
 from ._atomic import write_text_atomic
+from ._polygons import NON_QUAD_OPTIONS
 
 __all__ = ["NON_QUAD_OPTIONS", "obj_text", "save_obj", "parse_obj", "load_obj"]
 
-NON_QUAD_OPTIONS: tuple[str, ...] = ("error", "drop", "split")
-"""The values of ``non_quads`` in :func:`parse_obj` / :func:`load_obj`."""
 
 _GRID_COMMENT = "quadnodes grid_shape"
+_UNIT_COMMENT = "quadnodes unit"
+_LINE_END = re.compile(r"\r\n|\r|\n")
 
 
 def obj_text(mesh: QuadMesh, *, header: bool = True) -> str:
@@ -48,8 +55,8 @@ def obj_text(mesh: QuadMesh, *, header: bool = True) -> str:
     ----------
     mesh : QuadMesh
     header : bool
-        Start with comment lines (generator, counts, and ``grid_shape`` when
-        the mesh has one).
+        Start with comment lines (generator, counts, the unit, and
+        ``grid_shape`` when the mesh has one).
 
     Returns
     -------
@@ -70,6 +77,7 @@ def obj_text(mesh: QuadMesh, *, header: bool = True) -> str:
     parts = []
     if header:
         parts.append(f"# quadnodes {__version__}: {mesh.n_vertices} vertices, {mesh.n_faces} quads\n")
+        parts.append(f"# {_UNIT_COMMENT} {mesh.unit}\n")
         if mesh.grid_shape is not None:
             parts.append(f"# {_GRID_COMMENT} {mesh.grid_shape[0]} {mesh.grid_shape[1]}\n")
     # One formatting call per block instead of a Python loop per line; %r gives
@@ -111,7 +119,9 @@ def _logical_lines(text: str) -> Iterator[tuple[int, str]]:
     """Yield ``(line_number, content)`` with comments cut and ``\\`` continuations joined."""
     pending = ""
     start = 0
-    for number, raw in enumerate(text.splitlines(), 1):
+    # only CR, LF and CRLF end a line (str.splitlines also splits at form feeds, U+2028, ...,
+    # which would put the line numbers in messages off from what an editor shows)
+    for number, raw in enumerate(_LINE_END.split(text), 1):
         if not pending:
             start = number
         line = raw
@@ -140,6 +150,7 @@ def parse_obj(
     *,
     name: str = "<string>",
     non_quads: Literal["error", "drop", "split"] = "error",
+    unit: str | None = None,
 ) -> QuadMesh:
     """Read a quad mesh from OBJ text.
 
@@ -157,20 +168,24 @@ def parse_obj(
         into the fan of ``k/2 - 1`` quads ``(c0, c1, c2, c3), (c0, c3, c4, c5), ...``
         (no new vertices); a triangle or any odd polygon cannot be split into
         quads without new vertices and still raises :class:`InputError`.
+    unit : str, optional
+        The unit of the coordinates. Default: the ``# quadnodes unit`` comment,
+        else ``"mm"``. A unit given here that contradicts the comment is an error.
 
     Returns
     -------
     QuadMesh
         With ``grid_shape`` when the text carries a ``# quadnodes grid_shape``
-        comment that matches its vertices and faces.
+        comment that matches its vertices and faces, and its ``unit``.
 
     Raises
     ------
     InputError
         Naming ``name`` and the line: a malformed number or index, an index of
         0 or out of range, a face with fewer than four corners or too many (see
-        ``non_quads``), no faces at all; or a mesh that :class:`QuadMesh`
-        rejects (the message then names the offending faces' lines).
+        ``non_quads``), no faces at all, a ``unit`` that contradicts the file's;
+        or a mesh that :class:`QuadMesh` rejects (the message then names the
+        offending faces' lines).
 
     Examples
     --------
@@ -189,8 +204,9 @@ def parse_obj(
     face_lines: list[int] = []
     forward: list[tuple[int, int]] = []  # (line, index) of positive indices past the end
     grid_shape: tuple[int, int] | None = None
+    file_unit: tuple[int, str] | None = None
 
-    for number, line in _logical_lines(text):
+    for number, line in _logical_lines(text.removeprefix("\ufeff")):
         stripped = line.strip()
         if stripped.startswith("#"):
             body = stripped[1:].split()
@@ -199,6 +215,8 @@ def parse_obj(
                     grid_shape = (int(body[2]), int(body[3]))
                 except ValueError:
                     grid_shape = None
+            elif len(body) == 3 and " ".join(body[:2]) == _UNIT_COMMENT:
+                file_unit = (number, check_unit(body[2], f"{_where(name, number)}: unit"))
             continue
         tokens = stripped.split("#", 1)[0].split()
         if not tokens:
@@ -268,12 +286,21 @@ def parse_obj(
                 raise InputError(f"{_where(name, number)}: bad vertex coordinates {' '.join(row)!r}") from None
         raise  # pragma: no cover - np.array failed but every float() succeeded
     face_array = np.array(faces, dtype=np.int64)
+    if unit is None:
+        unit = DEFAULT_UNIT if file_unit is None else file_unit[1]
+    else:
+        unit = check_unit(unit)
+        if file_unit is not None and file_unit[1] != unit:
+            raise InputError(
+                f"unit: {unit!r} given, but {_where(name, file_unit[0])} says the file is in {file_unit[1]!r}; "
+                "leave unit unset to use the file's (convert afterwards with mesh.with_unit)"
+            )
     if grid_shape is not None:
         r, c = grid_shape
         if not (r >= 2 and c >= 2 and r * c == n and _validate.grid_cells(face_array, r, c) < 0):
             grid_shape = None
     try:
-        return QuadMesh(vertices, face_array, grid_shape=grid_shape)
+        return QuadMesh(vertices, face_array, grid_shape=grid_shape, unit=unit)
     except InputError as exc:
         raise InputError(f"{name}: {_with_lines(str(exc), face_lines, vertex_lines)}") from None
 
@@ -282,8 +309,11 @@ def load_obj(
     path: str | os.PathLike[str],
     *,
     non_quads: Literal["error", "drop", "split"] = "error",
+    unit: str | None = None,
 ) -> QuadMesh:
     """Read a quad mesh from an OBJ file; see :func:`parse_obj`.
+
+    UTF-8 (with or without a byte-order mark) or UTF-16 with its byte-order mark.
 
     Raises
     ------
@@ -293,7 +323,19 @@ def load_obj(
     """
     p = Path(os.fspath(path))
     try:
-        text = p.read_text(encoding="utf-8", errors="replace")
+        data = p.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read {str(p)!r}: {exc}") from exc
-    return parse_obj(text, name=str(p), non_quads=non_quads)
+    return parse_obj(_decode(data, str(p)), name=str(p), non_quads=non_quads, unit=unit)
+
+
+def _decode(data: bytes, name: str) -> str:
+    """Text of an OBJ file: UTF-16 when it starts with a UTF-16 byte-order mark, else UTF-8 (BOM dropped)."""
+    import codecs
+
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        try:
+            return data.decode("utf-16")
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{name}: starts with a UTF-16 byte-order mark but is not UTF-16 ({exc})") from None
+    return data.decode("utf-8-sig", errors="replace")

@@ -181,3 +181,77 @@ def test_failed_write_keeps_old_file(tmp_path, monkeypatch):
         save_obj(grid(3, 3), p)
     assert p.read_text() == "old"
     assert os.listdir(tmp_path) == ["m.obj"]
+
+
+# --- the class of "a file that looks fine but is read wrong" (issue 12, item 3) -------------
+
+QUAD2 = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nf 1 2 3 4\nf 2 5 6 3\n"
+EXPECTED_V = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0]]
+
+
+@pytest.mark.parametrize(
+    "encoding, prefix",
+    [("utf-8", b"\xef\xbb\xbf"), ("utf-16-le", b"\xff\xfe"), ("utf-16-be", b"\xfe\xff")],
+)
+def test_byte_order_mark_keeps_the_first_vertex(tmp_path, encoding, prefix):
+    p = tmp_path / "bom.obj"
+    p.write_bytes(prefix + QUAD2.encode(encoding))
+    m = load_obj(p)
+    assert m.vertices.tolist() == EXPECTED_V
+    assert m.faces.tolist() == [[0, 1, 2, 3], [1, 4, 5, 2]]
+    assert parse_obj("\ufeff" + QUAD2).vertices.tolist() == EXPECTED_V
+
+
+@pytest.mark.parametrize("newline", ["\r\n", "\r", "\n"])
+def test_line_ends_and_tabs(tmp_path, newline):
+    p = tmp_path / "crlf.obj"
+    p.write_bytes(QUAD2.replace(" ", "\t").replace("\n", newline).encode())
+    m = load_obj(p)
+    assert m.vertices.tolist() == EXPECTED_V and m.faces.tolist() == [[0, 1, 2, 3], [1, 4, 5, 2]]
+    bad = QUAD2.replace("f 2 5 6 3", "f 2 5 6 9").replace("\n", newline)
+    with pytest.raises(InputError, match="line 8: vertex index 9 is out of range"):
+        parse_obj(bad)
+
+
+def test_form_feed_does_not_shift_line_numbers():
+    text = "v 0 0 0\x0c\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 7\n"
+    with pytest.raises(InputError, match="line 5: vertex index 7"):
+        parse_obj(text)
+
+
+def test_vertex_weight_and_colour_are_not_coordinates():
+    text = "v 0 0 0 1.0\nv 1 0 0 1.0\nv 1 1 0 0.2 0.3 0.4\nv 0 1 0 0.2 0.3 0.4\nf 1 2 3 4\n"
+    assert parse_obj(text).vertices.tolist() == [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+
+
+def test_texture_and_normal_indices_and_relative_indices():
+    text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 -2/1/1 -1//1\n"
+    assert parse_obj(text).faces.tolist() == [[0, 1, 2, 3]]
+    with pytest.raises(InputError, match=r"line 7: bad vertex index '/1/1'"):
+        parse_obj(text.replace("f 1/1/1", "f /1/1"))
+    with pytest.raises(InputError, match="line 7: relative index -5 points before the first vertex"):
+        parse_obj(text.replace("-1//1", "-5//1"))
+
+
+def test_unit_is_written_and_read_back(tmp_path):
+    m = grid(3, 3, spacing=0.25).with_unit("m")
+    text = obj_text(m)
+    assert "# quadnodes unit m\n" in text
+    assert parse_obj(text).unit == "m"
+    assert parse_obj(obj_text(grid(2, 2))).unit == "mm"
+    assert parse_obj(SQUARE + "f 1 2 3 4\n", unit="ft").unit == "ft"
+    with pytest.raises(InputError, match="unit: 'mm' given, but <string>, line 2 says the file is in 'm'"):
+        parse_obj(text, unit="mm")
+    with pytest.raises(InputError, match="line 2: unit: expected one of"):
+        parse_obj(text.replace("unit m", "unit parsec"))
+    assert load_obj(save_obj(m, tmp_path / "m.obj")).unit == "m"
+
+
+def test_meshio_reads_the_obj_quads_kept(tmp_path):
+    import meshio
+
+    m = grid(4, 5, height=np.random.default_rng(2).normal(size=(4, 5))).with_unit("cm")
+    data = meshio.read(save_obj(m, tmp_path / "m.obj"))
+    assert [c.type for c in data.cells] == ["quad"]
+    assert np.array_equal(data.cells[0].data, m.faces)
+    assert np.allclose(data.points, m.vertices, rtol=1e-15, atol=0)

@@ -1,0 +1,500 @@
+"""Rhino .3dm files (rhino3dm): panels as named surfaces with user text, and quad meshes in and out.
+
+:func:`save_3dm` writes, in the mesh's unit (the file's model unit system):
+
+- layer ``mesh``: the quad mesh as one Rhino mesh, quads kept, double-precision vertices;
+- layers ``panels::planar`` and ``panels::bilinear``: every panel as a surface named by its
+  label (``P_<row>_<col>`` on a grid, else ``P_<face>``): the degree-1 NURBS surface through its four
+  corners (the bilinear patch; a planar panel's surface is flat within the planar tolerance,
+  because its corners are), with user text (Rhino's Attribute User Text) ``id`` (the label),
+  ``row``, ``col`` (only on a grid), ``planarity`` (relative diagonal distance),
+  ``planarity_<unit>`` (the same as a length), ``area_<unit>2``, ``edges_<unit>`` (the four edge
+  lengths 01 12 23 30, space-separated) and ``planar`` (``yes``/``no``); numbers as shortest
+  round-trip text;
+- layer ``structure lines``: every structure line as a polyline (closed ones repeat their first point).
+
+Which panels are planar is decided by :func:`quadnodes.flatness.planar_panels` (the same test as the
+STEP exporter and the schedule). :func:`load_3dm` reads a Rhino mesh back into a :class:`QuadMesh`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from .. import __version__, _validate
+from ..errors import ExportError, InputError
+from ..flatness import diagonal_distance, planar_panels, resolve_planar_tolerance
+from ..mesh import QuadMesh
+from ..units import UNITS
+from ._atomic import write_atomic
+from ._degenerate import check_panel_areas
+from ._polygons import quads_from_blocks
+from .panels import DEFAULT_PLANAR_TOL, panel_labels, panel_rows_cols
+
+__all__ = ["RHINO_UNITS", "LAYERS", "model_3dm", "save_3dm", "load_3dm", "nurbs_face", "rhino_faces"]
+
+RHINO_UNITS: dict[str, str] = {"mm": "Millimeters", "cm": "Centimeters", "m": "Meters", "in": "Inches", "ft": "Feet"}
+"""quadnodes unit -> name of Rhino's ``UnitSystem`` member."""
+
+LAYERS: dict[str, str] = {
+    "mesh": "mesh",
+    "planar": "panels::planar",
+    "bilinear": "panels::bilinear",
+    "lines": "structure lines",
+}
+"""What goes on which layer (full layer paths)."""
+
+_COLORS = {"mesh": (160, 160, 160, 255), "panels": (40, 40, 40, 255), "planar": (40, 150, 90, 255),
+           "bilinear": (210, 120, 30, 255), "lines": (30, 80, 200, 255)}
+
+
+def _unit_system(unit: str, what: str) -> Any:
+    import rhino3dm
+
+    name = RHINO_UNITS.get(unit)
+    if name is None:
+        raise ExportError(f"{what}: the mesh's unit {unit!r} has no Rhino unit system (known: {', '.join(RHINO_UNITS)})")
+    return getattr(rhino3dm.UnitSystem, name)
+
+
+def model_3dm(
+    mesh: QuadMesh,
+    *,
+    planar_tolerance: float | str = DEFAULT_PLANAR_TOL,
+    panels: bool = True,
+    lines: bool = True,
+    user_text: bool = True,
+) -> Any:
+    """The Rhino model of ``mesh``: a ``rhino3dm.File3dm`` (see the module docstring for its content).
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+    planar_tolerance : float or str
+        Relative diagonal distance (a number) or a length such as ``"2 mm"`` up to which a panel
+        goes on the ``panels::planar`` layer (:func:`quadnodes.flatness.planar_panels`).
+    panels, lines : bool
+        Write the panel surfaces / the structure lines (the mesh is always written).
+    user_text : bool
+        Give every panel surface its user text (the slowest part of a large file).
+
+    Returns
+    -------
+    rhino3dm.File3dm
+
+    Raises
+    ------
+    InputError
+        On a bad ``planar_tolerance``.
+    ExportError
+        On a degenerate (zero-area) panel, naming it, or a unit Rhino cannot state.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> model = model_3dm(grid(3, 3, spacing=100.0))
+    >>> len(model.Objects), str(model.Settings.ModelUnitSystem)
+    (11, 'UnitSystem.Millimeters')
+    """
+    import rhino3dm
+
+    _validate.quad_mesh(mesh)
+    resolve_planar_tolerance(planar_tolerance, mesh.unit)
+    unit_system = _unit_system(mesh.unit, "3dm")
+    area, edges = check_panel_areas(mesh, "3dm")
+    planar = planar_panels(mesh, planar_tolerance)
+
+    model = rhino3dm.File3dm()
+    model.Settings.ModelUnitSystem = unit_system
+    model.ApplicationName = "quadnodes"
+    model.ApplicationDetails = f"quadnodes {__version__}"
+    layer_index = _add_layers(model)
+
+    rmesh = rhino3dm.Mesh()
+    verts = rmesh.Vertices
+    verts.UseDoublePrecisionVertices = True
+    add_v = verts.AddPoint3d
+    for p in mesh.vertices.tolist():
+        add_v(*p)
+    add_f = rmesh.Faces.AddFace
+    for q in mesh.faces.tolist():
+        add_f(*q)
+    attrs = rhino3dm.ObjectAttributes()
+    attrs.Name = "quad mesh"
+    attrs.LayerIndex = layer_index["mesh"]
+    if mesh.grid_shape is not None:
+        attrs.SetUserString("grid_shape", "%d %d" % mesh.grid_shape)
+    model.Objects.AddMesh(rmesh, attrs)
+
+    if panels:
+        _add_panels(model, mesh, planar, area, edges, layer_index, user_text)
+    if lines:
+        _add_lines(model, mesh, layer_index["lines"])
+    return model
+
+
+def _add_layers(model: Any) -> dict[str, int]:
+    import rhino3dm
+
+    def add(name: str, color: tuple[int, int, int, int], parent: Any = None) -> int:
+        layer = rhino3dm.Layer()
+        layer.Name = name
+        layer.Color = color
+        if parent is not None:
+            layer.ParentLayerId = parent
+        return model.Layers.Add(layer)
+
+    out = {"mesh": add("mesh", _COLORS["mesh"])}
+    panels = add("panels", _COLORS["panels"])
+    pid = model.Layers.FindIndex(panels).Id
+    out["planar"] = add("planar", _COLORS["planar"], pid)
+    out["bilinear"] = add("bilinear", _COLORS["bilinear"], pid)
+    out["lines"] = add("structure lines", _COLORS["lines"])
+    return out
+
+
+def _add_panels(model: Any, mesh: QuadMesh, planar: np.ndarray, area: np.ndarray, edges: np.ndarray,
+                layer_index: dict[str, int], user_text: bool) -> None:
+    import rhino3dm
+
+    u = mesh.unit
+    labels = panel_labels(mesh)
+    rc = panel_rows_cols(mesh)
+    rows = [""] * mesh.n_faces if rc is None else rc[0].tolist()
+    cols = [""] * mesh.n_faces if rc is None else rc[1].tolist()
+    rel = diagonal_distance(mesh).tolist()
+    gap = diagonal_distance(mesh, relative=False).tolist()
+    keys = ("id", "row", "col", "planarity", f"planarity_{u}", f"area_{u}2", f"edges_{u}", "planar")
+    if rc is None:  # Rhino drops a key whose text is empty: no row and col without a grid
+        keys = keys[:1] + keys[3:]
+    # corners as homogeneous points; the surface's control points (0,0) (1,0) (1,1) (0,1) are corners 0..3
+    corners = np.concatenate([mesh.vertices[mesh.faces], np.ones((mesh.n_faces, 4, 1))], axis=2).tolist()
+    template = rhino3dm.NurbsSurface.Create(3, False, 2, 2, 2, 2)
+    for knots in (template.KnotsU, template.KnotsV):
+        knots[0] = 0.0
+        knots[1] = 1.0
+    layer = [layer_index["bilinear"], layer_index["planar"]]
+    P4 = rhino3dm.Point4d
+    Attributes = rhino3dm.ObjectAttributes
+    add = model.Objects.AddSurface
+    e = edges.tolist()
+    a_ = area.tolist()
+    flags = planar.tolist()
+    # one surface and one attributes object, both copied by AddSurface: every control point and every
+    # key is set again for every panel
+    attrs = Attributes()
+    set_text = attrs.SetUserString
+    put = template.Points.__setitem__
+    s = template
+    for k, q in enumerate(corners):
+        put((0, 0), P4(*q[0]))
+        put((1, 0), P4(*q[1]))
+        put((1, 1), P4(*q[2]))
+        put((0, 1), P4(*q[3]))
+        attrs.Name = labels[k]
+        attrs.LayerIndex = layer[flags[k]]
+        if user_text:
+            values = (labels[k], str(rows[k]), str(cols[k]), repr(rel[k]), repr(gap[k]), repr(a_[k]),
+                      "%r %r %r %r" % tuple(e[k]), "yes" if flags[k] else "no")
+            if rc is None:
+                values = values[:1] + values[3:]
+            for key, value in zip(keys, values):
+                set_text(key, value)
+        add(s, attrs)
+
+
+def _add_lines(model: Any, mesh: QuadMesh, layer: int) -> None:
+    import rhino3dm
+
+    from ..topology import structure_lines
+
+    lines = structure_lines(mesh)
+    v = mesh.vertices
+    P3 = rhino3dm.Point3d
+    for i, (idx, closed) in enumerate(zip(lines, lines.closed.tolist())):
+        if closed:
+            idx = np.append(idx, idx[0])
+        attrs = rhino3dm.ObjectAttributes()
+        attrs.Name = f"L_{i}"
+        attrs.LayerIndex = layer
+        model.Objects.AddPolyline([P3(*p) for p in v[idx].tolist()], attrs)
+
+
+def save_3dm(
+    mesh: QuadMesh,
+    path: str | os.PathLike[str],
+    *,
+    planar_tolerance: float | str = DEFAULT_PLANAR_TOL,
+    panels: bool = True,
+    lines: bool = True,
+    user_text: bool = True,
+    version: int = 8,
+) -> Path:
+    """Write ``mesh`` to a Rhino .3dm file atomically (see :func:`model_3dm`).
+
+    Parameters
+    ----------
+    version : int
+        The .3dm version to write (Rhino 8 by default; 5, 6, 7 for older Rhinos).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        On a bad setting.
+    ExportError
+        As :func:`model_3dm`, or when the file cannot be written; nothing is left behind.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from quadnodes.mesh import grid
+    >>> p = save_3dm(grid(3, 3, spacing=100.0), pathlib.Path(tempfile.mkdtemp()) / "g.3dm")
+    >>> load_3dm(p).n_faces
+    4
+    """
+    version = _validate.choice(str(version), ("5", "6", "7", "8"), "version")
+    model = model_3dm(mesh, planar_tolerance=planar_tolerance, panels=panels, lines=lines, user_text=user_text)
+
+    def write(tmp: str) -> None:
+        if not model.Write(tmp, int(version)):
+            raise ExportError(f"3dm: rhino3dm could not write {str(path)!r}")
+
+    return write_atomic(path, write)
+
+
+def _grid_shape(text: str | None, faces: np.ndarray, n: int) -> tuple[int, int] | None:
+    """The ``grid_shape`` user text of a mesh written by :func:`save_3dm`, when it still fits its faces."""
+    try:
+        r, c = (int(t) for t in (text or "").split())
+    except ValueError:
+        return None
+    if r >= 2 and c >= 2 and r * c == n and _validate.grid_cells(faces, r, c) < 0:
+        return r, c
+    return None
+
+
+def load_3dm(
+    path: str | os.PathLike[str],
+    *,
+    non_quads: Literal["error", "drop", "split"] = "error",
+    name: str | None = None,
+) -> QuadMesh:
+    """Read a quad mesh from a Rhino .3dm file, in the file's unit.
+
+    Parameters
+    ----------
+    path : str or path-like
+    non_quads : {"error", "drop", "split"}
+        What to do with a triangle, as in :func:`quadnodes.io.obj.parse_obj` (Rhino mesh faces
+        are triangles or quads; ``"split"`` cannot split a triangle and refuses it).
+    name : str, optional
+        The object name of the mesh to read when the file holds several meshes.
+
+    Returns
+    -------
+    QuadMesh
+        With ``unit`` from the file's model unit system (millimetres when the file states none).
+
+    Raises
+    ------
+    InputError
+        If the file cannot be read, holds no mesh or several (without ``name``), a unit quadnodes
+        does not know, or a face that is not a quad (see ``non_quads``).
+    """
+    import rhino3dm
+
+    p = Path(os.fspath(path))
+    if not p.is_file():
+        raise InputError(f"cannot read {str(p)!r}: no such file")
+    model = rhino3dm.File3dm.Read(str(p))
+    if model is None:
+        raise InputError(f"{p}: not a .3dm file rhino3dm can read")
+    meshes = [(o.Attributes.Name, o.Geometry, o.Attributes.GetUserString("grid_shape"))
+              for o in model.Objects if isinstance(o.Geometry, rhino3dm.Mesh)]
+    if name is not None:
+        meshes = [m for m in meshes if m[0] == name]
+        if not meshes:
+            raise InputError(f"name: {p} holds no mesh named {name!r}")
+    if not meshes:
+        kinds = sorted({type(o.Geometry).__name__ for o in model.Objects})
+        raise InputError(f"{p}: no mesh in the file (it holds {', '.join(kinds) or 'no objects'})")
+    if len(meshes) > 1:
+        raise InputError(
+            f"name: {p} holds {len(meshes)} meshes ({', '.join(repr(m[0]) for m in meshes[:5])}); pass name= to pick one"
+        )
+    unit = _file_unit(model, p)
+    _, rmesh, grid_text = meshes[0]
+    pts = rmesh.Vertices.ToPoint3dArray()
+    vertices = np.array([(q.X, q.Y, q.Z) for q in pts], dtype=np.float64).reshape(-1, 3)
+    faces = np.array([tuple(rmesh.Faces[k]) for k in range(len(rmesh.Faces))], dtype=np.int64).reshape(-1, 4)
+    tri = faces[:, 2] == faces[:, 3]
+    blocks = [(faces[~tri], np.flatnonzero(~tri)), (faces[tri, :3], np.flatnonzero(tri))]
+    quads = quads_from_blocks(blocks, non_quads=non_quads, name=str(p))
+    if len(quads) == 0:
+        raise InputError(f"{p}: no quad faces found ({len(vertices)} vertices)")
+    grid_shape = _grid_shape(grid_text, quads, len(vertices))
+    try:
+        return QuadMesh(vertices, quads, unit=unit, grid_shape=grid_shape)
+    except InputError as exc:
+        raise InputError(f"{p}: {exc}") from None
+
+
+# --- Rhino surfaces in --------------------------------------------------------------------
+
+
+def _occt_flat_knots(rhino_knots: list[float]) -> np.ndarray:
+    """OCCT's flat knot vector from Rhino's: Rhino leaves out the superfluous first and last knot.
+
+    A Rhino surface of order ``k`` with ``n`` control points has ``n + k - 2`` knots; OCCT (and every
+    textbook) wants ``n + k``. The two extra knots do not change the surface on its domain, so they
+    are taken equal to their neighbours.
+    """
+    t = np.asarray(rhino_knots, dtype=np.float64)
+    return np.concatenate([t[:1], t, t[-1:]])
+
+
+def nurbs_face(surface: Any, *, scale: float = 1.0) -> Any:
+    """A build123d face exactly equal to a Rhino surface (any ``rhino3dm.Surface``, as NURBS).
+
+    Control points, weights and knots are carried over as they are (Rhino's homogeneous control
+    points divided by their weights, Rhino's knot vector completed with its two superfluous end
+    knots and turned into OCCT's knots with multiplicities), so the face evaluates the same points
+    as ``surface.PointAt`` at the same parameters.
+
+    Parameters
+    ----------
+    surface : rhino3dm.Surface
+    scale : float
+        Factor applied to the coordinates (a unit conversion).
+
+    Returns
+    -------
+    build123d.Face
+        Over the surface's whole parameter domain.
+
+    Raises
+    ------
+    InputError
+        If the surface has no NURBS form or OCCT refuses its data (the message says why).
+
+    Examples
+    --------
+    >>> import rhino3dm
+    >>> s = rhino3dm.NurbsSurface.Create(3, False, 2, 2, 2, 2)
+    >>> for kl in (s.KnotsU, s.KnotsV):
+    ...     kl[0], kl[1] = 0.0, 1.0
+    >>> for (i, j), p in zip([(0, 0), (1, 0), (0, 1), (1, 1)], [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 1)]):
+    ...     s.Points[(i, j)] = rhino3dm.Point4d(*p, 1.0)
+    >>> f = nurbs_face(s)
+    >>> [round(c, 6) for c in f.position_at(0.5, 0.5)]
+    [0.5, 0.5, 0.25]
+    """
+    import rhino3dm
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+    from OCP.Standard import Standard_Failure
+
+    from ..surfaces import _arrays, _face_from_geom
+
+    ns = surface if isinstance(surface, rhino3dm.NurbsSurface) else surface.ToNurbsSurface()
+    if ns is None:
+        raise InputError(f"face: the Rhino {type(surface).__name__} has no NURBS form")
+    deg_u, deg_v = int(ns.Degree(0)), int(ns.Degree(1))
+    cu, cv = int(ns.Points.CountU), int(ns.Points.CountV)
+    rational = bool(ns.IsRational)
+    h = np.array([[tuple(_xyzw(ns.Points.GetControlPoint(i, j))) for j in range(cv)] for i in range(cu)])
+    weights = h[..., 3]
+    if rational and not (weights > 0).all():
+        raise InputError(f"face: the Rhino surface has a weight <= 0 ({weights.min():g}); OCCT needs positive weights")
+    poles = h[..., :3] / (weights[..., None] if rational else 1.0) * scale
+    Pnt2, Real1, Int1, Real2 = _arrays()
+
+    def knots_mults(t: np.ndarray) -> tuple[Any, Any]:
+        k, m = np.unique(t, return_counts=True)
+        ka, ma = Real1(1, len(k)), Int1(1, len(m))
+        for i, (x, n) in enumerate(zip(k.tolist(), m.tolist(), strict=True)):
+            ka.SetValue(i + 1, x)
+            ma.SetValue(i + 1, n)
+        return ka, ma
+
+    arr = Pnt2(1, cu, 1, cv)
+    for i, row in enumerate(poles.tolist()):
+        for j, p in enumerate(row):
+            arr.SetValue(i + 1, j + 1, gp_Pnt(*p))
+    ku, mu = knots_mults(_occt_flat_knots(ns.KnotsU.ToList()))
+    kv, mv = knots_mults(_occt_flat_knots(ns.KnotsV.ToList()))
+    try:
+        if rational:
+            w = Real2(1, cu, 1, cv)
+            for i, row in enumerate(weights.tolist()):
+                for j, x in enumerate(row):
+                    w.SetValue(i + 1, j + 1, x)
+            geom = Geom_BSplineSurface(arr, w, ku, kv, mu, mv, deg_u, deg_v)
+        else:
+            geom = Geom_BSplineSurface(arr, ku, kv, mu, mv, deg_u, deg_v)
+    except Standard_Failure as exc:
+        raise InputError(f"face: OCCT refuses the Rhino surface's NURBS data ({exc})") from None
+    return _face_from_geom(geom)
+
+
+def _xyzw(p: Any) -> tuple[float, float, float, float]:
+    return (p.X, p.Y, p.Z, p.W)
+
+
+def rhino_faces(path: str | os.PathLike[str]) -> tuple[list[tuple[str, Any, bool, str]], str]:
+    """The surfaces of a .3dm file: ``[(name, rhino surface, trimmed, what)]`` and the file's unit.
+
+    Every surface object is one entry; every face of a polysurface (Brep) one entry, named
+    ``"<object name>[<face index>]"`` when the Brep has several faces. ``trimmed`` is true for a
+    Brep face that is not its whole underlying surface (Rhino's ``IsSurface``).
+
+    Raises
+    ------
+    InputError
+        If the file cannot be read or its unit is not one quadnodes knows.
+    """
+    import rhino3dm
+
+    p = Path(os.fspath(path))
+    model = rhino3dm.File3dm.Read(str(p))
+    if model is None:
+        raise InputError(f"path: {str(p)!r} is not a .3dm file rhino3dm can read")
+    unit = _file_unit(model, p)
+    out: list[tuple[str, Any, bool, str]] = []
+    for o in model.Objects:
+        g = o.Geometry
+        name = o.Attributes.Name or ""
+        if isinstance(g, rhino3dm.Extrusion):
+            g = g.ToBrep(False) if hasattr(g, "ToBrep") else None
+            if g is None:
+                continue
+        if isinstance(g, rhino3dm.Brep):
+            n = len(g.Faces)
+            for k in range(n):
+                f = g.Faces[k]
+                single = f.DuplicateFace(False)
+                trimmed = not bool(single.IsSurface)
+                label = name if n == 1 else f"{name}[{k}]"
+                out.append((label, f.UnderlyingSurface(), trimmed, f"face {k} of a {n}-face polysurface"))
+        elif isinstance(g, rhino3dm.Surface):
+            out.append((name, g, False, f"a {type(g).__name__}"))
+    return out, unit
+
+
+def _file_unit(model: Any, p: Path) -> str:
+    unit_system = str(model.Settings.ModelUnitSystem).split(".")[-1]
+    if unit_system in ("None", "Unset"):
+        return "mm"
+    by_name = {v: k for k, v in RHINO_UNITS.items()}
+    if unit_system not in by_name:
+        raise InputError(f"{p}: the model unit {unit_system} is not one quadnodes works in ({', '.join(UNITS)})")
+    return by_name[unit_system]
