@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -86,59 +87,102 @@ def _default_out(graph_path: Path) -> Path:
     return Path("out") / graph_path.stem
 
 
-def _with_outputs(graph: Any, out: Path) -> Any:
-    """Re-root every relative output path of writer nodes under ``out``."""
-    g = graph.copy()
-    for spec in g.nodes.values():
-        nt = g.registry.get(spec.op, node_id=spec.id)
-        for s in nt.writes:
-            value = spec.params.get(s)
-            if isinstance(value, (str, os.PathLike)) and not Path(value).is_absolute():
-                g.set(spec.id, **{s: str((out / value).resolve())})
-    return g
+def _output_folder(out: Path) -> Path:
+    """Create ``--out`` if needed and make sure files can be made in it; one-line errors otherwise."""
+    from .errors import ExportError
+    from .io._atomic import remove_stale_temporaries
+
+    if out.exists() and not out.is_dir():
+        raise ExportError(f"--out {str(out)!r}: a file is in the way; give a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ExportError(f"--out {str(out)!r}: cannot create the folder: {exc.strerror or exc}") from exc
+    try:  # a probe: root ignores permission bits, a read-only mount or a full disk does not
+        fd, probe = tempfile.mkstemp(prefix=".qn-", suffix=".tmp", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ExportError(f"--out {str(out)!r}: cannot write into the folder: {exc.strerror or exc}") from exc
+    remove_stale_temporaries(out)  # leftovers of a run that was killed while writing
+    return out
 
 
 class _Printer:
-    """Prints node events; progress lines at most every half second per node."""
+    """Prints node events.
+
+    On a terminal, progress inside a node is one line rewritten in place (at most
+    ten times a second); otherwise (a log file, a pipe) progress is left out and
+    only the finished nodes are printed, one plain line each.
+    """
 
     def __init__(self, stream: TextIO) -> None:
         self.stream = stream
         self.last = 0.0
+        isatty = getattr(stream, "isatty", None)
+        self.tty = bool(isatty()) if callable(isatty) else False
+        self.open_line = False
+
+    def _clear(self) -> None:
+        if self.open_line:
+            self.stream.write("\r\033[K")
+            self.open_line = False
 
     def __call__(self, ev: Any) -> None:
         if ev.kind == "progress":
+            if not self.tty:
+                return
             now = time.monotonic()
-            if now - self.last >= 0.5 or (ev.fraction or 0) >= 1.0:
+            if now - self.last >= 0.1 or (ev.fraction or 0) >= 1.0:
                 self.last = now
                 pct = f"{100 * ev.fraction:3.0f}%" if ev.fraction is not None else "    "
-                print(f"        {ev.node_id}: {pct} {ev.message}", file=self.stream, flush=True)
+                self._clear()
+                self.stream.write(f"        {ev.node_id}: {pct} {ev.message}"[:200])
+                self.stream.flush()
+                self.open_line = True
         elif ev.kind == "finished" and ev.record is not None:
+            self._clear()
             r = ev.record
             print(f"  [{ev.index + 1}/{ev.total}] {r.status:6s} {r.id:16s} {r.op:22s} {r.seconds:8.3f} s",
                   file=self.stream, flush=True)
 
 
+def _notes(result: Any) -> list[str]:
+    """``node: note`` lines from every output that has a ``notes()`` method (e.g. a fairing report)."""
+    lines = []
+    for r in result.records:
+        for value in result.outputs.get(r.id, {}).values():
+            notes = getattr(value, "notes", None)
+            if callable(notes) and not isinstance(value, type):
+                lines += [f"{r.id}: {n}" for n in notes()]
+    return lines
+
+
 def _run(args: argparse.Namespace, cache: Any, stream: TextIO) -> Any:
+    from .errors import GraphError
     from .graph import load
+    from .graph.paths import output_path_errors
 
     reg = _registry()
     path = Path(args.graph)
     graph = load(path, registry=reg)
-    out = Path(args.out) if args.out else _default_out(path)
-    out.mkdir(parents=True, exist_ok=True)
-    g = _with_outputs(graph, out)
+    sets = _parse_sets(args.set or [])
+    g = graph.with_overrides(sets) if sets else graph
+    errors = output_path_errors(g)  # --set obj.path=/tmp/x is refused like the same text in the file
+    if errors:
+        raise GraphError("\n".join(str(e) for e in errors))
+    out = _output_folder(Path(args.out) if args.out else _default_out(path))
     t0 = time.perf_counter()
     print(f"running {path} -> {out}/", file=stream, flush=True)
-    result = g.run(cache=cache, overrides=_parse_sets(args.set or []), progress=_Printer(stream))
-    written = []
-    for spec in g.nodes.values():
-        nt = g.registry.get(spec.op, node_id=spec.id)
-        for s in nt.writes:
-            written.append(spec.params.get(s))
+    allow = [Path(a) for a in (getattr(args, "allow_read", None) or [])]
+    result = g.run(cache=cache, progress=_Printer(stream), out=out, allow_read=allow)
     print(f"done in {time.perf_counter() - t0:.2f} s: {len(result.ran)} ran, {len(result.cached)} from cache",
           file=stream)
-    for w in written:
-        print(f"  wrote {os.path.relpath(w)}", file=stream)
+    for r in result.records:
+        for f in r.files:
+            print(f"  {'wrote' if r.status == 'ran' else 'unchanged':9s} {os.path.relpath(f)}", file=stream)
+    for line in _notes(result):
+        print(f"  note: {line}", file=stream)
     return graph
 
 
@@ -255,6 +299,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--out", help="folder for the outputs (default out/<graph name>/)")
         p.add_argument("--cache", help="disk cache folder (default <out>/.cache)")
         p.add_argument("--no-cache", action="store_true", help="do not read or write a disk cache")
+        p.add_argument("--allow-read", action="append", metavar="DIR",
+                       help="let the graph read files from DIR too (by default only from the graph file's folder)")
 
     p = sub.add_parser("run", help="run a graph; print what ran and what came from the cache")
     graph_args(p)
@@ -301,6 +347,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except QuadnodesError as exc:
         lines = str(exc).splitlines() or [type(exc).__name__]
         print(f"error: {lines[0]}", file=sys.stderr)
+        for more in lines[1:]:
+            print(f"error: {more}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a file system refusal outside a writer (e.g. the cache folder)
+        where = f" {str(exc.filename)!r}" if exc.filename else ""
+        print(f"error: cannot use{where}: {exc.strerror or exc}", file=sys.stderr)
         return 1
 
 

@@ -1,3 +1,4 @@
+import os
 import shutil
 import signal
 import subprocess
@@ -158,3 +159,144 @@ def test_ctrl_c_stops_watch_cleanly(tmp_path):
     out, err = p.communicate(timeout=30)
     assert p.returncode == 0, err
     assert "stopped" in out and "Traceback" not in err
+
+
+# ----------------------------------------------------------------- output confinement (issue 12, item 2)
+def _with_obj_path(tmp_path, path_text, name="g.toml"):
+    p = tmp_path / name
+    p.write_text(SMALL.format(seed=1).replace('path = "faired.obj"', f"path = {path_text}"))
+    return p
+
+
+@pytest.mark.parametrize("path_text, words", [
+    ('"../escape.obj"', "leads out of the output folder"),
+    ('"sub/../../escape.obj"', "leads out of the output folder"),
+    ("'{abs}'", "is an absolute path"),
+])
+def test_a_graph_file_cannot_write_outside_out(tmp_path, capsys, path_text, words):
+    target = tmp_path / "escape.obj"
+    g = _with_obj_path(tmp_path, path_text.format(abs=target))
+    out = tmp_path / "work" / "out"
+    assert main(["run", str(g), "--out", str(out)]) == 1
+    cap = capsys.readouterr()
+    assert "node 'obj' (export_obj@1): setting 'path'" in cap.err and words in cap.err
+    assert not target.exists() and "[1/" not in cap.out          # refused before anything ran
+    assert main(["check", str(g)]) == 1
+    assert "node 'obj'" in capsys.readouterr().err
+
+
+def test_set_cannot_send_an_output_elsewhere(tmp_path, capsys):
+    g = _graph(tmp_path)
+    target = tmp_path / "elsewhere" / "x.obj"
+    target.parent.mkdir()
+    rc = main(["run", str(g), "--out", str(tmp_path / "out"), "--set", f"obj.path={target}"])
+    cap = capsys.readouterr()
+    assert rc == 1 and "node 'obj' (export_obj@1): setting 'path'" in cap.err and "absolute" in cap.err
+    assert not target.exists() and "wrote" not in cap.out.replace(str(tmp_path), "")
+
+
+def test_a_symlink_leading_out_is_refused_before_anything_runs(tmp_path, capsys):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "link").symlink_to(outside, target_is_directory=True)
+    g = _with_obj_path(tmp_path, '"link/faired.obj"')
+    assert main(["run", str(g), "--out", str(out)]) == 1
+    cap = capsys.readouterr()
+    assert "node 'obj' (export_obj@1): setting 'path'" in cap.err and "symbolic link" in cap.err
+    assert os.listdir(outside) == [] and "[1/" not in cap.out
+
+
+def test_two_writers_of_one_file_are_an_error_naming_both(tmp_path, capsys):
+    g = tmp_path / "two.toml"
+    g.write_text(SMALL.format(seed=1) + '\n[nodes.obj2]\nop = "export_obj@1"\ninputs = { mesh = "noisy.mesh" }\n'
+                 'params = { path = "./faired.obj" }\n')
+    assert main(["check", str(g)]) == 1
+    err = capsys.readouterr().err
+    assert "node 'obj2'" in err and "node 'obj'" in err and "also written by" in err
+
+
+def test_reads_stay_in_the_graph_folder_unless_allowed(tmp_path, capsys):
+    from quadnodes.io import save_obj
+    from quadnodes.mesh import grid
+
+    data = tmp_path / "data"
+    data.mkdir()
+    save_obj(grid(4, 5), data / "in.obj")
+    gdir = tmp_path / "graphs"
+    gdir.mkdir()
+    g = gdir / "r.toml"
+    g.write_text('format = "quadnodes-graph"\nversion = 1\n[nodes.read]\nop = "read_mesh@1"\n'
+                 'params = { path = "../data/in.obj" }\n')
+    assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache"]) == 1
+    err = capsys.readouterr().err
+    assert "node 'read' (read_mesh@1): setting 'path'" in err and "--allow-read" in err
+    assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache", "--allow-read", str(data)]) == 0
+    assert _statuses(capsys.readouterr().out) == {"read": "ran"}
+
+
+def test_python_api_outputs_stay_in_the_run_folder(tmp_path):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.errors import GraphError
+    from quadnodes.graph import Graph
+
+    g = Graph()
+    m = g.add("grid", id="m", rows=3, cols=3)
+    g.add("export_obj", m.mesh, id="obj", path=str(tmp_path / "elsewhere.obj"))
+    with pytest.raises(GraphError, match=r"node 'obj' \(export_obj@1\): setting 'path'.*outside the output folder"):
+        g.run(out=tmp_path / "out")
+    assert not (tmp_path / "elsewhere.obj").exists()
+    g.set("obj", path="inside.obj")
+    (tmp_path / "out").mkdir()
+    r = g.run(out=tmp_path / "out")
+    assert r.record("obj").files == ((tmp_path / "out" / "inside.obj"),) and (tmp_path / "out" / "inside.obj").exists()
+
+
+# --------------------------------------------------------------- wrote / unchanged (issue 12, item 8)
+def test_run_reports_wrote_only_for_files_written_this_run(tmp_path, capsys):
+    g = _graph(tmp_path)
+    out = tmp_path / "out"
+    assert main(["run", str(g), "--out", str(out)]) == 0
+    first = capsys.readouterr().out
+    assert "wrote" in first and os.path.relpath(out / "faired.obj") in first
+    assert main(["run", str(g), "--out", str(out)]) == 0
+    second = capsys.readouterr().out
+    assert not any(line.split()[:1] == ["wrote"] for line in second.splitlines())
+    assert f"unchanged {os.path.relpath(out / 'faired.obj')}" in second
+    (out / "faired.obj").write_text("edited by hand\n")
+    assert main(["run", str(g), "--out", str(out)]) == 0
+    third = capsys.readouterr().out
+    assert f"wrote     {os.path.relpath(out / 'faired.obj')}" in third
+    assert not any(line.split()[:1] == ["unchanged"] for line in third.splitlines())
+
+
+# --------------------------------------------------------------- the output folder (issue 12, item 4)
+def test_out_onto_a_file_is_one_clear_line(tmp_path, capsys):
+    g = _graph(tmp_path)
+    (tmp_path / "afile").write_text("x")
+    assert main(["run", str(g), "--no-cache", "--out", str(tmp_path / "afile")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out") and "a file is in the way" in err and err.count("\n") == 1
+    assert main(["run", str(g), "--no-cache", "--out", str(tmp_path / "afile" / "sub")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out") and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_out_onto_a_read_only_folder_is_one_clear_line(tmp_path, capsys, monkeypatch):
+    # root ignores permission bits: inject the refusal where the OS gives it (creating a file in the folder)
+    g = _graph(tmp_path)
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real_open = os.open
+
+    def no_create(path, flags, *args, **kwargs):
+        if os.path.dirname(os.path.abspath(os.fspath(path))) == str(ro) and flags & os.O_CREAT:
+            raise PermissionError(13, "Permission denied", os.fspath(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", no_create)
+    assert main(["run", str(g), "--no-cache", "--out", str(ro)]) == 1
+    err = capsys.readouterr().err
+    assert err == f"error: --out {str(ro)!r}: cannot write into the folder: Permission denied\n"
+    assert os.listdir(ro) == []

@@ -430,11 +430,13 @@ class Graph:
         cache: Cache | None = None,
         overrides: Mapping[str, Any] | None = None,
         progress: Callable[[Any], None] | None = None,
+        out: str | os.PathLike[str] | None = None,
+        allow_read: Any = (),
     ) -> RunResult:
         """Run the graph; see :func:`quadnodes.graph.run.run`."""
         from .run import run
 
-        return run(self, cache=cache, overrides=overrides, progress=progress)
+        return run(self, cache=cache, overrides=overrides, progress=progress, out=out, allow_read=allow_read)
 
     def to_dict(self) -> dict[str, Any]:
         """The file model; see :func:`quadnodes.graph.files.to_dict`."""
