@@ -220,34 +220,64 @@ def cmd_watch(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from .graph import load
+    from .graph.diagnostics import file_problems
 
+    problems = file_problems(args.graph, registry=_registry())
+    if problems:
+        for err in problems:
+            for line in str(err).splitlines():
+                print(f"error: {line}", file=sys.stderr)
+        n = len(problems)
+        print(f"{args.graph}: {n} problem{'s' if n != 1 else ''}", file=sys.stderr)
+        return 1
     g = load(args.graph, registry=_registry())
-    g.validate()
     order = g.order()
     print(f"{args.graph}: ok, {len(order)} nodes: {' -> '.join(order)}")
     return 0
 
 
+def _intro(doc: str) -> str:
+    """A node's docstring without its Parameters section (shown setting by setting instead)."""
+    import re
+
+    m = re.search(r"^Parameters\n-{3,}$", doc, re.M)
+    return (doc[: m.start()] if m else doc).strip()
+
+
 def cmd_nodes(args: argparse.Namespace) -> int:
+    import shutil
+    import textwrap
+
     from .graph import describe
 
     reg = _registry()
     if not args.op:
         rows = [(nt.op, describe(nt.op, registry=reg)["summary"]) for nt in reg.latest()]
         width = max(len(op) for op, _ in rows)
-        for op, summary in rows:
-            print(f"{op:{width}s}  {summary}")
-        print("\n'quadnodes nodes OP' shows a node's inputs, settings and outputs.")
+        cols = max(60, shutil.get_terminal_size((100, 24)).columns) - width - 2
+        for op, summary in rows:  # whole sentences, wrapped, never cut
+            lines = textwrap.wrap(summary, cols) or [""]
+            print(f"{op:{width}s}  {lines[0]}")
+            for more in lines[1:]:
+                print(f"{'':{width}s}  {more}")
+        print("\n'quadnodes nodes OP' shows a node's inputs, settings (type, default, range, meaning) and outputs.")
         return 0
     d = describe(args.op, registry=reg)
-    print(f"{d['op']}\n\n{d['doc'].strip()}\n")
+    print(f"{d['op']}\n\n{_intro(d['doc'])}\n")
     print("inputs:")
     for p in d["inputs"]:
         print(f"  {p['name']}: {p['type']}{'' if p['required'] else '  (optional)'}")
     print("settings:")
     for s in d["settings"]:
-        default = "required" if s["required"] else f"default {s['default']!r}"
-        print(f"  {s['name']}: {s['type']}  ({default}{', file' if s.get('file') else ''})")
+        facts = ["required" if s["required"] else f"default {s['default']!r}"]
+        if s.get("range"):
+            facts.append(f"range {s['range']['text']}")
+        if s.get("file"):
+            facts.append("file read, inside the graph's folder" if s["file"] == "read"
+                         else "file written, inside --out")
+        print(f"  {s['name']}: {s['type']}  ({', '.join(facts)})")
+        if s.get("doc"):
+            print(f"      {s['doc']}")
     print("outputs:")
     for o in d["outputs"]:
         print(f"  {o['name']}: {o['type']}")

@@ -22,6 +22,7 @@ from .errors import InputError
 from .fairing import DEFAULT_WEIGHT, FairingReport
 from .fairing import fair as _fair
 from .graph import node
+from .graph.node import Range
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .mesh import grid as _grid
@@ -39,42 +40,109 @@ FixMode = Literal["none", "corners", "boundary"]
 # --- sources ---------------------------------------------------------------------
 
 
-@node("saddle", outputs=("face",))
+@node("saddle", outputs=("face",),
+      ranges={"width": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True), "rise": Range(min=0)})
 def saddle(*, width: float = 5000.0, depth: float = 5000.0, rise: float = 1000.0) -> Face:
-    """A hyperbolic paraboloid z = rise·(ξ² − η²) over width × depth (build123d face)."""
+    """A hyperbolic paraboloid z = rise·(ξ² − η²) over width × depth (build123d face).
+
+    Parameters
+    ----------
+    width, depth : float
+        Extent in x and y (model units, mm).
+    rise : float
+        Height of the saddle's highs above its corners (0 gives a plane).
+    """
     return _surfaces.saddle(width, depth, rise)
 
 
-@node("s_shape", outputs=("face",))
+@node("s_shape", outputs=("face",),
+      ranges={"width": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True), "rise": Range(min=0),
+              "taper": Range(min=0, max=1), "bend": Range(min=0)})
 def s_shape(*, width: float = 6000.0, depth: float = 6000.0, rise: float = 1200.0,
             taper: float = 0.5, bend: float = 600.0) -> Face:
-    """An S-shaped free-form surface (bicubic B-spline face)."""
+    """An S-shaped free-form surface (bicubic B-spline face).
+
+    Parameters
+    ----------
+    width, depth : float
+        Extent in x and y (model units, mm).
+    rise : float
+        Amplitude of the S at the near edge.
+    taper : float
+        Relative loss of amplitude towards the far edge, 0 to 1.
+    bend : float
+        Sideways bow in plan of the middle section.
+    """
     return _surfaces.s_shape(width, depth, rise, taper=taper, bend=bend)
 
 
-@node("wavy", outputs=("face",))
+@node("wavy", outputs=("face",),
+      ranges={"width": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True),
+              "amplitude": Range(min=0), "waves_u": Range(min=0, min_open=True),
+              "waves_v": Range(min=0, min_open=True)})
 def wavy(*, width: float = 4000.0, depth: float = 8000.0, amplitude: float = 500.0,
          waves_u: float = 0.5, waves_v: float = 1.5) -> Face:
-    """A wavy sheet: a product of two cosines (bicubic B-spline face)."""
+    """A wavy sheet: a product of two cosines (bicubic B-spline face).
+
+    Parameters
+    ----------
+    width, depth : float
+        Extent in x and y (model units, mm).
+    amplitude : float
+        Height of the crests.
+    waves_u, waves_v : float
+        Number of full waves along x and along y.
+    """
     return _surfaces.wavy(width, depth, amplitude, waves_u=waves_u, waves_v=waves_v)
 
 
-@node("dome", outputs=("face",))
+@node("dome", outputs=("face",),
+      ranges={"span": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True),
+              "rise": Range(min=0, min_open=True)})
 def dome(*, span: float = 6000.0, depth: float = 6000.0, rise: float = 1200.0) -> Face:
-    """A spherical dome patch (exact OCCT sphere) over span × depth."""
+    """A spherical dome patch (exact OCCT sphere) over span × depth.
+
+    Parameters
+    ----------
+    span, depth : float
+        Extent in x and y (model units, mm).
+    rise : float
+        Height of the dome (at most span/2, a half sphere).
+    """
     return _surfaces.dome(span, depth, rise)
 
 
-@node("cylinder_segment", outputs=("face",))
+@node("cylinder_segment", outputs=("face",),
+      ranges={"radius": Range(min=0, min_open=True), "length": Range(min=0, min_open=True),
+              "angle": Range(min=0, max=360, min_open=True, max_open=True)})
 def cylinder_segment(*, radius: float = 5000.0, length: float = 8000.0, angle: float = 90.0) -> Face:
-    """A barrel vault: a cylinder segment of the given opening angle (degrees)."""
+    """A barrel vault: a cylinder segment of the given opening angle (degrees).
+
+    Parameters
+    ----------
+    radius : float
+        Radius of the vault.
+    length : float
+        Length along the axis.
+    angle : float
+        Opening angle in degrees.
+    """
     return _surfaces.cylinder_segment(radius, length, angle)
 
 
-@node("torus_patch", outputs=("face",))
+@node("torus_patch", outputs=("face",),
+      ranges={"major": Range(min=0, min_open=True), "minor": Range(min=0, min_open=True)})
 def torus_patch(*, major: float = 6000.0, minor: float = 2000.0,
                 u_range: list[float] | None = None, v_range: list[float] | None = None) -> Face:
-    """A patch of a torus; angle ranges in degrees (defaults -45..45 and 0..90)."""
+    """A patch of a torus; angle ranges in degrees (defaults -45..45 and 0..90).
+
+    Parameters
+    ----------
+    major, minor : float
+        Radii of the torus (minor < major).
+    u_range, v_range : list of float
+        Start and end angle in degrees (defaults -45..45 and 0..90).
+    """
     kw: dict[str, Any] = {}
     if u_range is not None:
         kw["u_range"] = tuple(u_range)
@@ -83,34 +151,75 @@ def torus_patch(*, major: float = 6000.0, minor: float = 2000.0,
     return _surfaces.torus_patch(major, minor, **kw)
 
 
-@node("read_step_surface", outputs=("face",), reads=("path",))
+@node("read_step_surface", outputs=("face",), reads=("path",),
+      ranges={"face": Range(min=0)})
 def read_step_surface(*, path: str, face: int = 0) -> Face:
-    """Read one face (by index) of a STEP file, e.g. a surface drawn in Rhino."""
+    """Read one face (by index) of a STEP file, e.g. a surface drawn in Rhino.
+
+    Parameters
+    ----------
+    path : str
+        The STEP file, relative to the graph file's folder.
+    face : int
+        Index of the face to use (0: the first).
+    """
     return _surfaces.from_step(path, face=face)
 
 
-@node("sample", outputs=("mesh",))
+@node("sample", outputs=("mesh",),
+      ranges={"nu": Range(min=2), "nv": Range(min=2)})
 def sample(face: Face, *, nu: int = 10, nv: int = 10,
            method: Literal["auto", "bspline", "analytic", "occt"] = "auto") -> QuadMesh:
-    """Sample a face on a uniform (u, v) grid of nu × nv vertices into a quad mesh."""
+    """Sample a face on a uniform (u, v) grid of nu × nv vertices into a quad mesh.
+
+    Parameters
+    ----------
+    nu, nv : int
+        Vertices along u and v.
+    method : str
+        How points are evaluated: B-spline, analytic formula, OCCT, or auto (the fastest exact one).
+    """
     return _surfaces.sample(face, nu, nv, method=method)
 
 
 @node("thesis_example", outputs=("mesh",))
 def thesis_example(*, name: Literal["E1", "E2", "E3", "E4"] = "E1") -> QuadMesh:
-    """The clean surface of one of the thesis's examples, sampled (E1 10×10 … E4 22×41)."""
+    """The clean surface of one of the thesis's examples, sampled (E1 10×10 … E4 22×41).
+
+    Parameters
+    ----------
+    name : str
+        Which example: E1 saddle, E2 S-shape, E3 wavy sheet, E4 dome.
+    """
     return _surfaces.example(name)
 
 
-@node("grid", outputs=("mesh",))
+@node("grid", outputs=("mesh",),
+      ranges={"rows": Range(min=2), "cols": Range(min=2), "spacing": Range(min=0, min_open=True)})
 def grid(*, rows: int = 10, cols: int = 10, spacing: float = 1.0) -> QuadMesh:
-    """A flat rows × cols grid in the xy plane."""
+    """A flat rows × cols grid in the xy plane.
+
+    Parameters
+    ----------
+    rows, cols : int
+        Vertices along y and x.
+    spacing : float
+        Distance between neighbouring vertices.
+    """
     return _grid(rows, cols, spacing=spacing)
 
 
 @node("read_mesh", outputs=("mesh",), reads=("path",))
 def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "error") -> QuadMesh:
-    """Read a quad mesh from OBJ (quads kept) or quadnodes JSON, by extension."""
+    """Read a quad mesh from OBJ (quads kept) or quadnodes JSON, by extension.
+
+    Parameters
+    ----------
+    path : str
+        The .obj or .json file, relative to the graph file's folder.
+    non_quads : str
+        What to do with faces that are not quads: refuse the file, drop them, or split them.
+    """
     if Path(path).suffix.lower() == ".obj":
         return _io.load_obj(path, non_quads=non_quads)
     return _io.load(path)
@@ -119,30 +228,71 @@ def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "erro
 # --- processing --------------------------------------------------------------------
 
 
-@node("perturb", outputs=("mesh",))
+@node("perturb", outputs=("mesh",),
+      ranges={"tangential": Range(min=0), "normal": Range(min=0), "jitter": Range(min=0)})
 def perturb(mesh: QuadMesh, region: np.ndarray | None = None, *, tangential: float = 0.0, normal: float = 0.0,
             jitter: float = 0.0, seed: int = 0, fix: FixMode = "none") -> QuadMesh:
     """Seeded zigzag noise; amplitudes in local edge lengths (tangential, normal, jitter);
-    only the vertices of an optional ``region`` mask move (e.g. from select_fixed with a box)."""
+    only the vertices of an optional ``region`` mask move (e.g. from select_fixed with a box).
+
+    Parameters
+    ----------
+    tangential : float
+        Zigzag amplitude along the surface, in local edge lengths.
+    normal : float
+        Amplitude across the surface, in local edge lengths.
+    jitter : float
+        Random extra displacement, in local edge lengths.
+    seed : int
+        Seed of the random numbers (same seed, same noise).
+    fix : str
+        Vertices that do not move: none, the corners, or the whole boundary.
+    """
     return _perturb(mesh, tangential=tangential, normal=normal, jitter=jitter, seed=seed, fix=fix, region=region)
 
 
-@node("detect", outputs=("report", "free"))
+@node("detect", outputs=("report", "free"),
+      ranges={"threshold": Range(min=0)})
 def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float = 0.1,
            fix_boundary: bool = False) -> tuple[ZigzagReport, np.ndarray]:
-    """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask."""
+    """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask.
+
+    Parameters
+    ----------
+    threshold : float
+        Zigzag cut-off: a vertex whose deviation is strictly above it is freed.
+    fix_boundary : bool
+        Never free boundary vertices.
+    """
     rep = _detect(mesh, threshold, fixed=fixed, fix_boundary=fix_boundary)
     return rep, rep.free
 
 
-@node("select_fixed", outputs=("fixed",))
+@node("select_fixed", outputs=("fixed",),
+      ranges={"indices": Range(min=0)})
 def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners: bool = False,
                  boundary: bool = False, indices: list[int] | None = None,
                  box: list[float] | None = None,
                  zigzag: Literal["none", "fixed", "free"] = "none", invert: bool = False) -> np.ndarray:
     """A mask of vertices to hold: union of corners, boundary, indices, an axis box
     [xmin, ymin, zmin, xmax, ymax, zmax] and, with a report, its fixed or free vertices;
-    ``invert`` flips the result."""
+    ``invert`` flips the result.
+
+    Parameters
+    ----------
+    corners : bool
+        Include the corner vertices.
+    boundary : bool
+        Include every boundary vertex.
+    indices : list of int
+        Include these vertex indices.
+    box : list of float
+        Include the vertices inside the axis box [xmin, ymin, zmin, xmax, ymax, zmax].
+    zigzag : str
+        With a zigzag report: include its fixed or its free vertices.
+    invert : bool
+        Select the complement.
+    """
     n = mesh.n_vertices
     mask = np.zeros(n, dtype=bool)
     if corners:
@@ -167,7 +317,10 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
     return ~mask if invert else mask
 
 
-@node("fair", outputs=("mesh", "report"))
+@node("fair", outputs=("mesh", "report"),
+      ranges={"iterations": Range(min=1), "deviation": Range(min=0),
+              "deviation_decay": Range(min=0, min_open=True), "weight": Range(min=0, min_open=True),
+              "weight_decay": Range(min=0, min_open=True)})
 def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | Face | None = None, *,
          iterations: int = 1,
          deviation: float | list[float] = 0.1, deviation_decay: float = 1.0,
@@ -177,13 +330,39 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          fix_boundary: bool = False,
          solver: Literal["auto", "direct", "cg"] = "auto") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); deviation and weight may be per-iteration lists;
-    with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it."""
+    with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
+
+    Parameters
+    ----------
+    iterations : int
+        Rounds of detect-then-solve (each re-detects the zigzag vertices).
+    deviation : float or list of float
+        Zigzag cut-off per round (eq. 30): vertices deviating more are freed.
+    deviation_decay : float
+        Factor applied to the cut-off after each round (1: constant).
+    weight : float or list of float
+        Penalty weight ω pulling freed vertices to their anchor (eq. 34); larger moves them less.
+    weight_decay : float
+        Factor applied to the weight after each round (1: constant).
+    weight_scale : str
+        normalized: ω relative to the mesh's edge length (the default, unit-free); raw: the thesis's ω as is.
+    anchor : str
+        Pull towards the current positions of each round or the input positions.
+    fix_boundary : bool
+        Hold every boundary vertex (corners are always held).
+    solver : str
+        Linear solver: direct factorization, conjugate gradients, or auto by size.
+    """
     return _fair(mesh, iterations=iterations, deviation=deviation, deviation_decay=deviation_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
                  fixed=fixed, fix_boundary=fix_boundary, solver=solver, reference=reference)
 
 
-@node("planarize", outputs=("mesh", "report"))
+@node("planarize", outputs=("mesh", "report"),
+      ranges={"tolerance": Range(min=0, min_open=True), "max_iterations": Range(min=1),
+              "planarity_weight": Range(min=0, min_open=True), "fairness_weight": Range(min=0),
+              "closeness_weight": Range(min=0), "input_weight": Range(min=0), "reference_samples": Range(min=1),
+              "newton_steps": Range(min=1)})
 def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: np.ndarray | None = None, *,
               tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = 2000,
               planarity_weight: float = 1.0, fairness_weight: float = 0.1, closeness_weight: float = 0.1,
@@ -193,7 +372,31 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
     """Make every quad planar (diagonal distance / mean diagonal <= tolerance) while keeping structure lines
     fair and the vertices close to a reference surface (a face or a mesh; they may slide along it) or to
     their input positions; corners, boundary or a mask held fixed. method: local/global projection, Newton
-    steps with planarity as a hard constraint, or auto (local/global, Newton where it stalls)."""
+    steps with planarity as a hard constraint, or auto (local/global, Newton where it stalls).
+
+    Parameters
+    ----------
+    tolerance : float
+        Target planarity: diagonal distance / mean diagonal of every quad.
+    max_iterations : int
+        Most local/global iterations.
+    planarity_weight : float
+        Weight of planarity in the energy.
+    fairness_weight : float
+        Weight of straight, evenly spaced structure lines.
+    closeness_weight : float
+        Weight of staying on the reference surface.
+    input_weight : float
+        Weight of staying at the input positions (default: the closeness weight without a reference, else 0).
+    fix : str
+        Vertices held in place: none, the corners, or the whole boundary.
+    reference_samples : int
+        Reference surface sampled this many times finer than the mesh for closest points.
+    method : str
+        local-global projection, newton steps with planarity as a hard constraint, or auto (newton where local-global stalls).
+    newton_steps : int
+        Most Newton steps.
+    """
     return _planarize(mesh, reference=reference, tolerance=tolerance, max_iterations=max_iterations,
                       planarity_weight=planarity_weight, fairness_weight=fairness_weight,
                       closeness_weight=closeness_weight, input_weight=input_weight, fix=fix, fixed=fixed,
@@ -205,18 +408,47 @@ def _fix(mesh: QuadMesh, fix: FixMode, fixed: np.ndarray | None) -> np.ndarray:
     return mask if fixed is None else mask | np.asarray(fixed, dtype=bool)
 
 
-@node("laplacian", outputs=("mesh",))
+@node("laplacian", outputs=("mesh",),
+      ranges={"iterations": Range(min=1), "lam": Range(min=0, max=1, min_open=True)})
 def laplacian(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1, lam: float = 0.5,
               weights: Literal["uniform", "inverse_length"] = "uniform", fix: FixMode = "none") -> QuadMesh:
-    """Laplacian smoothing x' = x + λ L x on the quad edge 1-ring (the thesis's baseline)."""
+    """Laplacian smoothing x' = x + λ L x on the quad edge 1-ring (the thesis's baseline).
+
+    Parameters
+    ----------
+    iterations : int
+        Smoothing steps.
+    lam : float
+        Step size λ.
+    weights : str
+        Neighbour weights: uniform or inverse edge length.
+    fix : str
+        Vertices held in place: none, the corners, or the whole boundary.
+    """
     return _smoothing.laplacian(mesh, iterations=iterations, lam=lam, weights=weights, fix=_fix(mesh, fix, fixed))
 
 
-@node("taubin", outputs=("mesh",))
+@node("taubin", outputs=("mesh",),
+      ranges={"iterations": Range(min=1), "lam": Range(min=0, min_open=True),
+              "k_pb": Range(min=0, max=1, min_open=True, max_open=True)})
 def taubin(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1,
            lam: float | None = None, k_pb: float = 0.1,
            weights: Literal["uniform", "inverse_length"] = "uniform", fix: FixMode = "none") -> QuadMesh:
-    """Taubin λ|μ smoothing (μ = 1/(k_PB − 1/λ)) on the quad edge 1-ring."""
+    """Taubin λ|μ smoothing (μ = 1/(k_PB − 1/λ)) on the quad edge 1-ring.
+
+    Parameters
+    ----------
+    iterations : int
+        λ|μ step pairs.
+    lam : float
+        Shrinking step λ (default from k_pb).
+    k_pb : float
+        Pass-band frequency k_PB; μ = 1/(k_PB − 1/λ).
+    weights : str
+        Neighbour weights: uniform or inverse edge length.
+    fix : str
+        Vertices held in place: none, the corners, or the whole boundary.
+    """
     return _smoothing.taubin(mesh, iterations=iterations, lam=lam, k_pb=k_pb, weights=weights,
                              fix=_fix(mesh, fix, fixed))
 
@@ -231,10 +463,17 @@ def planarity(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray, dict]:
     return p["diagonal"], p["angle_defect"], {k: _summary(v) for k, v in p.items()}
 
 
-@node("compare", outputs=("metrics",))
+@node("compare", outputs=("metrics",),
+      ranges={"thresholds": Range(min=0, min_open=True)})
 def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | None = None, *,
             thresholds: list[float] | None = None) -> dict:
-    """Zigzag, displacement, boundary, bounding-box, planarity (and distance to a reference) numbers."""
+    """Zigzag, displacement, boundary, bounding-box, planarity (and distance to a reference) numbers.
+
+    Parameters
+    ----------
+    thresholds : list of float
+        Zigzag cut-offs to count vertices above (default 0.1 and 0.01).
+    """
     return _metrics.compare(original, result, reference=reference,
                             thresholds=tuple(thresholds) if thresholds else (0.1, 0.01))
 
@@ -242,29 +481,65 @@ def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | None = N
 # --- outputs -------------------------------------------------------------------------
 
 
-@node("export_step", outputs=("path",), writes=("path",))
+@node("export_step", outputs=("path",), writes=("path",),
+      ranges={"planar_tol": Range(min=0, min_open=True)})
 def export_step(mesh: QuadMesh, *, path: str, mode: Literal["compound", "shell", "assembly"] = "assembly",
                 planar_tol: float = _io.DEFAULT_PLANAR_TOL, mesh_unit: str = "mm",
                 colors: bool = False) -> Path:
-    """Panels to STEP: planar faces within planar_tol, else exact bilinear patches; assembly keeps labels."""
+    """Panels to STEP: planar faces within planar_tol, else exact bilinear patches; assembly keeps labels.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    mode : str
+        assembly (one labelled part per panel), shell, or compound.
+    planar_tol : float
+        Panels this planar (relative) become plane faces, others bilinear patches.
+    mesh_unit : str
+        Unit of the mesh coordinates.
+    colors : bool
+        Colour panels by planarity.
+    """
     return _io.save_step(mesh, path, mode=mode, planar_tol=planar_tol, mesh_unit=mesh_unit, colors=colors)
 
 
 @node("export_obj", outputs=("path",), writes=("path",))
 def export_obj(mesh: QuadMesh, *, path: str) -> Path:
-    """The mesh as OBJ with quads kept."""
+    """The mesh as OBJ with quads kept.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    """
     return _io.save_obj(mesh, path)
 
 
-@node("export_csv", outputs=("path",), writes=("path",))
+@node("export_csv", outputs=("path",), writes=("path",),
+      ranges={"planar_tol": Range(min=0, min_open=True)})
 def export_csv(mesh: QuadMesh, *, path: str, planar_tol: float = _io.DEFAULT_PLANAR_TOL) -> Path:
-    """The panel schedule: id, row/col, corners, area, edge lengths, planarity, planar flag."""
+    """The panel schedule: id, row/col, corners, area, edge lengths, planarity, planar flag.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    planar_tol : float
+        Panels this planar (relative) are flagged planar.
+    """
     return _io.save_schedule(mesh, path, planar_tol=planar_tol)
 
 
 @node("export_json", outputs=("path",), writes=("path",))
 def export_json(mesh: QuadMesh, *, path: str) -> Path:
-    """The mesh as quadnodes JSON (exact round trip)."""
+    """The mesh as quadnodes JSON (exact round trip).
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    """
     return _io.save_json(mesh, path)
 
 
@@ -286,7 +561,15 @@ def _plain(value: Any) -> Any:
 def export_report(data: Any, data2: Any = None, data3: Any = None, data4: Any = None, *, path: str,
                   names: list[str] | None = None) -> Path:
     """Up to four reports (metrics, fairing logs, planarity summaries) as one pretty JSON file,
-    under the given names (default: the input port names)."""
+    under the given names (default: the input port names).
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    names : list of str
+        Key of each connected report in the file (default: the port names).
+    """
     items = [d for d in (data, data2, data3, data4) if d is not None]
     labels = names if names is not None else ["data", "data2", "data3", "data4"][: len(items)]
     if len(labels) != len(items):
@@ -295,7 +578,9 @@ def export_report(data: Any, data2: Any = None, data3: Any = None, data4: Any = 
     return write_text_atomic(path, json.dumps(body, indent=2, sort_keys=True) + "\n")
 
 
-@node("render_png", outputs=("path",), writes=("path",))
+@node("render_png", outputs=("path",), writes=("path",),
+      ranges={"elev": Range(min=-90, max=90), "ncols": Range(min=1), "vmin": Range(min=0, min_open=True),
+              "vmax": Range(min=0, min_open=True), "size_px": Range(min=200)}, templates=("titles", "notes"))
 def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | None = None,
                mesh4: QuadMesh | None = None, reference: QuadMesh | None = None,
                zigzag: ZigzagReport | None = None, *, path: str, titles: list[str] | None = None,
@@ -304,7 +589,27 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
                size_px: int = 1200) -> Path:
     """Up to four meshes side by side: shaded, structure lines coloured by zigzag deviation (one log
     scale); optional faint clean ``reference``, freed/fixed markers from a ``zigzag`` report (on every
-    panel), faces coloured by planarity."""
+    panel), faces coloured by planarity.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    titles : list of str
+        One title per mesh; {node.setting} is replaced by that setting, e.g. "{fair.iterations} iterations".
+    notes : list of str
+        Lines under the figure; {node.setting} is replaced as in titles.
+    planarity : bool
+        Colour faces by planarity.
+    elev, azim : float
+        Camera elevation and azimuth in degrees.
+    ncols : int
+        Panels per row (default: up to 2, 3 for three meshes).
+    vmin, vmax : float
+        Ends of the deviation colour scale (log).
+    size_px : int
+        Figure width in pixels.
+    """
     from . import viz
 
     meshes = [m for m in (mesh, mesh2, mesh3, mesh4) if m is not None]
@@ -315,14 +620,28 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
                           size_px=size_px)
 
 
-@node("render_html", outputs=("path",), writes=("path",))
+@node("render_html", outputs=("path",), writes=("path",),
+      ranges={"elev": Range(min=-90, max=90), "vmin": Range(min=0, min_open=True),
+              "vmax": Range(min=0, min_open=True)}, templates=("titles",))
 def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | None = None,
                 mesh4: QuadMesh | None = None, reference: QuadMesh | None = None, *, path: str,
                 titles: list[str] | None = None, elev: float = 35.0, azim: float = -60.0,
                 vmin: float = 1e-4, vmax: float = 1.0) -> Path:
     """Up to four meshes in one self-contained interactive HTML page (works offline), buttons switching
     between them; structure lines coloured by zigzag deviation; hover shows vertex and panel ids,
-    deviation and planarity; an optional clean reference is shown as grey edges."""
+    deviation and planarity; an optional clean reference is shown as grey edges.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    titles : list of str
+        One button label per mesh; {node.setting} is replaced by that setting.
+    elev, azim : float
+        Camera elevation and azimuth in degrees.
+    vmin, vmax : float
+        Ends of the deviation colour scale (log).
+    """
     from . import html
 
     meshes = [m for m in (mesh, mesh2, mesh3, mesh4) if m is not None]

@@ -300,3 +300,103 @@ def test_out_onto_a_read_only_folder_is_one_clear_line(tmp_path, capsys, monkeyp
     err = capsys.readouterr().err
     assert err == f"error: --out {str(ro)!r}: cannot write into the folder: Permission denied\n"
     assert os.listdir(ro) == []
+
+
+# --------------------------------------------------------------- check lists every problem (issue 12, item 7)
+MANY_ERRORS = '''format = "quadnodes-graph"
+version = 1
+
+[nodes.mesh]
+op = "grid@1"
+params = { rows = 8, colz = 9 }
+
+[nodes.noisy]
+op = "perturbb@1"
+inputs = { mesh = "mesh.mesh" }
+
+[nodes.fair]
+op = "fair@1"
+inputs = { mesh = "noisy.mesh", fixd = "mesh.mesh" }
+params = { iterations = -1, weight = [0.3, -0.1], solver = "fast" }
+
+[nodes.png]
+op = "render_png@1"
+inputs = { mesh = "fair.mesh", mesh2 = "mesh.nope" }
+params = { path = "../f.png", titles = ["a", "faired {fair.iteratons} times"] }
+
+[nodes.loop_a]
+op = "laplacian@1"
+inputs = { mesh = "loop_b.mesh" }
+
+[nodes.loop_b]
+op = "laplacian@1"
+inputs = { mesh = "loop_a.mesh" }
+'''
+
+
+def test_check_reports_every_error_of_a_file(tmp_path, capsys):
+    p = tmp_path / "many.toml"
+    p.write_text(MANY_ERRORS)
+    assert main(["check", str(p)]) == 1
+    err = capsys.readouterr().err
+    expected = [
+        "line 4: node 'mesh' (grid@1): unknown setting 'colz'; did you mean 'cols'?",
+        "line 8: node 'noisy': unknown op 'perturbb@1'; did you mean 'perturb'?",
+        "line 12: node 'fair' (fair@1): setting 'iterations': -1 is out of range (must be >= 1)",
+        "line 12: node 'fair' (fair@1): setting 'weight'[1]: -0.1 is out of range (must be > 0)",
+        "line 12: node 'fair' (fair@1): setting 'solver'",
+        "line 12: node 'fair' (fair@1): unknown input port 'fixd'; did you mean 'fixed'?",
+        "line 17: node 'png' (render_png@1): input 'mesh2' refers to 'mesh.nope'",
+        "line 17: node 'png' (render_png@1): setting 'path': '../f.png' leads out of the output folder",
+        "line 17: node 'png' (render_png@1): setting 'titles'[1]: '{fair.iteratons}' names no setting 'iteratons'"
+        " of node 'fair' (fair@1); did you mean 'iterations'?",
+        "cycle: loop_",
+    ]
+    for e in expected:
+        assert e in err, e
+    assert "refers to 'noisy.mesh'" not in err           # the unknown op is reported once, not again downstream
+    assert err.strip().endswith("10 problems")
+    assert main(["run", str(p), "--out", str(tmp_path / "o")]) == 1   # run stops at the first, before running
+    assert "[1/" not in capsys.readouterr().out
+
+
+def test_value_ranges_are_checked_when_the_file_is_loaded(tmp_path, capsys):
+    from quadnodes.errors import GraphError
+    from quadnodes.graph import load
+
+    p = tmp_path / "neg.toml"
+    p.write_text(SMALL.format(seed=1).replace("iterations = 2", "iterations = -1"))
+    with pytest.raises(GraphError, match=r"line \d+: node 'fair' \(fair@1\): setting 'iterations': -1 is out of range"):
+        load(p)
+    assert main(["run", str(p), "--out", str(tmp_path / "o")]) == 1
+    cap = capsys.readouterr()
+    assert "-1 is out of range (must be >= 1)" in cap.err and "[1/" not in cap.out
+    assert main(["run", str(_graph(tmp_path)), "--out", str(tmp_path / "o"), "--set", "noisy.tangential=-0.5"]) == 1
+    assert "setting 'tangential': -0.5 is out of range (must be >= 0)" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------- nodes shows every setting (issue 12, item 9)
+def test_nodes_op_shows_type_default_range_and_meaning_of_every_setting(capsys):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import REGISTRY, describe
+
+    assert main(["nodes", "fair"]) == 0
+    out = capsys.readouterr().out
+    assert "iterations: int  (default 1, range >= 1)\n      Rounds of detect-then-solve" in out
+    assert "Parameters\n----------" not in out                       # the section is shown setting by setting
+    for nt in REGISTRY.latest():
+        d = describe(nt.op)
+        for s in d["settings"]:
+            assert s["doc"], f"{nt.op}: setting {s['name']!r} has no line of meaning in the docstring"
+
+
+def test_nodes_list_shows_whole_first_sentences(capsys):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import REGISTRY, describe
+
+    assert main(["nodes"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    for nt in REGISTRY.latest():
+        summary = describe(nt.op)["summary"]
+        assert " ".join(summary.split()) in out, nt.op
+        assert summary.rstrip().endswith((".", ")")) or ";" in summary or summary == "", (nt.op, summary)

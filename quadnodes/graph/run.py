@@ -42,6 +42,7 @@ from .cache import Cache, CacheEntry
 from .fingerprint import canonical_json, file_digest, fingerprint
 from .graph import Constant, Graph, NodeHandle, NodeSpec, PortRef
 from .node import NodeType
+from .templates import expand
 from ..progress import reporting
 
 __all__ = ["RunRecord", "ProgressEvent", "RunResult", "run", "keys"]
@@ -197,7 +198,7 @@ def _prepare(
     node_id = spec.id
     nt = g.registry.get(spec.op, node_id=node_id)
     where = label(node_id, nt.op)
-    settings = nt.resolve_settings(spec.params, node_id=node_id)
+    settings = expand(g, nt, nt.resolve_settings(spec.params, node_id=node_id))  # {node.setting} in titles
     base = Path(g.base_dir) if g.base_dir is not None else None
     out_base = out if out is not None else base
     call_settings = {k: _resolve(v, out_base if k in nt.writes else base, strings=k in nt.reads or k in nt.writes)
