@@ -32,7 +32,11 @@ def build() -> Graph:
     g.add("export_obj", new.mesh, id="obj", path="faired.obj")
     g.add("export_csv", new.mesh, id="csv", path="faired_panels.csv")
     g.add("render_png", noisy.mesh, lap.mesh, tau.mesh, new.mesh, id="png", path="comparison.png",
-          titles=["original (noisy)", "Laplacian, 4 steps", "Taubin, 50 iterations", "new method, 10 iterations"])
+          titles=["original (noisy)", "Laplacian, {laplace.iterations} steps", "Taubin, {taubin.iterations} iterations",
+                  "new method, {fair.iterations} iterations"])
+    g.add("advise", reports[2].metrics, reports[0].metrics, id="advice", key="boundary_displacement_max",
+          message="with the thesis's weight ω = {fair.weight} the freed vertices, boundary included, drift off "
+                  "the design; run with --set fair.weight=0.3 (the default weight) or --set fair.fix_boundary=true")
     return g
 
 

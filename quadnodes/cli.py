@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -108,12 +109,11 @@ def _output_folder(out: Path) -> Path:
     return out
 
 
-class _Printer:
-    """Prints node events.
+class _ProgressLine:
+    """One progress line on a terminal, rewritten in place (at most ten times a second).
 
-    On a terminal, progress inside a node is one line rewritten in place (at most
-    ten times a second); otherwise (a log file, a pipe) progress is left out and
-    only the finished nodes are printed, one plain line each.
+    Not on a terminal (a log file, a pipe), it prints nothing: the plain
+    per-step lines of the caller are the whole output there.
     """
 
     def __init__(self, stream: TextIO) -> None:
@@ -121,30 +121,52 @@ class _Printer:
         self.last = 0.0
         isatty = getattr(stream, "isatty", None)
         self.tty = bool(isatty()) if callable(isatty) else False
-        self.open_line = False
+        self.open = False
 
-    def _clear(self) -> None:
-        if self.open_line:
+    def show(self, fraction: float | None, message: str, *, force: bool = False) -> None:
+        if not self.tty:
+            return
+        now = time.monotonic()
+        if not force and now - self.last < 0.1 and (fraction or 0) < 1.0:
+            return
+        self.last = now
+        pct = f"{100 * fraction:3.0f}%" if fraction is not None else "    "
+        width = max(20, shutil.get_terminal_size((100, 24)).columns - 1)
+        self.clear()
+        self.stream.write(f"  {pct} {message}"[:width])
+        self.stream.flush()
+        self.open = True
+
+    def clear(self) -> None:
+        if self.open:
             self.stream.write("\r\033[K")
-            self.open_line = False
+            self.stream.flush()
+            self.open = False
+
+
+class _Printer:
+    """Prints node events: one plain line per finished node; progress inside a node on a terminal only."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self.line = _ProgressLine(stream)
 
     def __call__(self, ev: Any) -> None:
-        if ev.kind == "progress":
-            if not self.tty:
-                return
-            now = time.monotonic()
-            if now - self.last >= 0.1 or (ev.fraction or 0) >= 1.0:
-                self.last = now
-                pct = f"{100 * ev.fraction:3.0f}%" if ev.fraction is not None else "    "
-                self._clear()
-                self.stream.write(f"        {ev.node_id}: {pct} {ev.message}"[:200])
-                self.stream.flush()
-                self.open_line = True
+        if ev.kind == "started":
+            self.line.show(None, f"{ev.node_id} ({ev.op}) ...", force=True)
+        elif ev.kind == "progress":
+            self.line.show(ev.fraction, f"{ev.node_id}: {ev.message}")
         elif ev.kind == "finished" and ev.record is not None:
-            self._clear()
+            self.line.clear()
             r = ev.record
             print(f"  [{ev.index + 1}/{ev.total}] {r.status:6s} {r.id:16s} {r.op:22s} {r.seconds:8.3f} s",
                   file=self.stream, flush=True)
+
+
+def _shown(path: Path) -> str:
+    """A path as short as it is clear: relative below the working directory, else absolute."""
+    rel = os.path.relpath(path)
+    return str(path) if rel.startswith("..") else rel
 
 
 def _notes(result: Any) -> list[str]:
@@ -180,7 +202,7 @@ def _run(args: argparse.Namespace, cache: Any, stream: TextIO) -> Any:
           file=stream)
     for r in result.records:
         for f in r.files:
-            print(f"  {'wrote' if r.status == 'ran' else 'unchanged':9s} {os.path.relpath(f)}", file=stream)
+            print(f"  {'wrote' if r.status == 'ran' else 'unchanged':9s} {_shown(f)}", file=stream)
     for line in _notes(result):
         print(f"  note: {line}", file=stream)
     return graph
@@ -306,14 +328,24 @@ def cmd_compare(args: argparse.Namespace) -> int:
     extra = [s for s in range(1, args.spread_seeds + 2) if s != args.seed][: args.spread_seeds]
     print(f"thesis comparison ({' '.join(args.examples)}; seed {args.seed}"
           f"{', spread over seeds ' + ' '.join(map(str, extra)) if extra else ''}) -> {out}/", flush=True)
-    res = thesis_comparison(out, examples=args.examples, seed=args.seed, spread_seeds=extra,
-                            interior_noise=not args.no_interior_noise, size_px=args.size,
-                            variants_figure=not args.no_variants, log=lambda m: print(f"  {m}", flush=True))
+    from .progress import reporting
+
+    line = _ProgressLine(sys.stdout)
+
+    def log(message: str) -> None:
+        line.clear()
+        print(f"  {message}", flush=True)
+
+    with reporting(line.show):
+        res = thesis_comparison(out, examples=args.examples, seed=args.seed, spread_seeds=extra,
+                                interior_noise=not args.no_interior_noise, size_px=args.size,
+                                variants_figure=not args.no_variants, log=log)
+    line.clear()
     print(f"done in {res.seconds:.1f} s", flush=True)
     files = [*res.figures.values(), *res.variant_figures.values(), res.markdown, res.csv, res.seeds_csv]
     for p in files:
         if p is not None:
-            print(f"  wrote {os.path.relpath(p)}")
+            print(f"  wrote {_shown(p)}")
     return 0
 
 

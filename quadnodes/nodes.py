@@ -9,6 +9,7 @@ Lengths are in the model's unit (millimetres for the built-in surfaces).
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -649,6 +650,63 @@ def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh |
         raise InputError(f"titles: {len(titles)} titles for {len(meshes)} connected meshes")
     return html.render_html(meshes, path, titles=titles, reference=reference, elev=elev, azim=azim,
                             vmin=vmin, vmax=vmax)
+
+
+
+# --- advice in the run summary ----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Advice:
+    """Short notes for the run summary (``quadnodes run`` prints every output's ``notes()``)."""
+
+    lines: tuple[str, ...] = ()
+
+    def notes(self) -> list[str]:
+        """The notes, one line each (none when the condition did not hold)."""
+        return list(self.lines)
+
+
+@node("advise", outputs=("advice",), templates=("message",))
+def advise(metrics: dict, baseline: dict | None = None, *, key: str, above: float | None = None,
+           below: float | None = None, message: str = "") -> Advice:
+    """Say why a result looks bad, in the run summary, when a number of a metrics table crosses a limit.
+
+    The limit is ``above``/``below``, or else the same number of a connected
+    ``baseline`` table (e.g. Laplacian's metrics: note when the new method is
+    worse). The note names the number, its value and the limit, then
+    ``message``; when the limit is not crossed there is no note, so a summary
+    never claims what the run did not show.
+
+    Parameters
+    ----------
+    key : str
+        The number to watch, a key of the connected metrics (e.g. boundary_displacement_max).
+    above, below : float
+        Note when the number is above or below this limit (default: above the baseline's number).
+    message : str
+        The explanation and the setting that fixes it; {node.setting} is replaced by that setting.
+    """
+    def number(table: dict, what: str) -> float:
+        if key not in table:
+            raise InputError(f"key: no {key!r} in the {what} (keys: {', '.join(sorted(map(str, table)))})")
+        return float(table[key])
+
+    value = number(metrics, "metrics")
+    limit = ""
+    if above is None and below is None:
+        if baseline is None:
+            raise InputError("above, below: give a limit, or connect a baseline to compare with")
+        ref = number(baseline, "baseline")
+        if value > ref:
+            limit = f"above the baseline's {ref:.4g}"
+    elif above is not None and value > above:
+        limit = f"above {above:g}"
+    elif below is not None and value < below:
+        limit = f"below {below:g}"
+    if not limit:
+        return Advice()
+    return Advice((f"{key} = {value:.4g} ({limit})" + (f": {message}" if message else ""),))
 
 
 __all__: list[str] = []  # import for the side effect of registering the nodes

@@ -400,3 +400,100 @@ def test_nodes_list_shows_whole_first_sentences(capsys):
         summary = describe(nt.op)["summary"]
         assert " ".join(summary.split()) in out, nt.op
         assert summary.rstrip().endswith((".", ")")) or ";" in summary or summary == "", (nt.op, summary)
+
+
+# --------------------------------------------------------------- progress on a terminal (issue 12, item 12)
+class _Terminal:
+    """A stdout stand-in that says it is a terminal."""
+
+    def __init__(self):
+        self.text = ""
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return True
+
+
+PNG_STEP = SMALL + '''
+[nodes.step]
+op = "export_step@1"
+inputs = {{ mesh = "fair.mesh" }}
+params = {{ path = "faired.step" }}
+
+[nodes.png]
+op = "render_png@1"
+inputs = {{ mesh = "noisy.mesh", mesh2 = "fair.mesh" }}
+params = {{ path = "f.png", size_px = 300, titles = ["noisy", "faired, {{fair.iterations}} iterations"] }}
+'''
+
+
+def test_progress_of_step_and_png_on_a_terminal_and_none_in_a_log(tmp_path, monkeypatch):
+    import argparse
+    import io
+
+    from quadnodes import cli
+    from quadnodes.graph import Cache
+
+    g = tmp_path / "g.toml"
+    g.write_text(PNG_STEP.format(seed=1))
+    args = argparse.Namespace(graph=str(g), out=str(tmp_path / "o"), set=None, allow_read=None)
+    tty = _Terminal()
+    cli._run(args, Cache(), tty)
+    assert "step: " in tty.text and "building panel" in tty.text     # STEP writing, in place ...
+    assert "png: " in tty.text and "drawing mesh 1/2" in tty.text     # ... and PNG rendering
+    assert "\r\033[K" in tty.text
+    plain = io.StringIO()                                              # a log file: no progress, plain lines
+    cli._run(args, Cache(), plain)
+    text = plain.getvalue()
+    assert "\r" not in text and "\033" not in text and "building panel" not in text
+    assert "[6/6] ran" in text
+
+
+# --------------------------------------------------------------- notes in the summary (issue 12, items 10-11)
+def test_notes_of_any_output_are_printed_in_the_summary(tmp_path, capsys):
+    from dataclasses import dataclass
+
+    from quadnodes.graph import REGISTRY, node
+
+    @dataclass
+    class Rep:
+        n_free: tuple
+
+        def notes(self):
+            idle = [i + 1 for i, n in enumerate(self.n_free) if n == 0]
+            return [f"{len(self.n_free)} iterations asked, iterations {idle} freed no vertex"] if idle else []
+
+    @node("test_noted", outputs=("report",))
+    def test_noted(*, n_free: list[int] = [3, 0, 0]) -> Rep:  # noqa: B006
+        """A report with notes (test only)."""
+        return Rep(tuple(n_free))
+
+    try:
+        g = tmp_path / "n.toml"
+        g.write_text('format = "quadnodes-graph"\nversion = 1\n[nodes.fair]\nop = "test_noted@1"\n')
+        assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache"]) == 0
+        assert "  note: fair: 3 iterations asked, iterations [2, 3] freed no vertex" in capsys.readouterr().out
+        assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache", "--set", "fair.n_free=[1, 2]"]) == 0
+        assert "note:" not in capsys.readouterr().out
+    finally:
+        REGISTRY.unregister("test_noted@1")
+
+
+def test_e3_says_why_the_boundary_moves_and_what_fixes_it(tmp_path, capsys):
+    from pathlib import Path
+
+    e3 = Path(__file__).resolve().parent.parent / "examples" / "e3_wavy.toml"
+    text = e3.read_text()
+    assert "fair.weight=0.3" in text and "boundary" in text.split("format =")[0]      # the file's comments say it
+    out = tmp_path / "e3"
+    assert main(["run", str(e3), "--out", str(out)]) == 0
+    summary = capsys.readouterr().out
+    note = [line for line in summary.splitlines() if line.startswith("  note: advice:")]
+    assert note and "boundary_displacement_max" in note[0] and "fair.weight=0.3" in note[0]
+    assert main(["run", str(e3), "--out", str(out), "--set", "fair.weight=0.3"]) == 0
+    assert "note: advice:" not in capsys.readouterr().out       # fixed: no note
