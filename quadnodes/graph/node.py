@@ -145,6 +145,8 @@ class Setting:
 
     ``file`` is ``"read"`` for paths the node reads (their bytes enter the cache
     key), ``"write"`` for paths it writes (checked before reusing a cached result).
+    ``range`` bounds a numeric setting; ``template`` marks a text setting whose
+    ``{node.setting}`` fields the runner fills in (see :func:`node`).
     """
 
     name: str
