@@ -116,9 +116,11 @@ class _ProgressLine:
     per-step lines of the caller are the whole output there.
     """
 
+    clock = staticmethod(time.monotonic)  # seconds; replaceable in tests
+
     def __init__(self, stream: TextIO) -> None:
         self.stream = stream
-        self.last = 0.0
+        self.last = -1.0
         isatty = getattr(stream, "isatty", None)
         self.tty = bool(isatty()) if callable(isatty) else False
         self.open = False
@@ -126,7 +128,7 @@ class _ProgressLine:
     def show(self, fraction: float | None, message: str, *, force: bool = False) -> None:
         if not self.tty:
             return
-        now = time.monotonic()
+        now = self.clock()
         if not force and now - self.last < 0.1 and (fraction or 0) < 1.0:
             return
         self.last = now

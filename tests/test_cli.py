@@ -255,19 +255,21 @@ def test_python_api_outputs_stay_in_the_run_folder(tmp_path):
 
 # --------------------------------------------------------------- wrote / unchanged (issue 12, item 8)
 def test_run_reports_wrote_only_for_files_written_this_run(tmp_path, capsys):
+    from quadnodes.cli import _shown
+
     g = _graph(tmp_path)
     out = tmp_path / "out"
     assert main(["run", str(g), "--out", str(out)]) == 0
     first = capsys.readouterr().out
-    assert "wrote" in first and os.path.relpath(out / "faired.obj") in first
+    assert "wrote" in first and _shown(out / "faired.obj") in first
     assert main(["run", str(g), "--out", str(out)]) == 0
     second = capsys.readouterr().out
     assert not any(line.split()[:1] == ["wrote"] for line in second.splitlines())
-    assert f"unchanged {os.path.relpath(out / 'faired.obj')}" in second
+    assert f"unchanged {_shown(out / 'faired.obj')}" in second
     (out / "faired.obj").write_text("edited by hand\n")
     assert main(["run", str(g), "--out", str(out)]) == 0
     third = capsys.readouterr().out
-    assert f"wrote     {os.path.relpath(out / 'faired.obj')}" in third
+    assert f"wrote     {_shown(out / 'faired.obj')}" in third
     assert not any(line.split()[:1] == ["unchanged"] for line in third.splitlines())
 
 
@@ -442,6 +444,8 @@ def test_progress_of_step_and_png_on_a_terminal_and_none_in_a_log(tmp_path, monk
     g = tmp_path / "g.toml"
     g.write_text(PNG_STEP.format(seed=1))
     args = argparse.Namespace(graph=str(g), out=str(tmp_path / "o"), set=None, allow_read=None)
+    ticks = iter(range(10**6))                     # a clock that advances 1 s per look: no update is throttled
+    monkeypatch.setattr(cli._ProgressLine, "clock", staticmethod(lambda: float(next(ticks))))
     tty = _Terminal()
     cli._run(args, Cache(), tty)
     assert "step: " in tty.text and "building panel" in tty.text     # STEP writing, in place ...
