@@ -19,6 +19,7 @@ __all__ = [
     "faces_array",
     "check_quad_mesh",
     "check_edge_lengths",
+    "corner_turns",
     "vertex_mask",
     "positive_number",
     "nonnegative_number",
@@ -29,8 +30,15 @@ __all__ = [
     "unit_parameters",
     "quad_mesh",
     "choice",
+    "flag",
+    "renamed",
+    "iteration_count",
     "grid_cells",
 ]
+
+#: More iterations than this are refused: no method here needs them, and a typo such as
+#: ``10**7`` would otherwise run for hours.
+MAX_ITERATIONS = 100_000
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -100,8 +108,13 @@ def faces_array(faces: ArrayLike, n_vertices: int, name: str = "faces") -> np.nd
     return _readonly(f)
 
 
+#: An edge shorter than this fraction of the mean edge length joins two near-duplicate
+#: vertices (a weld that failed, a typo in a file): no method can work with it.
+MIN_RELATIVE_EDGE = 1e-9
+
+
 def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray | None = None) -> None:
-    """Reject a face with a zero-length edge (two corners at the same position).
+    """Reject a zero-length edge or near-duplicate vertices (an edge below 1e-9 of the mean edge).
 
     ``edges`` (the mesh's unique edges, when known) halves the work.
 
@@ -115,22 +128,78 @@ def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarra
     else:
         start = faces.reshape(-1)
         end = np.roll(faces, -1, axis=1).reshape(-1)
-    zero = np.ones(start.size, dtype=bool)
-    for k in range(3):
-        col = np.ascontiguousarray(vertices[:, k])
-        zero &= col[start] == col[end]
-    if zero.any():
-        a, b = int(start[np.argmax(zero)]), int(end[np.argmax(zero)])
+    if start.size == 0:
+        return
+    with np.errstate(over="ignore", invalid="ignore"):  # coordinates near the float limit
+        d = np.take(vertices, end, axis=0)
+        d -= np.take(vertices, start, axis=0)
+        sq = np.einsum("ij,ij->i", d, d)
+        mean = float(np.sqrt(sq).mean())
+    if not np.isfinite(mean):  # lengths overflow: only exact duplicates can be told
+        zero = np.ones(start.size, dtype=bool)
+        for k in range(3):
+            col = np.ascontiguousarray(vertices[:, k])
+            zero &= col[start] == col[end]
+        sq = np.where(zero, 0.0, np.inf)
+        mean = np.inf
+    short = sq <= (MIN_RELATIVE_EDGE * mean) ** 2 if np.isfinite(mean) else sq == 0
+    if short.any():
+        k = int(np.argmax(short))
+        a, b = int(start[k]), int(end[k])
         hs = np.flatnonzero(((faces == a) | (faces == b)).sum(axis=1) == 2)
+        face = int(hs[0]) if hs.size else "?"
+        if sq[k] == 0:
+            raise InputError(f"faces: face {face} has a zero-length edge between vertices {a} and {b}")
         raise InputError(
-            f"faces: face {int(hs[0]) if hs.size else '?'} has a zero-length edge between vertices {a} and {b}"
+            f"faces: face {face} joins near-duplicate vertices {a} and {b} (edge {np.sqrt(sq[k]):.3g}, "
+            f"mean edge {mean:.3g}); merge them or remove the face"
         )
+
+
+def corner_turns(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How many corners of each quad turn against its vector area, and which quads have no area.
+
+    A quad's vector area is ``A = (p2 − p0) × (p3 − p1) / 2``. Seen along ``A``, a
+    convex quad turns the same way at every corner (the corner normal
+    ``(p_next − p) × (p_prev − p)`` points along ``A``); a non-convex (dart) quad has
+    one corner against it, a bow-tie two or more. For a flat panel this reading is
+    exact; a strongly twisted panel is a bilinear patch whatever its outline seen
+    from one side (see :func:`quadnodes.flatness.folded_panels`).
+
+    Returns
+    -------
+    against : (m,) int64
+        Corners turning against ``A`` (0 convex, 1 dart, >= 2 crossed).
+    no_area : (m,) bool
+        Quads whose diagonals are parallel (``A = 0``): no area, nothing to build.
+
+    Examples
+    --------
+    >>> v = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0]])
+    >>> against, no_area = corner_turns(v, np.array([[0, 1, 2, 3], [0, 2, 1, 3], [1, 4, 5, 2]]))
+    >>> against.tolist(), no_area.tolist()
+    ([0, 4, 0], [False, True, False])
+    """
+    p = np.take(vertices, faces, axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):  # coordinates near the float limit: not judged
+        area = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+        nxt = np.roll(p, -1, axis=1) - p
+        prv = np.roll(p, 1, axis=1) - p
+        corner = np.cross(nxt, prv)
+        dot = np.einsum("fkj,fj->fk", corner, area)
+        size = np.linalg.norm(area, axis=1)
+        scale = np.linalg.norm(corner, axis=2) * size[:, None]
+        against = (dot <= 1e-12 * scale).sum(axis=1)
+        diag = 0.5 * (np.linalg.norm(p[:, 2] - p[:, 0], axis=1) + np.linalg.norm(p[:, 3] - p[:, 1], axis=1))
+        no_area = size <= 1e-12 * diag**2
+    finite = np.isfinite(dot).all(axis=1) & np.isfinite(diag)
+    return np.where(finite, against, 0), no_area & finite
 
 
 def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
     """Check the combinatorics and geometry that single arrays cannot show.
 
-    Zero-length edges, edges shared by more than two faces, and neighbouring faces
+    Zero-length edges and near-duplicate vertices, faces without area, edges shared by more than two faces, and neighbouring faces
     with inconsistent orientation (an edge walked the same way by both faces).
     Counting uses SciPy's linear-time COO→CSR conversion; the offending faces are
     looked up only when there is an error.
@@ -150,6 +219,13 @@ def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
     import scipy.sparse as sp
 
     check_edge_lengths(vertices, faces)
+    _, no_area = corner_turns(vertices, faces)
+    if no_area.any():
+        fi = int(np.argmax(no_area))
+        raise InputError(
+            f"faces: face {fi} {faces[fi].tolist()} has no area (its diagonals are parallel: a collapsed or "
+            "crossed panel); reorder its corners around the panel or remove it"
+        )
     n = int(vertices.shape[0])
     start = faces.reshape(-1)
     end = np.roll(faces, -1, axis=1).reshape(-1)
@@ -368,10 +444,31 @@ def _QuadMesh() -> type:
 
 
 def quad_mesh(mesh: Any, name: str = "mesh") -> Any:
-    """Return ``mesh`` if it is a :class:`QuadMesh`, else raise :class:`InputError`."""
-    if not isinstance(mesh, _QuadMesh()):
-        raise InputError(f"{name}: expected a QuadMesh, got {type(mesh).__name__}")
-    return mesh
+    """Return ``mesh`` if it is a :class:`QuadMesh`, else raise :class:`InputError`.
+
+    The message says how to get a mesh from what was passed (a build123d face,
+    an array of points, a file path).
+
+    Examples
+    --------
+    >>> quad_mesh(None)
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: mesh: expected a QuadMesh, got None
+    """
+    if isinstance(mesh, _QuadMesh()):
+        return mesh
+    got = "None" if mesh is None else type(mesh).__name__
+    hint = ""
+    if hasattr(mesh, "wrapped") and type(mesh).__module__.startswith("build123d"):
+        hint = " (a build123d shape: sample it first, e.g. quadnodes.surfaces.sample(face, nu, nv))"
+    elif isinstance(mesh, np.ndarray):
+        hint = " (an array: build a mesh with QuadMesh(vertices, faces) or quadnodes.from_grid_points(points))"
+    elif isinstance(mesh, (str, bytes)) or hasattr(mesh, "__fspath__"):
+        hint = " (a file name: read it with quadnodes.io.load(path))"
+    elif isinstance(mesh, tuple) and mesh and isinstance(mesh[0], _QuadMesh()):
+        hint = " (a (mesh, report) pair: unpack it, e.g. mesh, report = quadnodes.fair(...))"
+    raise InputError(f"{name}: expected a QuadMesh, got {got}{hint}")
 
 
 def quad_meshes(meshes: Any, name: str = "meshes") -> list[Any]:
@@ -411,6 +508,75 @@ def choice(value: Any, options: Iterable[str], name: str) -> str:
         if near:
             hint = f" (did you mean {near[0]!r}?)"
     raise InputError(f"{name}: expected one of {', '.join(map(repr, opts))}, got {value!r}{hint}")
+
+
+def flag(value: Any, name: str) -> bool:
+    """Return ``value`` if it is a bool, else raise :class:`InputError` (``"no"`` is not False).
+
+    Examples
+    --------
+    >>> flag(np.bool_(True), "adapt")
+    True
+    >>> flag("no", "adapt")
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: adapt: expected true or false, got 'no'
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise InputError(f"{name}: expected true or false, got {value!r}")
+
+
+def iteration_count(value: Any, name: str = "iterations", *, maximum: int = MAX_ITERATIONS) -> int:
+    """An iteration count in ``1 .. maximum``, else :class:`InputError`.
+
+    Examples
+    --------
+    >>> iteration_count(3)
+    3
+    >>> iteration_count(10**7)
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: iterations: at most 100000, got 10000000
+    """
+    n = positive_int(value, name)
+    if n > maximum:
+        raise InputError(f"{name}: at most {maximum}, got {value!r}")
+    return n
+
+
+def renamed(**old_to_new: str) -> Any:
+    """Decorator: refuse keyword arguments that were renamed, saying the new name.
+
+    ``old_to_new`` maps an old keyword to how to say it now (e.g.
+    ``deviation="threshold"`` or ``fix_boundary="fix='boundary'"``). The map is kept
+    as ``func.renamed_settings`` so graph nodes can give the same message for
+    an old setting name in a graph file.
+
+    Examples
+    --------
+    >>> @renamed(deviation="threshold")
+    ... def f(*, threshold=0.1):
+    ...     return threshold
+    >>> f(deviation=0.2)
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: f: 'deviation' was renamed: use threshold
+    """
+    import functools
+
+    def decorate(func: Any) -> Any:
+        @functools.wraps(func)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            for old, new in old_to_new.items():
+                if old in kwargs:
+                    raise InputError(f"{func.__name__}: {old!r} was renamed: use {new}")
+            return func(*args, **kwargs)
+
+        wrapper.renamed_settings = dict(old_to_new)  # type: ignore[attr-defined]
+        return wrapper
+
+    return decorate
 
 
 def grid_cells(faces: np.ndarray, rows: int, cols: int) -> int:

@@ -17,6 +17,8 @@ __all__ = [
     "summary",
     "resolve_planar_tolerance",
     "planar_panels",
+    "folded_panels",
+    "nonconvex_panels",
 ]
 
 
@@ -189,3 +191,33 @@ def planar_panels(mesh: QuadMesh, planar_tolerance: float | str) -> np.ndarray:
     """
     kind, value = resolve_planar_tolerance(planar_tolerance, mesh.unit)
     return diagonal_distance(mesh, relative=(kind == "relative")) <= value
+
+
+def folded_panels(mesh: QuadMesh, planar_tolerance: float | str) -> np.ndarray:
+    """Flat panels (within ``planar_tolerance``) whose outline crosses itself: bow-ties, ``(m,) bool``.
+
+    Such a panel cannot be built as a plane face (its edges intersect); every
+    exporter refuses it, naming the panel.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import QuadMesh
+    >>> v = np.array([[0., 0, 0], [2, 1, 0], [2, 0, 0], [0, 2, 0]])  # p0p1 crosses p2p3
+    >>> folded_panels(QuadMesh(v, [[0, 1, 2, 3]]), 1e-3).tolist()
+    [True]
+    """
+    against, _ = _validate.corner_turns(mesh.vertices, mesh.faces)
+    return (against >= 2) & planar_panels(mesh, planar_tolerance)
+
+
+def nonconvex_panels(mesh: QuadMesh) -> np.ndarray:
+    """Panels with a corner turning against the others (darts and bow-ties), ``(m,) bool``.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> nonconvex_panels(grid(3, 3)).any()
+    np.False_
+    """
+    against, _ = _validate.corner_turns(mesh.vertices, mesh.faces)
+    return against >= 1

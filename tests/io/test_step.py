@@ -210,8 +210,12 @@ def test_option_errors():
 @pytest.mark.parametrize("mode", MODES)
 def test_failed_occt_build_names_the_panel_and_leaves_nothing(tmp_path, mode):
     good = grid(2, 3, spacing=2.0)
-    # face 1 is degenerate: four collinear corners (its diagonals are parallel)
+    # face 1 is degenerate: four collinear corners (its diagonals are parallel); the mesh refuses it
     v = np.vstack([good.vertices, [[10, 0, 0], [11, 0, 0], [12, 0, 0], [13, 0, 0]]])
+    with pytest.raises(InputError, match=r"face 1 \[6, 7, 8, 9\] has no area"):
+        QuadMesh(v, np.vstack([good.faces[:1], [[6, 7, 8, 9]], good.faces[1:]]))
+    # a panel OCCT cannot build (a crossed flat quad) still names the panel and writes nothing
+    v = np.vstack([good.vertices, [[10, 0, 0], [12, 0, 0], [10.5, 1, 0], [11.5, 1.2, 0]]])
     m = QuadMesh(v, np.vstack([good.faces[:1], [[6, 7, 8, 9]], good.faces[1:]]))
     target = tmp_path / "out.step"
     target.write_text("old content")
