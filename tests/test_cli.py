@@ -501,3 +501,13 @@ def test_e3_says_why_the_boundary_moves_and_what_fixes_it(tmp_path, capsys):
     assert note and "boundary_displacement_max" in note[0] and "fair.weight=0.3" in note[0]
     assert main(["run", str(e3), "--out", str(out), "--set", "fair.weight=0.3"]) == 0
     assert "note: advice:" not in capsys.readouterr().out       # fixed: no note
+
+
+def test_check_keeps_the_loaders_own_error_next_to_the_others(tmp_path, capsys):
+    p = tmp_path / "dup.json"
+    p.write_text('{"format": "quadnodes-graph", "version": 1, "nodes": {"m": {"op": "grid@1", '
+                 '"params": {"rows": 0, "rows": 3}}, "f": {"op": "fair@1", "inputs": {"mesh": "m.mesh"}, '
+                 '"params": {"iterations": 0}}}}')
+    assert main(["check", str(p)]) == 1
+    err = capsys.readouterr().err
+    assert "'rows' appears twice" in err and "setting 'iterations': 0 is out of range" in err

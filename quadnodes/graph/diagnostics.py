@@ -79,7 +79,8 @@ def file_problems(path: str | os.PathLike[str], *, registry: Registry | None = N
     try:  # syntax errors: the parser stops at the first, so does this
         _files.loads(text, fmt=fmt, registry=reg, base_dir=p.parent.resolve(), source=name)
         return []
-    except GraphError as first:
+    except GraphError as exc:
+        first = exc  # the name of an ``except ... as`` is unbound after the block
         try:
             data = tomllib.loads(text) if fmt == "toml" else json.loads(text)
         except ValueError:
@@ -95,7 +96,10 @@ def file_problems(path: str | os.PathLike[str], *, registry: Registry | None = N
         out = GraphError(f"{name}{f' line {line}' if line else ''}: {err}")
         out.node_id = node_id  # type: ignore[attr-defined]
         located.append((line if line is not None else 1 << 30, out))
-    return [e for _, e in sorted(located, key=lambda t: t[0])]  # in file order (stable within a node)
+    found = [e for _, e in sorted(located, key=lambda t: t[0])]  # in file order (stable within a node)
+    if str(first) not in {str(e) for e in found}:  # e.g. a key given twice, seen only by the loader
+        found.insert(0, first)
+    return found
 
 
 def _model_problems(data: Any, reg: Registry, base_dir: Path) -> list[GraphError]:
