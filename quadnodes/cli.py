@@ -60,7 +60,7 @@ params = {{ path = "panels.step" }}
 [nodes.png]
 op = "render_png@1"
 inputs = {{ mesh = "noisy.mesh", mesh2 = "fair.mesh" }}
-params = {{ path = "fair.png", titles = ["noisy", "faired"] }}
+params = {{ path = "fair.png", titles = ["noisy", "faired, {{fair.iterations}} iterations"] }}
 '''
 
 
