@@ -215,8 +215,10 @@ def _cache(args: argparse.Namespace) -> Any:
 
     if args.no_cache:
         return Cache()
-    directory = Path(args.cache) if args.cache else (Path(args.out) if args.out else _default_out(Path(args.graph))) / ".cache"
-    return Cache(directory)
+    if args.cache:
+        return Cache(Path(args.cache))
+    out = _output_folder(Path(args.out) if args.out else _default_out(Path(args.graph)))  # clear errors first
+    return Cache(out / ".cache")
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -409,10 +411,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except QuadnodesError as exc:
+        from .errors import GraphError
+
         lines = str(exc).splitlines() or [type(exc).__name__]
-        print(f"error: {lines[0]}", file=sys.stderr)
-        for more in lines[1:]:
-            print(f"error: {more}", file=sys.stderr)
+        # a graph error may list several problems, one per line; other errors say what matters first
+        for line in lines if isinstance(exc, GraphError) else lines[:1]:
+            print(f"error: {line}", file=sys.stderr)
         return 1
     except OSError as exc:  # a file system refusal outside a writer (e.g. the cache folder)
         where = f" {str(exc.filename)!r}" if exc.filename else ""

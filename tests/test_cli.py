@@ -283,6 +283,9 @@ def test_out_onto_a_file_is_one_clear_line(tmp_path, capsys):
     assert main(["run", str(g), "--no-cache", "--out", str(tmp_path / "afile" / "sub")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("error: --out") and "Traceback" not in err and err.count("\n") == 1
+    assert main(["run", str(g), "--out", str(tmp_path / "afile")]) == 1          # with the disk cache in --out
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out") and "a file is in the way" in err and err.count("\n") == 1
 
 
 def test_out_onto_a_read_only_folder_is_one_clear_line(tmp_path, capsys, monkeypatch):
