@@ -243,6 +243,15 @@ def _prepare(
     return _Prepared(node_id, nt, call_settings, inputs, key)
 
 
+def _stamp(path: Any) -> tuple[int, int, int] | None:
+    """``(mtime_ns, inode, size)`` of a file, None when missing: tells a file rewritten by this run."""
+    try:
+        st = os.stat(os.fspath(path))
+    except (OSError, TypeError, ValueError):
+        return None
+    return (st.st_mtime_ns, st.st_ino, st.st_size)
+
+
 def _written(nt: NodeType, settings: Mapping[str, Any]) -> dict[str, list[str | None]]:
     return {s: [file_digest(p) for p in _path_values(settings[s])] for s in nt.writes}
 
@@ -374,6 +383,7 @@ def run(
         node_keys[node_id] = key
         entry = cache.get(key) if (cache is not None and key is not None) else None
         now: dict[str, list[str | None]] = {}
+        now_reported: dict[str, list[str | None]] = {}
         if entry is not None and nt.writes:
             now = _written(nt, prep.settings)
             if any(now.get(s) != list(entry.files.get(s, ())) for s in nt.writes):
@@ -382,14 +392,19 @@ def run(
             outputs[node_id] = dict(entry.outputs)
             status: Literal["ran", "cached"] = "cached"
         else:
+            before = {p: _stamp(p) for s in nt.writes for p in _path_values(prep.settings[s])}
             outputs[node_id] = _execute(prep, op, index, total, progress)
             status = "ran"
             now = _written(nt, prep.settings) if nt.writes else {}
+            # a file this run did not touch (the node skipped it) is not reported as written
+            now_reported = {s: [d if d is not None and _stamp(p) != before.get(p) else None
+                                for p, d in zip(_path_values(prep.settings[s]), ds)] for s, ds in now.items()}
             if cache is not None and key is not None:
                 if all(d is not None for ds in now.values() for d in ds):
                     cache.put(key, CacheEntry(dict(outputs[node_id]), now))  # type: ignore[arg-type]
+        shown = now_reported if status == "ran" else now
         files = tuple(Path(os.fspath(p)) for s in nt.writes
-                      for p, d in zip(_path_values(prep.settings[s]), now.get(s, ())) if d is not None)
+                      for p, d in zip(_path_values(prep.settings[s]), shown.get(s, ())) if d is not None)
         record = RunRecord(node_id, op, status, time.perf_counter() - t0, key, files)
         records.append(record)
         if progress is not None:
