@@ -256,7 +256,12 @@ def cmd_check(args: argparse.Namespace) -> int:
         n = len(problems)
         print(f"{args.graph}: {n} problem{'s' if n != 1 else ''}", file=sys.stderr)
         return 1
+    from .graph.paths import check_paths
+
     g = load(args.graph, registry=_registry())
+    out = Path(args.out) if args.out else _default_out(Path(args.graph))
+    # where the files would go and come from (symbolic links followed), as `run` checks before running
+    check_paths(g, out=out, read_roots=[g.base_dir, *[Path(a) for a in (args.allow_read or [])]])
     order = g.order()
     print(f"{args.graph}: ok, {len(order)} nodes: {' -> '.join(order)}")
     return 0
@@ -377,8 +382,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-runs", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--timeout", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_watch)
-    p = sub.add_parser("check", help="validate a graph file without running it")
+    p = sub.add_parser("check", help="validate a graph file without running it; lists every problem")
     p.add_argument("graph")
+    p.add_argument("--out", help="output folder the paths are checked against (default out/<graph name>/)")
+    p.add_argument("--allow-read", action="append", metavar="DIR", help="as for run")
     p.set_defaults(func=cmd_check)
     p = sub.add_parser("nodes", help="list node types, or describe one")
     p.add_argument("op", nargs="?")

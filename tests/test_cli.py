@@ -206,6 +206,8 @@ def test_a_symlink_leading_out_is_refused_before_anything_runs(tmp_path, capsys)
     cap = capsys.readouterr()
     assert "node 'obj' (export_obj@1): setting 'path'" in cap.err and "symbolic link" in cap.err
     assert os.listdir(outside) == [] and "[1/" not in cap.out
+    assert main(["check", str(g), "--out", str(out)]) == 1
+    assert "symbolic link" in capsys.readouterr().err
 
 
 def test_two_writers_of_one_file_are_an_error_naming_both(tmp_path, capsys):
@@ -232,6 +234,10 @@ def test_reads_stay_in_the_graph_folder_unless_allowed(tmp_path, capsys):
     assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache"]) == 1
     err = capsys.readouterr().err
     assert "node 'read' (read_mesh@1): setting 'path'" in err and "--allow-read" in err
+    assert main(["check", str(g)]) == 1                                   # check says it too, before any run
+    assert "node 'read' (read_mesh@1): setting 'path'" in capsys.readouterr().err
+    assert main(["check", str(g), "--allow-read", str(data)]) == 0
+    capsys.readouterr()
     assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache", "--allow-read", str(data)]) == 0
     assert _statuses(capsys.readouterr().out) == {"read": "ran"}
 
