@@ -8,7 +8,7 @@ not of Python and its imports.
 
 Rows
 - structure lines: ``structure_lines`` + ``windows`` on a fresh mesh;
-- fair, 1 iteration: ``quadnodes.fair(iterations=1, deviation=0)`` with every
+- fair, 1 iteration: ``quadnodes.fair(iterations=1, threshold=0)`` with every
   window-middle vertex free (all but the four corners), default solver (block
   conjugate gradients from the anchor); includes structure lines, detection,
   assembly and solve; the note gives CG steps and the relative residual;
@@ -47,7 +47,7 @@ def _mesh(n: int):
 
     y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
     return perturb(grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y)),
-                   tangential=0.2, normal=0.05, seed=0)
+                   tangential=0.2, normal=0.05, seed=0)[0]
 
 
 def run_row(kind: str, n: int) -> dict:
@@ -73,7 +73,7 @@ def run_row(kind: str, n: int) -> dict:
         w = windows(m.topology.structure_lines)
         extra = f"{len(w)} windows"
     elif kind == "fair":
-        _, rep = fair(m, iterations=1, deviation=0.0)
+        _, rep = fair(m, iterations=1, threshold=0.0)
         r = rep.iterations[0]
         extra = f"{r.n_free} free, {r.solver} {r.cg_iterations} steps, residual {r.residual:.0e}"
     elif kind in ("superlu", "superlu_mmd", "pyamg"):

@@ -99,7 +99,7 @@ def _case(name: str):
         rows, cols, noise = ex.rows, ex.cols, ex.noise
     clean = surfaces.sample(face, rows, cols)
     fine = surfaces.sample(face, 4 * (rows - 1) + 1, 4 * (cols - 1) + 1)
-    noisy = perturb(clean, tangential=noise[0], normal=noise[1], seed=7, fix="corners")
+    noisy, _ = perturb(clean, tangential=noise[0], normal=noise[1], seed=7, fix="corners")
     faired, _ = fair(noisy, iterations=3)
     return face, clean, fine, faired
 

@@ -23,7 +23,7 @@ from quadnodes.zigzag import detect
 
 
 def main(n: int = 300) -> None:
-    m = perturb(grid(n, n, spacing=1 / (n - 1)), tangential=0.2, normal=0.05, seed=0)
+    m, _ = perturb(grid(n, n, spacing=1 / (n - 1)), tangential=0.2, normal=0.05, seed=0)
     free = detect(m, 0.0).free
     h = m.mean_edge_length
     fi = np.flatnonzero(free)

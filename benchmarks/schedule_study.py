@@ -20,7 +20,7 @@ from quadnodes import surfaces
 def main() -> None:
     face = surfaces.wavy(width=4000.0, depth=8000.0, amplitude=500.0)
     clean = surfaces.sample(face, 22, 41)
-    noisy = qn.perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")
+    noisy, _ = qn.perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")
     h = clean.mean_edge_length
 
     def row(name: str, m: qn.QuadMesh) -> None:
@@ -32,14 +32,14 @@ def main() -> None:
     print("|---|---:|---:|")
     row("noisy input", noisy)
     for name, kw in [
-        ("fair: deviation 1 halved, 10 iterations (thesis example 3)", dict(iterations=10, deviation=1.0, deviation_decay=0.5)),
-        ("fair: deviation 0.1, 1 iteration (default threshold)", dict(iterations=1, deviation=0.1)),
-        ("fair: deviation 0.1, 3 iterations", dict(iterations=3, deviation=0.1)),
-        ("fair: deviation 0, 3 iterations (all window-middle vertices free)", dict(iterations=3, deviation=0.0)),
+        ("fair: deviation 1 halved, 10 iterations (thesis example 3)", dict(iterations=10, threshold=1.0, threshold_decay=0.5)),
+        ("fair: deviation 0.1, 1 iteration (default threshold)", dict(iterations=1, threshold=0.1)),
+        ("fair: deviation 0.1, 3 iterations", dict(iterations=3, threshold=0.1)),
+        ("fair: deviation 0, 3 iterations (all window-middle vertices free)", dict(iterations=3, threshold=0.0)),
     ]:
         row(name, qn.fair(noisy, **kw)[0])
-    row("Laplacian, 4 steps", qn.laplacian(noisy, iterations=4))
-    row("Taubin, 50 iterations", qn.taubin(noisy, iterations=50))
+    row("Laplacian, 4 steps", qn.laplacian(noisy, iterations=4)[0])
+    row("Taubin, 50 iterations", qn.taubin(noisy, iterations=50)[0])
 
 
 if __name__ == "__main__":

@@ -64,14 +64,14 @@ def main() -> None:
         y, x = np.meshgrid(np.arange(r, dtype=float), np.arange(c, dtype=float), indexing="ij")
         clean = grid(r, c, height=f(x, y, r, c)[0])
         for seed in SEEDS:
-            noisy = perturb(clean, tangential=nt, normal=nn, seed=seed, fix="corners")
+            noisy, _ = perturb(clean, tangential=nt, normal=nn, seed=seed, fix="corners")
             if seed == 0:
                 d0 = surface_distance(noisy.vertices, f, r, c)
                 z0 = zigzag_stats(noisy)
                 print(f"| {name} (noisy input) | – | {d0.mean():.4f} | {d0.max():.4f} | "
                       f"{z0['zigzag_mean']:.4f} | {z0['zigzag_max']:.4f} |")
             for w in WEIGHTS:
-                out, _ = fair(noisy, iterations=its, deviation=dev, deviation_decay=decay, weight=w)
+                out, _ = fair(noisy, iterations=its, threshold=dev, threshold_decay=decay, weight=w)
                 d = surface_distance(out.vertices, f, r, c)
                 summary[w].append(d.mean())
                 z = zigzag_stats(out)

@@ -23,7 +23,7 @@ def build() -> Graph:
     noisy = g.add("perturb", clean.mesh, id="noisy", tangential=0.25, normal=0.1, seed=7, fix="corners")
     lap = g.add("laplacian", noisy.mesh, id="laplace", iterations=4)
     tau = g.add("taubin", noisy.mesh, id="taubin", iterations=50)
-    new = g.add("fair", noisy.mesh, id="fair", iterations=10, deviation=1.0, deviation_decay=0.5, weight=0.001)
+    new = g.add("fair", noisy.mesh, id="fair", iterations=10, threshold=1.0, threshold_decay=0.5, weight=0.001)
     reports = [g.add("compare", noisy.mesh, m.mesh, clean.mesh, id=f"metrics_{k}")
                for k, m in (("laplace", lap), ("taubin", tau), ("fair", new))]
     g.add("export_report", *(r.metrics for r in reports), new.report, id="report",
@@ -36,7 +36,7 @@ def build() -> Graph:
                   "new method, {fair.iterations} iterations"])
     g.add("advise", reports[2].metrics, reports[0].metrics, id="advice", key="boundary_displacement_max",
           message="with the thesis's weight ω = {fair.weight} the freed vertices, boundary included, drift off "
-                  "the design; run with --set fair.weight=0.3 (the default weight) or --set fair.fix_boundary=true")
+                  "the design; run with --set fair.weight=0.3 (the default weight) or --set fair.fix=boundary")
     return g
 
 

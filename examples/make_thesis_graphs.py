@@ -20,7 +20,7 @@ from quadnodes.io._atomic import write_text_atomic
 HERE = Path(__file__).parent
 
 ADVICE = ("with the thesis's weight ω = {fair.weight} the freed vertices, boundary included, drift off the "
-          "design; run with --set fair.weight=0.3 (the default weight) or --set fair.fix_boundary=true")
+          "design; run with --set fair.weight=0.3 (the default weight) or --set fair.fix=boundary")
 
 # What each file's header says about the result, measured with
 #   quadnodes run examples/<file>.toml            (metrics.json: fair / laplace, boundary_displacement_max,
@@ -44,15 +44,15 @@ def header(name: str, stem: str) -> str:
 # surface ends {d} off the design on average (Laplacian: {lb}, {ld}). The run summary says so
 # (node 'advice'). The setting to change is the weight:
 #   quadnodes run examples/{stem}.toml --set fair.weight=0.3     (the default weight: {fb}, {fd})
-# or fair.fix_boundary=true to hold the boundary. Numbers from metrics.json of those two commands.
+# or --set fair.fix=boundary to hold the boundary. Numbers from metrics.json of those two commands.
 """
 
 # name, file, laplace steps, taubin iterations, fair settings, noise
 EXAMPLES = [
-    ("E1", "e1_saddle", 3, 40, dict(iterations=3, deviation=0.1, weight=0.001), (0.25, 0.1)),
-    ("E2", "e2_s_shape", 1, 20, dict(iterations=3, deviation=0.1, weight=0.005), (0.25, 0.1)),
-    ("E3", "e3_wavy", 4, 50, dict(iterations=10, deviation=1.0, deviation_decay=0.5, weight=0.001), (0.25, 0.1)),
-    ("E4", "e4_dome", 4, 30, dict(iterations=5, deviation=1.0, weight=0.0005), (0.6, 0.2)),
+    ("E1", "e1_saddle", 3, 40, dict(iterations=3, threshold=0.1, weight=0.001), (0.25, 0.1)),
+    ("E2", "e2_s_shape", 1, 20, dict(iterations=3, threshold=0.1, weight=0.005), (0.25, 0.1)),
+    ("E3", "e3_wavy", 4, 50, dict(iterations=10, threshold=1.0, threshold_decay=0.5, weight=0.001), (0.25, 0.1)),
+    ("E4", "e4_dome", 4, 30, dict(iterations=5, threshold=1.0, weight=0.0005), (0.6, 0.2)),
 ]
 
 

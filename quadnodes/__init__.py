@@ -11,7 +11,7 @@ on first use: ``quadnodes.surfaces``, ``quadnodes.io``, ``quadnodes.viz``.
 Examples
 --------
 >>> import quadnodes as qn
->>> noisy = qn.perturb(qn.grid(10, 10), tangential=0.2, seed=0)
+>>> noisy, _ = qn.perturb(qn.grid(10, 10), tangential=0.2, seed=0)
 >>> faired, report = qn.fair(noisy, iterations=3)
 >>> qn.compare(noisy, faired)["zigzag_max"] < 0.1
 True

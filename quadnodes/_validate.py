@@ -145,7 +145,7 @@ def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarra
     short = sq <= (MIN_RELATIVE_EDGE * mean) ** 2 if np.isfinite(mean) else sq == 0
     if short.any():
         k = int(np.argmax(short))
-        a, b = int(start[k]), int(end[k])
+        a, b = sorted((int(start[k]), int(end[k])))
         hs = np.flatnonzero(((faces == a) | (faces == b)).sum(axis=1) == 2)
         face = int(hs[0]) if hs.size else "?"
         if sq[k] == 0:

@@ -50,7 +50,7 @@ params = {{ tangential = 0.2, normal = 0.1, seed = 1, fix = "corners" }}
 [nodes.fair]
 op = "fair@1"
 inputs = {{ mesh = "noisy.mesh" }}
-params = {{ iterations = 3, deviation = 0.1 }}
+params = {{ iterations = 3, threshold = 0.1 }}
 
 [nodes.step]
 op = "export_step@1"

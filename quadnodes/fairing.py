@@ -43,6 +43,7 @@ from . import _validate
 from .errors import InputError
 from .progress import report_progress
 from .mesh import QuadMesh
+from .topology import fixed_vertices
 from .zigzag import _detect, _window_geometry, window_edges
 
 __all__ = [
@@ -757,13 +758,32 @@ class FairingSystem:
         return self.matrix @ X
 
     def _factor(self) -> object:
+        """Factorize ``AᵀA + ωI`` once.
+
+        The matrix is symmetric positive definite as long as ``ω`` is not lost
+        next to ``AᵀA`` in floating point; then a factorization without pivoting
+        in a symmetric fill-reducing order is a Cholesky factorization and cannot
+        meet a zero pivot. Where ``ω`` is negligible (below 1e-10 of the largest
+        diagonal entry) the system is refused instead of handed to SuperLU.
+        """
         if self._lu is None:
-            self._lu = splu(
-                self.matrix.tocsc(),
-                permc_spec="MMD_AT_PLUS_A",
-                diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True},
-            )
+            M = self.matrix
+            top = float(M.diagonal().max())
+            if not self.weight > 1e-10 * top:
+                raise InputError(
+                    f"weight: the effective weight {self.weight:.3g} is negligible next to the fairing term "
+                    f"({top:.3g}); the system is numerically singular — raise the weight, or check for very "
+                    "short edges"
+                )
+            try:
+                self._lu = splu(
+                    M.tocsc(),
+                    permc_spec="MMD_AT_PLUS_A",
+                    diag_pivot_thresh=0.0,
+                    options={"SymmetricMode": True},
+                )
+            except RuntimeError as exc:  # pragma: no cover - guarded above; never a crash, always a message
+                raise InputError(f"fairing system could not be factorized: {exc}") from exc
         return self._lu
 
     def _cg_setup(self) -> tuple[_RowBlocks, _BlockJacobi | None, np.ndarray | None]:
@@ -904,34 +924,100 @@ class IterationReport:
 
 @dataclass(frozen=True)
 class FairingReport:
-    """Per-iteration reports of :func:`fair` and the length scale used."""
+    """Per-iteration reports of :func:`fair`, the length scale used, and what the user should know.
+
+    ``iterations_asked`` is the requested count; ``iterations`` holds one entry per
+    iteration actually run (fewer when fairing stopped early because no vertex was
+    free and no later threshold was lower). ``held_off_reference`` is the largest
+    distance of a held vertex from the reference surface (0 without a reference).
+    """
 
     iterations: list[IterationReport] = field(default_factory=list)
     length_scale: float = 1.0
     weight_scale: str = "normalized"
+    iterations_asked: int = 0
+    fix: str = "corners"
+    n_fixed: int = 0
+    held_off_reference: float = 0.0
+    unit: str = "mm"
+
+    @property
+    def effective_iterations(self) -> int:
+        """Iterations that freed at least one vertex."""
+        return sum(1 for r in self.iterations if r.n_free > 0)
+
+    def notes(self) -> list[str]:
+        """Short sentences for the user: early stops, idle iterations, held vertices off the surface.
+
+        Examples
+        --------
+        >>> from quadnodes.mesh import grid
+        >>> _, rep = fair(grid(4, 4), iterations=3)
+        >>> rep.notes()
+        ['no vertex was above the threshold: nothing was faired (stopped after iteration 1 of 3)']
+        """
+        out: list[str] = []
+        asked = self.iterations_asked or len(self.iterations)
+        idle = [r.iteration + 1 for r in self.iterations if r.n_free == 0]
+        if self.iterations and self.effective_iterations == 0:
+            out.append(f"no vertex was above the threshold: nothing was faired (stopped after iteration "
+                       f"{len(self.iterations)} of {asked})")
+            return out
+        if idle:
+            out.append(f"iteration{'s' if len(idle) > 1 else ''} {_ranges(idle)} freed no vertex")
+        if len(self.iterations) < asked:
+            out.append(f"stopped after iteration {len(self.iterations)} of {asked}: no vertex above the "
+                       "threshold, and no later threshold is lower")
+        if self.held_off_reference > 0.1 * self.length_scale:
+            out.append(f"held vertices (fix={self.fix!r} or fixed) lie up to {self.held_off_reference:.3g} "
+                       f"{self.unit} ({self.held_off_reference / self.length_scale:.2g} edge lengths) off the "
+                       "reference surface; they were not moved")
+        return out
 
     def to_dict(self) -> dict:
         """Plain-Python form (JSON-ready)."""
         return {
             "length_scale": self.length_scale,
             "weight_scale": self.weight_scale,
+            "iterations_asked": self.iterations_asked,
+            "effective_iterations": self.effective_iterations,
+            "fix": self.fix,
+            "n_fixed": self.n_fixed,
+            "held_off_reference": self.held_off_reference,
+            "unit": self.unit,
+            "notes": self.notes(),
             "iterations": [asdict(r) for r in self.iterations],
         }
 
 
+def _ranges(values: list[int]) -> str:
+    """``[2, 3, 4, 7]`` as ``"2–4, 7"``."""
+    parts: list[str] = []
+    start = prev = values[0]
+    for v in values[1:] + [None]:  # type: ignore[list-item]
+        if v is not None and v == prev + 1:
+            prev = v
+            continue
+        parts.append(f"{start}" if start == prev else f"{start}–{prev}")
+        if v is not None:
+            start = prev = v
+    return ", ".join(parts)
+
+
+@_validate.renamed(deviation="threshold", deviation_decay="threshold_decay", fix_boundary="fix='boundary'")
 def fair(
     mesh: QuadMesh,
     *,
     iterations: int = 1,
-    deviation: float | Sequence[float] = 0.1,
-    deviation_decay: float = 1.0,
+    threshold: float | Sequence[float] = 0.1,
+    threshold_decay: float = 1.0,
     weight: float | Sequence[float] = DEFAULT_WEIGHT,
     weight_decay: float = 1.0,
     weight_scale: Literal["normalized", "raw"] = "normalized",
     anchor: Literal["current", "input"] = "current",
     reference: object | None = None,
+    fix: Literal["none", "corners", "boundary"] = "corners",
     fixed: ArrayLike | None = None,
-    fix_boundary: bool = False,
     solver: Literal["auto", "direct", "cg"] = "auto",
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
@@ -944,12 +1030,15 @@ def fair(
     ----------
     mesh : QuadMesh
     iterations : int
-        Number of iterations (>= 1).
-    deviation : float or sequence of float
-        Deviation threshold per iteration: one number, or one value per iteration.
-    deviation_decay : float
-        Factor applied to a single ``deviation`` each iteration (the thesis's
-        example 3 uses ``deviation=1, deviation_decay=0.5``).
+        Number of iterations (1 … 100,000). Fairing stops early when no vertex is
+        free and no later threshold is lower (nothing could change any more); the
+        report says so.
+    threshold : float or sequence of float
+        Zigzag threshold (eq. 30) per iteration: one number, or one value per
+        iteration (the same name as in :func:`quadnodes.zigzag.detect`).
+    threshold_decay : float
+        Factor applied to a single ``threshold`` each iteration (the thesis's
+        example 3 uses ``threshold=1, threshold_decay=0.5``).
     weight : float or sequence of float
         Penalty weight ω (> 0) per iteration, like ``deviation``.
     weight_decay : float
@@ -965,10 +1054,11 @@ def fair(
         point of the current iterate on it (instead of the iterate itself), so
         faired lines slide along the surface and normal noise is removed; a
         face is sampled 4 times as finely as the mesh (``anchor`` is ignored).
+    fix : {"none", "corners", "boundary"}
+        Vertices held in place (:func:`quadnodes.topology.fixed_vertices`). Corners
+        lie in no window's middle and never move whatever ``fix`` says.
     fixed : (n,) bool or int indices, optional
-        Vertices that never move (corners always stay).
-    fix_boundary : bool
-        Keep every boundary vertex in place.
+        More vertices that never move.
     solver : {"auto", "direct", "cg"}
         Linear solver, see :class:`FairingSystem`; results agree to about 1e-10.
 
@@ -981,41 +1071,47 @@ def fair(
     Raises
     ------
     InputError
-        On a non-positive or NaN weight, a negative threshold, a schedule shorter
-        than ``iterations``, an unknown option, or when the fixing leaves no vertex
-        that could move.
+        On something other than a mesh, a non-positive or NaN weight, a negative
+        threshold, a schedule shorter than ``iterations``, an unknown option, or
+        when the fixing leaves no vertex that could move.
 
     Examples
     --------
     >>> from quadnodes.mesh import grid
     >>> z = np.zeros((5, 7)); z[2, 3] = 0.5
-    >>> out, rep = fair(grid(5, 7, height=z), iterations=2, deviation=0.01)
+    >>> out, rep = fair(grid(5, 7, height=z), iterations=3, threshold=0.01)
     >>> [r.n_free for r in rep.iterations], round(float(out.vertices[17, 2]), 3)
     ([7, 0], 0.032)
+    >>> rep.notes()
+    ['iteration 2 freed no vertex', 'stopped after iteration 2 of 3: no vertex above the threshold, and no later threshold is lower']
     """
-    iterations = _validate.positive_int(iterations, "iterations")
-    thresholds = _validate.schedule(deviation, iterations, "deviation", decay=deviation_decay)
+    _validate.quad_mesh(mesh)
+    iterations = _validate.iteration_count(iterations, "iterations")
+    thresholds = _validate.schedule(threshold, iterations, "threshold", decay=threshold_decay)
     weights = _validate.schedule(weight, iterations, "weight", decay=weight_decay, positive=True)
-    if weight_scale not in ("normalized", "raw"):
-        raise InputError(f"weight_scale: expected 'normalized' or 'raw', got {weight_scale!r}")
-    if anchor not in ("current", "input"):
-        raise InputError(f"anchor: expected 'current' or 'input', got {anchor!r}")
-    n = mesh.n_vertices
-    user = _validate.vertex_mask(fixed, n, "fixed")
+    weight_scale = _validate.choice(weight_scale, ("normalized", "raw"), "weight_scale")  # type: ignore[assignment]
+    anchor = _validate.choice(anchor, ("current", "input"), "anchor")  # type: ignore[assignment]
+    solver = _validate.choice(solver, ("auto", "direct", "cg"), "solver")  # type: ignore[assignment]
+    held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
-    movable = topo.window_middle & ~user
-    if fix_boundary:
-        movable &= ~topo.boundary_vertices
+    movable = topo.window_middle & ~held
     if topo.window_middle.any() and not movable.any():
         raise InputError(
-            "fixed: every vertex that lies inside a structure line is fixed; nothing can be faired"
+            f"fix={fix!r}, fixed: every vertex that lies inside a structure line is held; nothing can be faired"
         )
     ref = None
+    h = mesh.mean_edge_length
+    off_reference = 0.0
     if reference is not None:
         from .reference import as_reference
 
         ref = as_reference(reference, mesh)
-    h = mesh.mean_edge_length
+        still = held | ~topo.window_middle  # vertices fairing never moves
+        if still.any():
+            _, dist = ref.closest(mesh.vertices[still])
+            off_reference = float(np.max(dist))
+    # no vertex free and no lower threshold to come: nothing can change any more
+    later_min = np.minimum.accumulate(thresholds[::-1])[::-1]
     scale = 1.0 / h**2 if weight_scale == "normalized" else 1.0
     w = topo.windows
     walk = topo.window_walk
@@ -1027,7 +1123,7 @@ def fair(
         current = mesh if x is x0 else mesh.with_vertices(x)
         if geometry is None:
             geometry = _window_geometry(x, w, walk)
-        zz = _detect(current, float(thresholds[it]), user, fix_boundary, geometry[0])
+        zz = _detect(current, float(thresholds[it]), held, geometry[0], fix)
         dev_before = float(zz.window_deviation.sum())
         e_before = dev_before  # lengths frozen at x: each window's term is its eq. 30 deviation
         if zz.n_free == 0:
@@ -1036,6 +1132,8 @@ def fair(
                                 0, e_before, e_before, dev_before, dev_before, 0.0)
             )
             report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: no zigzag above {thresholds[it]:g}")
+            if it + 1 < iterations and later_min[it + 1] >= thresholds[it]:
+                break
             continue
         w_eff = float(weights[it] * scale)
         system = FairingSystem(x, w, zz.free, w_eff, solver=solver, _inverse_lengths=geometry[1],
@@ -1070,4 +1168,5 @@ def fair(
         x = x_new
         report_progress((it + 1) / iterations, f"iteration {it + 1}/{iterations}: {system.n_free} free vertices")
     out = mesh if x is x0 else mesh.with_vertices(x)
-    return out, FairingReport(reports, length_scale=h, weight_scale=weight_scale)
+    return out, FairingReport(reports, length_scale=h, weight_scale=weight_scale, iterations_asked=iterations,
+                              fix=fix, n_fixed=int(held.sum()), held_off_reference=off_reference, unit=mesh.unit)

@@ -21,7 +21,7 @@ Examples
 >>> from quadnodes.mesh import grid
 >>> from quadnodes.noise import perturb
 >>> from quadnodes.fairing import fair
->>> noisy = perturb(grid(6, 8), tangential=0.2, seed=1)
+>>> noisy, _ = perturb(grid(6, 8), tangential=0.2, seed=1)
 >>> faired, _ = fair(noisy, iterations=2)
 >>> p = render_html([noisy, faired], pathlib.Path(tempfile.mkdtemp()) / "view.html",
 ...                 titles=["noisy", "faired"])

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
+from . import _validate
 from . import flatness as _planarity
 from .errors import InputError
 from .mesh import QuadMesh
@@ -71,7 +73,7 @@ def compare(
     original: QuadMesh,
     result: QuadMesh,
     *,
-    reference: QuadMesh | None = None,
+    reference: Any = None,
     thresholds: Sequence[float] = (0.1, 0.01),
 ) -> dict[str, float]:
     """Everything the comparisons report, for ``result`` against ``original``.
@@ -82,8 +84,9 @@ def compare(
         The input of the processing step.
     result : QuadMesh
         Same faces as ``original``.
-    reference : QuadMesh, optional
-        The clean design surface; adds ``reference_mean``/``reference_max`` (distance
+    reference : QuadMesh, build123d Face or Reference, optional
+        The clean design surface (a face is sampled finely, see
+        :func:`quadnodes.reference.as_reference`); adds ``reference_mean``/``reference_max`` (distance
         of the result's vertices to its surface, see :func:`distance_to_mesh`). When it
         has the same faces as ``result`` (e.g. the clean grid before noise was
         added), also ``reference_vertex_mean``/``reference_vertex_max``: the distance
@@ -103,7 +106,8 @@ def compare(
     Raises
     ------
     InputError
-        If the two meshes do not share their faces.
+        If an argument is not a mesh (or a reference), or the two meshes do not
+        share their faces.
 
     Examples
     --------
@@ -112,6 +116,8 @@ def compare(
     >>> compare(m, m)["displacement_max"]
     0.0
     """
+    _validate.quad_mesh(original, "original")
+    _validate.quad_mesh(result, "result")
     if original.faces.shape != result.faces.shape or not np.array_equal(original.faces, result.faces):
         raise InputError("result: must have the same faces as original to compare vertex by vertex")
     out = zigzag_stats(result, thresholds)
@@ -128,10 +134,15 @@ def compare(
         out[f"{name}_mean"] = s["mean"]
         out[f"{name}_max"] = s["max"]
     if reference is not None:
-        r = distance_to_mesh(result.vertices, reference)
+        if isinstance(reference, QuadMesh):
+            r = distance_to_mesh(result.vertices, reference)
+        else:
+            from .reference import as_reference
+
+            r = as_reference(reference, result).closest(result.vertices)[1]
         out["reference_mean"] = float(r.mean())
         out["reference_max"] = float(r.max())
-        if np.array_equal(reference.faces, result.faces):
+        if isinstance(reference, QuadMesh) and np.array_equal(reference.faces, result.faces):
             dv = np.linalg.norm(result.vertices - reference.vertices, axis=1)
             out["reference_vertex_mean"] = float(dv.mean())
             out["reference_vertex_max"] = float(dv.max())

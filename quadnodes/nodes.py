@@ -15,9 +15,11 @@ from typing import Any, Literal
 
 import numpy as np
 
+from . import _validate
 from . import io as _io
 from . import metrics as _metrics
 from . import smoothing as _smoothing
+from .smoothing import SmoothingReport
 from . import surfaces as _surfaces
 from .errors import InputError
 from .fairing import DEFAULT_WEIGHT, FairingReport
@@ -27,6 +29,7 @@ from .graph.node import Range
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .mesh import grid as _grid
+from .noise import NoiseReport
 from .noise import perturb as _perturb
 from .flatness import planarity as _planarity_of
 from .planarization import DEFAULT_TOLERANCE, PlanarizeReport
@@ -229,12 +232,14 @@ def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "erro
 # --- processing --------------------------------------------------------------------
 
 
-@node("perturb", outputs=("mesh",),
+@node("perturb", outputs=("mesh", "report"),
       ranges={"tangential": Range(min=0), "normal": Range(min=0), "jitter": Range(min=0)})
-def perturb(mesh: QuadMesh, region: np.ndarray | None = None, *, tangential: float = 0.0, normal: float = 0.0,
-            jitter: float = 0.0, seed: int = 0, fix: FixMode = "none") -> QuadMesh:
+def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray | None = None, *,
+            tangential: float = 0.0, normal: float = 0.0, jitter: float = 0.0, seed: int = 0,
+            fix: FixMode = "corners") -> tuple[QuadMesh, NoiseReport]:
     """Seeded zigzag noise; amplitudes in local edge lengths (tangential, normal, jitter);
-    only the vertices of an optional ``region`` mask move (e.g. from select_fixed with a box).
+    only the vertices of an optional ``region`` mask move (e.g. from select_fixed with a box);
+    ``fix``/``fixed`` vertices stay (corners by default, as fairing holds them).
 
     Parameters
     ----------
@@ -247,25 +252,27 @@ def perturb(mesh: QuadMesh, region: np.ndarray | None = None, *, tangential: flo
     seed : int
         Seed of the random numbers (same seed, same noise).
     fix : str
-        Vertices that do not move: none, the corners, or the whole boundary.
+        Vertices that do not move: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
     """
-    return _perturb(mesh, tangential=tangential, normal=normal, jitter=jitter, seed=seed, fix=fix, region=region)
+    return _perturb(mesh, tangential=tangential, normal=normal, jitter=jitter, seed=seed, fix=fix, fixed=fixed,
+                    region=region)
 
 
 @node("detect", outputs=("report", "free"),
       ranges={"threshold": Range(min=0)})
+@_validate.renamed(fix_boundary="fix = \"boundary\"")
 def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float = 0.1,
-           fix_boundary: bool = False) -> tuple[ZigzagReport, np.ndarray]:
+           fix: FixMode = "corners") -> tuple[ZigzagReport, np.ndarray]:
     """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask.
 
     Parameters
     ----------
     threshold : float
         Zigzag cut-off: a vertex whose deviation is strictly above it is freed.
-    fix_boundary : bool
-        Never free boundary vertices.
+    fix : str
+        Vertices never freed: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
     """
-    rep = _detect(mesh, threshold, fixed=fixed, fix_boundary=fix_boundary)
+    rep = _detect(mesh, threshold, fix=fix, fixed=fixed)
     return rep, rep.free
 
 
@@ -319,27 +326,28 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
 
 
 @node("fair", outputs=("mesh", "report"),
-      ranges={"iterations": Range(min=1), "deviation": Range(min=0),
-              "deviation_decay": Range(min=0, min_open=True), "weight": Range(min=0, min_open=True),
+      ranges={"iterations": Range(min=1), "threshold": Range(min=0),
+              "threshold_decay": Range(min=0, min_open=True), "weight": Range(min=0, min_open=True),
               "weight_decay": Range(min=0, min_open=True)})
+@_validate.renamed(deviation="threshold", deviation_decay="threshold_decay", fix_boundary="fix = \"boundary\"")
 def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | Face | None = None, *,
          iterations: int = 1,
-         deviation: float | list[float] = 0.1, deviation_decay: float = 1.0,
+         threshold: float | list[float] = 0.1, threshold_decay: float = 1.0,
          weight: float | list[float] = DEFAULT_WEIGHT, weight_decay: float = 1.0,
          weight_scale: Literal["normalized", "raw"] = "normalized",
          anchor: Literal["current", "input"] = "current",
-         fix_boundary: bool = False,
+         fix: FixMode = "corners",
          solver: Literal["auto", "direct", "cg"] = "auto") -> tuple[QuadMesh, FairingReport]:
-    """The thesis's structure-line fairing (eq. 32–34); deviation and weight may be per-iteration lists;
+    """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
     with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
 
     Parameters
     ----------
     iterations : int
         Rounds of detect-then-solve (each re-detects the zigzag vertices).
-    deviation : float or list of float
+    threshold : float or list of float
         Zigzag cut-off per round (eq. 30): vertices deviating more are freed.
-    deviation_decay : float
+    threshold_decay : float
         Factor applied to the cut-off after each round (1: constant).
     weight : float or list of float
         Penalty weight ω pulling freed vertices to their anchor (eq. 34); larger moves them less.
@@ -349,36 +357,38 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
         normalized: ω relative to the mesh's edge length (the default, unit-free); raw: the thesis's ω as is.
     anchor : str
         Pull towards the current positions of each round or the input positions.
-    fix_boundary : bool
-        Hold every boundary vertex (corners are always held).
+    fix : str
+        Vertices held in place: none, the corners (the default), or the whole boundary (plus a ``fixed`` mask).
     solver : str
         Linear solver: direct factorization, conjugate gradients, or auto by size.
     """
-    return _fair(mesh, iterations=iterations, deviation=deviation, deviation_decay=deviation_decay,
+    return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
-                 fixed=fixed, fix_boundary=fix_boundary, solver=solver, reference=reference)
+                 fix=fix, fixed=fixed, solver=solver, reference=reference)
 
 
 @node("planarize", outputs=("mesh", "report"),
-      ranges={"tolerance": Range(min=0, min_open=True), "max_iterations": Range(min=1),
+      ranges={"planar_tolerance": Range(min=0, min_open=True), "max_iterations": Range(min=1),
               "planarity_weight": Range(min=0, min_open=True), "fairness_weight": Range(min=0),
               "closeness_weight": Range(min=0), "input_weight": Range(min=0), "reference_samples": Range(min=1),
               "newton_steps": Range(min=1)})
+@_validate.renamed(tolerance="planar_tolerance")
 def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: np.ndarray | None = None, *,
-              tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = 2000,
+              planar_tolerance: float | str = DEFAULT_TOLERANCE, max_iterations: int = 2000,
               planarity_weight: float = 1.0, fairness_weight: float = 0.1, closeness_weight: float = 0.1,
-              input_weight: float | None = None, fix: Literal["none", "corners", "boundary"] = "corners",
+              input_weight: float | None = None, fix: FixMode = "corners",
               reference_samples: int = 4, method: Literal["auto", "local-global", "newton"] = "auto",
               newton_steps: int = 30) -> tuple[QuadMesh, PlanarizeReport]:
-    """Make every quad planar (diagonal distance / mean diagonal <= tolerance) while keeping structure lines
-    fair and the vertices close to a reference surface (a face or a mesh; they may slide along it) or to
-    their input positions; corners, boundary or a mask held fixed. method: local/global projection, Newton
-    steps with planarity as a hard constraint, or auto (local/global, Newton where it stalls).
+    """Make every quad planar (within planar_tolerance: relative, or a length such as "2 mm") while keeping
+    structure lines fair and the vertices close to a reference surface (a face or a mesh; they may slide
+    along it) or to their input positions; corners, boundary or a mask held fixed. method: local/global
+    projection, Newton steps with planarity as a hard constraint, or auto (local/global, Newton where it
+    stalls).
 
     Parameters
     ----------
-    tolerance : float
-        Target planarity: diagonal distance / mean diagonal of every quad.
+    planar_tolerance : float or str
+        Target planarity: a number is diagonal distance / mean diagonal, text such as "2 mm" a length.
     max_iterations : int
         Most local/global iterations.
     planarity_weight : float
@@ -390,30 +400,27 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
     input_weight : float
         Weight of staying at the input positions (default: the closeness weight without a reference, else 0).
     fix : str
-        Vertices held in place: none, the corners, or the whole boundary.
+        Vertices held in place: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
     reference_samples : int
         Reference surface sampled this many times finer than the mesh for closest points.
     method : str
-        local-global projection, newton steps with planarity as a hard constraint, or auto (newton where local-global stalls).
+        local-global projection, newton steps with planarity as a hard constraint, or auto (newton where it stalls).
     newton_steps : int
         Most Newton steps.
     """
-    return _planarize(mesh, reference=reference, tolerance=tolerance, max_iterations=max_iterations,
+    return _planarize(mesh, reference=reference, planar_tolerance=planar_tolerance, max_iterations=max_iterations,
                       planarity_weight=planarity_weight, fairness_weight=fairness_weight,
                       closeness_weight=closeness_weight, input_weight=input_weight, fix=fix, fixed=fixed,
                       reference_samples=reference_samples, method=method, newton_steps=newton_steps)
 
 
-def _fix(mesh: QuadMesh, fix: FixMode, fixed: np.ndarray | None) -> np.ndarray:
-    mask = _smoothing.fixed_mask(mesh, fix)
-    return mask if fixed is None else mask | np.asarray(fixed, dtype=bool)
-
-
-@node("laplacian", outputs=("mesh",),
+@node("laplacian", outputs=("mesh", "report"),
       ranges={"iterations": Range(min=1), "lam": Range(min=0, max=1, min_open=True)})
+@_validate.renamed(weights="weighting")
 def laplacian(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1, lam: float = 0.5,
-              weights: Literal["uniform", "inverse_length"] = "uniform", fix: FixMode = "none") -> QuadMesh:
-    """Laplacian smoothing x' = x + λ L x on the quad edge 1-ring (the thesis's baseline).
+              weighting: Literal["uniform", "inverse_length"] = "uniform",
+              fix: FixMode = "none") -> tuple[QuadMesh, SmoothingReport]:
+    """Laplacian smoothing x' = x + λ L x on the quad edge 1-ring (the thesis's baseline; fixes none by default).
 
     Parameters
     ----------
@@ -421,21 +428,23 @@ def laplacian(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: in
         Smoothing steps.
     lam : float
         Step size λ.
-    weights : str
+    weighting : str
         Neighbour weights: uniform or inverse edge length.
     fix : str
-        Vertices held in place: none, the corners, or the whole boundary.
+        Vertices held in place: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
     """
-    return _smoothing.laplacian(mesh, iterations=iterations, lam=lam, weights=weights, fix=_fix(mesh, fix, fixed))
+    return _smoothing.laplacian(mesh, iterations=iterations, lam=lam, weighting=weighting, fix=fix, fixed=fixed)
 
 
-@node("taubin", outputs=("mesh",),
+@node("taubin", outputs=("mesh", "report"),
       ranges={"iterations": Range(min=1), "lam": Range(min=0, min_open=True),
               "k_pb": Range(min=0, max=1, min_open=True, max_open=True)})
+@_validate.renamed(weights="weighting")
 def taubin(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1,
            lam: float | None = None, k_pb: float = 0.1,
-           weights: Literal["uniform", "inverse_length"] = "uniform", fix: FixMode = "none") -> QuadMesh:
-    """Taubin λ|μ smoothing (μ = 1/(k_PB − 1/λ)) on the quad edge 1-ring.
+           weighting: Literal["uniform", "inverse_length"] = "uniform",
+           fix: FixMode = "none") -> tuple[QuadMesh, SmoothingReport]:
+    """Taubin λ|μ smoothing (μ = 1/(k_PB − 1/λ)) on the quad edge 1-ring (fixes none by default, as the thesis).
 
     Parameters
     ----------
@@ -445,13 +454,13 @@ def taubin(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int =
         Shrinking step λ (default from k_pb).
     k_pb : float
         Pass-band frequency k_PB; μ = 1/(k_PB − 1/λ).
-    weights : str
+    weighting : str
         Neighbour weights: uniform or inverse edge length.
     fix : str
-        Vertices held in place: none, the corners, or the whole boundary.
+        Vertices held in place: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
     """
-    return _smoothing.taubin(mesh, iterations=iterations, lam=lam, k_pb=k_pb, weights=weights,
-                             fix=_fix(mesh, fix, fixed))
+    return _smoothing.taubin(mesh, iterations=iterations, lam=lam, k_pb=k_pb, weighting=weighting, fix=fix,
+                             fixed=fixed)
 
 
 # --- analysis ------------------------------------------------------------------------

@@ -16,6 +16,8 @@ arguments give the same bytes.
 
 from __future__ import annotations
 
+import time
+from dataclasses import asdict, dataclass
 from typing import Literal
 
 import numpy as np
@@ -25,8 +27,30 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from . import _validate
 from .errors import InputError
 from .mesh import QuadMesh
+from .topology import fixed_vertices
 
-__all__ = ["vertex_normals", "local_edge_length", "checkerboard", "perturb"]
+__all__ = ["NoiseReport", "vertex_normals", "local_edge_length", "checkerboard", "perturb"]
+
+
+@dataclass(frozen=True)
+class NoiseReport:
+    """What :func:`perturb` did: its settings, how many vertices moved and how far (in the mesh's unit)."""
+
+    tangential: float
+    normal: float
+    jitter: float
+    seed: int
+    fix: str
+    n_fixed: int
+    n_moved: int
+    moved_max: float
+    moved_mean: float
+    seconds: float
+    unit: str = "mm"
+
+    def to_dict(self) -> dict:
+        """Plain-Python form (JSON-ready)."""
+        return asdict(self)
 
 
 def vertex_normals(mesh: QuadMesh) -> np.ndarray:
@@ -87,9 +111,10 @@ def perturb(
     normal: float = 0.0,
     jitter: float = 0.0,
     seed: int = 0,
-    fix: Literal["none", "corners", "boundary"] | ArrayLike = "none",
+    fix: Literal["none", "corners", "boundary"] = "corners",
+    fixed: ArrayLike | None = None,
     region: ArrayLike | None = None,
-) -> QuadMesh:
+) -> tuple[QuadMesh, NoiseReport]:
     """Add seeded zigzag noise to a quad mesh.
 
     Parameters
@@ -104,14 +129,19 @@ def perturb(
         Standard deviation of isotropic noise, in local edge lengths.
     seed : int
         Seed of ``numpy.random.default_rng``.
-    fix : {"none", "corners", "boundary"} or mask
-        Vertices left untouched.
+    fix : {"none", "corners", "boundary"}
+        Vertices left untouched (:func:`quadnodes.topology.fixed_vertices`). The
+        default ``"corners"`` agrees with fairing and planarizing, which hold the
+        corners: noise there could never be removed.
+    fixed : (n,) bool or int indices, optional
+        More vertices left untouched.
     region : (n,) bool or int indices, optional
         Only these vertices move (default: all).
 
     Returns
     -------
-    QuadMesh
+    mesh : QuadMesh
+    report : NoiseReport
 
     Raises
     ------
@@ -123,19 +153,20 @@ def perturb(
     --------
     >>> from quadnodes.mesh import grid
     >>> from quadnodes.zigzag import detect
-    >>> noisy = perturb(grid(8, 8), tangential=0.2, seed=1)
-    >>> detect(noisy, 0.01).n_free > 0
-    True
+    >>> noisy, report = perturb(grid(8, 8), tangential=0.2, seed=1)
+    >>> detect(noisy, 0.01).n_free > 0, report.n_fixed
+    (True, 4)
     """
-    from .smoothing import fixed_mask
-
+    t0 = time.perf_counter()
+    _validate.quad_mesh(mesh)
     amp_t = _validate.nonnegative_number(tangential, "tangential")
     amp_n = _validate.nonnegative_number(normal, "normal")
     amp_j = _validate.nonnegative_number(jitter, "jitter")
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
         raise InputError(f"seed: expected an integer, got {seed!r}")
     n = mesh.n_vertices
-    moving = ~fixed_mask(mesh, fix)
+    held = fixed_vertices(mesh, fix, fixed)
+    moving = ~held
     if region is not None:
         moving &= _validate.vertex_mask(region, n, "region")
     rng = np.random.default_rng(int(seed))
@@ -170,4 +201,10 @@ def perturb(
 
     d *= h[:, None]
     d[~moving] = 0.0
-    return mesh.with_vertices(x + d)
+    out = mesh.with_vertices(x + d)
+    moved = np.linalg.norm(d, axis=1)
+    return out, NoiseReport(
+        tangential=amp_t, normal=amp_n, jitter=amp_j, seed=int(seed), fix=fix, n_fixed=int(held.sum()),
+        n_moved=int((moved > 0).sum()), moved_max=float(moved.max()), moved_mean=float(moved.mean()),
+        seconds=time.perf_counter() - t0, unit=mesh.unit,
+    )

@@ -41,7 +41,6 @@ from typing import Any, Literal
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
-from scipy.sparse.linalg import splu
 
 from . import _validate
 from .errors import InputError
@@ -50,7 +49,9 @@ from .mesh import QuadMesh
 from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
-from .smoothing import fixed_mask
+from .linalg import factorize, regularization
+from .topology import adjacency, fixed_vertices
+from .flatness import resolve_planar_tolerance
 
 __all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "DEFAULT_TOLERANCE"]
 
@@ -104,12 +105,18 @@ class PlanarizeReport:
     """What :func:`planarize` did.
 
     Planarity is the diagonal distance over the mean diagonal length (per quad);
-    distances are in model units; ``history`` holds the maximum planarity after
-    every iteration.
+    ``planarity_max_length`` the largest diagonal distance in ``unit``; distances
+    are in the mesh's unit; ``history`` holds the largest planarity after every
+    iteration, measured as the tolerance is (relative, or a length);
+    ``tolerance`` is the tolerance in that measure. ``regularized``: the closeness
+    weights were 0, so a damping far below the energy's scale kept the systems
+    definite.
     """
 
     converged: bool
     iterations: int
+    planar_tolerance: float | str
+    tolerance_kind: str
     tolerance: float
     planarity_max_before: float
     planarity_max: float
@@ -126,15 +133,15 @@ class PlanarizeReport:
     history: list[float] = field(default_factory=list)
     method: str = "local-global"
     newton_steps: int = 0
+    planarity_max_length: float = 0.0
+    unit: str = "mm"
+    fix: str = "corners"
+    n_fixed: int = 0
+    regularized: bool = False
 
     def to_dict(self) -> dict:
         """Plain-Python form (JSON-ready)."""
         return asdict(self)
-
-
-def _fixed_mask(mesh: QuadMesh, fix: Any, fixed: ArrayLike | None) -> np.ndarray:
-    fix = _validate.choice(fix, ("none", "corners", "boundary"), "fix")
-    return fixed_mask(mesh, fix) | _validate.vertex_mask(fixed, mesh.n_vertices, "fixed")
 
 
 def _centering_matrix(faces: np.ndarray, n: int) -> sp.csr_matrix:
@@ -200,7 +207,7 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
 
 def _newton(
     x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
-    h: float, closest: Any, tol: float, max_steps: int,
+    h: float, closest: Any, tol: float, max_steps: int, relative: bool = True,
 ) -> tuple[np.ndarray, list[float], int]:
     """Planarity as a hard constraint: Gauss–Newton (SQP) steps on the fairness and closeness energy.
 
@@ -221,7 +228,12 @@ def _newton(
     col[fi] = np.arange(k)
     F = F * h**2  # AᵀA in units of the mean edge length (its coefficients go as 1/length)
     Fff, Ffx = F[fi][:, fi], F[fi][:, ~free]
-    H = sp.kron((w_f * Fff + (w_c + w_i) * sp.identity(k)).tocsr(), sp.identity(3), format="csr")
+    H0 = (w_f * Fff + (w_c + w_i) * sp.identity(k)).tocsr()
+    # a Levenberg–Marquardt damping far below the energy's scale keeps H positive definite even where
+    # the energy leaves some motion free (closeness 0, nothing held on a torus): the KKT matrix is then
+    # quasi-definite, so the unpivoted symmetric factorization cannot meet a zero pivot
+    H0 = H0 + regularization(H0, 1e-8) * sp.identity(k, format="csr")
+    H = sp.kron(H0, sp.identity(3), format="csr")
     fixed_F = w_f * (Ffx @ X0[~free]) if Ffx.shape[1] else np.zeros((k, 3))
     cols = col[faces]
     active = (cols >= 0).any(axis=1)
@@ -245,7 +257,7 @@ def _newton(
         # order without pivoting, so the fill-reducing symmetric ordering can be used (4× faster than
         # COLAMD with pivoting at 100 × 100)
         rhs = np.concatenate([-grad_e, -c])
-        sol = splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(rhs)
+        sol = factorize(K, kind="quasi-definite", negative=m, what="planarize (Newton step)").solve(rhs)
         D = sol[: 3 * k].reshape(k, 3)
         norm0 = float(np.linalg.norm(c))
         t = 1.0
@@ -256,7 +268,8 @@ def _newton(
                 break
             t *= 0.5
         X = Xt
-        pmax = float(quad_diagonal_distance(X, faces).max())
+        # X is in units of h: a length tolerance compares the diagonal distance times h
+        pmax = float(quad_diagonal_distance(X, faces, relative=relative).max()) * (1.0 if relative else h)
         history.append(pmax)
         report_progress(min(steps / max_steps, 1.0), f"Newton step {steps}: planarity max {pmax:.2e}")
         if pmax <= tol:
@@ -266,11 +279,12 @@ def _newton(
     return out, history, steps
 
 
+@_validate.renamed(tolerance="planar_tolerance")
 def planarize(
     mesh: QuadMesh,
     *,
     reference: Any = None,
-    tolerance: float = DEFAULT_TOLERANCE,
+    planar_tolerance: float | str = DEFAULT_TOLERANCE,
     max_iterations: int = 2000,
     planarity_weight: float = 1.0,
     fairness_weight: float = 0.1,
@@ -292,9 +306,11 @@ def planarize(
     reference : build123d Face, QuadMesh or Reference, optional
         Design surface the vertices stay close to (and may slide along). Without
         it, vertices stay close to their input positions.
-    tolerance : float
-        Stop when every quad's planarity (diagonal distance / mean diagonal) is at
-        most this (> 0).
+    planar_tolerance : float or str
+        Stop when every quad is planar within this: a number (> 0) is relative
+        (diagonal distance / mean diagonal); text such as ``"2 mm"`` is the diagonal
+        distance as a length (converted to the mesh's unit). The same setting as
+        the exporters'.
     max_iterations : int
         Cap on local/global iterations (>= 1).
     planarity_weight, fairness_weight, closeness_weight : float
@@ -355,7 +371,10 @@ def planarize(
     """
     t0 = time.perf_counter()
     _validate.quad_mesh(mesh)
-    tol = _validate.positive_number(tolerance, "tolerance")
+    tol_kind, tol = resolve_planar_tolerance(planar_tolerance, mesh.unit)
+    if tol <= 0:
+        raise InputError(f"planar_tolerance: must be > 0, got {planar_tolerance!r}")
+    relative = tol_kind == "relative"
     max_iterations = _validate.positive_int(max_iterations, "max_iterations")
     w_p = _validate.positive_number(planarity_weight, "planarity_weight")
     w_f = _validate.finite_number(fairness_weight, "fairness_weight")
@@ -370,22 +389,31 @@ def planarize(
     newton_steps = _validate.positive_int(newton_steps, "newton_steps")
     if not isinstance(adapt, (bool, np.bool_)):
         raise InputError(f"adapt: expected True or False, got {adapt!r}")
-    held = _fixed_mask(mesh, fix, fixed)
+    held = fixed_vertices(mesh, fix, fixed)
     ref: Reference | None = None
     if reference is not None:
         ref = as_reference(reference, mesh, samples=reference_samples)
-    if w_c == 0 and w_i == 0 and w_f == 0 and not held.any():
-        raise InputError(
-            "closeness_weight: with closeness and fairness both 0 and nothing fixed, any translation "
-            "of the result is as good; give a closeness weight or fix some vertices"
-        )
+    if w_c == 0 and w_i == 0:
+        # only the held vertices pin the mesh: every connected piece needs one, else it may slide freely
+        from scipy.sparse.csgraph import connected_components
+
+        _, label = connected_components(adjacency(mesh), directed=False)
+        pinned = np.zeros(label.max() + 1, dtype=bool)
+        pinned[label[held]] = True
+        loose = np.flatnonzero(~pinned[label] & (np.diff(mesh.topology.ring[0]) > 0))
+        if loose.size:
+            raise InputError(
+                f"closeness_weight=0, input_weight=0, fix={fix!r}: nothing holds the piece of the mesh with "
+                f"vertex {int(loose[0])} in place (it could slide anywhere); give closeness_weight > 0 or "
+                "hold a vertex there (fix, fixed)"
+            )
 
     x0 = mesh.vertices
     n = mesh.n_vertices
     h = mesh.mean_edge_length
     free = ~held
     fi = np.flatnonzero(free)
-    plan0 = diagonal_distance(mesh)
+    plan0 = diagonal_distance(mesh, relative=relative)
     p_before = float(plan0.max()) if len(plan0) else 0.0
 
     def closest(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -397,10 +425,14 @@ def planarize(
                used: str = "local-global", n_steps: int = 0):
         out = mesh if x is x0 else mesh.with_vertices(x)
         pl = diagonal_distance(out)
+        pl_len = diagonal_distance(out, relative=False)
         moved = np.linalg.norm(x - x0, axis=1)
         _, dist = closest(x)
         return out, PlanarizeReport(
-            converged=converged, iterations=its, tolerance=tol, planarity_max_before=p_before,
+            converged=converged, iterations=its, planar_tolerance=planar_tolerance, tolerance_kind=tol_kind,
+            tolerance=tol, planarity_max_before=p_before,
+            planarity_max_length=float(pl_len.max()) if len(pl_len) else 0.0, unit=mesh.unit,
+            fix=fix, n_fixed=int(held.sum()), regularized=bool(w_c == 0 and w_i == 0),
             planarity_max=float(pl.max()) if len(pl) else 0.0, planarity_mean=float(pl.mean()) if len(pl) else 0.0,
             moved_max=float(moved.max()), moved_mean=float(moved.mean()),
             reference="none" if ref is None else ref.source,
@@ -414,7 +446,7 @@ def planarize(
     if fi.size == 0:
         raise InputError(
             f"fixed: every vertex is fixed but quad {int(np.argmax(plan0))} has planarity {p_before:.3g} "
-            f"> tolerance {tol:g}; free some vertices"
+            f"> planar_tolerance {planar_tolerance!r}; free some vertices"
         )
 
     faces = mesh.faces
@@ -425,7 +457,7 @@ def planarize(
     else:
         F = sp.csr_matrix((n, n))
     def run_newton(its: int, history: list[float], facts: int) -> tuple[QuadMesh, PlanarizeReport]:
-        x, steps_h, steps = _newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol, newton_steps)
+        x, steps_h, steps = _newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol, newton_steps, relative)
         return finish(x, steps_h[-1] <= tol, its, history + steps_h, w_p, facts + steps, "newton", steps)
 
     if method == "newton":
@@ -440,7 +472,9 @@ def planarize(
 
     def factor(wp: float) -> Any:
         M = (wp * Cff + w_f * Fff + (w_c + w_i) * I).tocsc()
-        return splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        if w_c + w_i == 0:  # only the held vertices pin the mesh: checked above, kept definite here
+            M = M + regularization(M, 1e-10) * sp.identity(fi.size, format="csc")
+        return factorize(M, kind="spd", what="planarize (local/global step)")
 
     lu = factor(w_p)
     facts = 1
@@ -466,7 +500,7 @@ def planarize(
         g = step(x)
         xf = acc.update(xf, g) if acc is not None else g
         x[fi] = xf
-        pmax = float(quad_diagonal_distance(x, faces).max())
+        pmax = float(quad_diagonal_distance(x, faces, relative=relative).max())
         history.append(pmax)
         if it % 10 == 0:
             report_progress(min(it / max_iterations, 1.0), f"iteration {it}: planarity max {pmax:.2e}")

@@ -70,7 +70,7 @@ class ThesisExample:
     laplace, taubin : int
         The thesis's iteration counts.
     fair : Mapping
-        Keyword arguments of :func:`quadnodes.fair` (iterations, deviation
+        Keyword arguments of :func:`quadnodes.fair` (iterations, threshold
         schedule, thesis weight as a normalized weight).
     noise : (float, float)
         Tangential and normal zigzag amplitude of :func:`quadnodes.perturb`, in
@@ -98,13 +98,13 @@ def _ex(name: str, surface: str, rows: int, cols: int, laplace: int, taubin_: in
 
 #: The thesis's examples with its parameters (chapter 5) and the noise of examples/make_thesis_graphs.py.
 THESIS_EXAMPLES: Mapping[str, ThesisExample] = MappingProxyType({
-    "E1": _ex("E1", "saddle", 10, 10, 3, 40, dict(iterations=3, deviation=0.1, weight=0.001), (0.25, 0.1)),
-    "E2": _ex("E2", "s_shape", 13, 13, 1, 20, dict(iterations=3, deviation=0.1, weight=0.005), (0.25, 0.1),
+    "E1": _ex("E1", "saddle", 10, 10, 3, 40, dict(iterations=3, threshold=0.1, weight=0.001), (0.25, 0.1)),
+    "E2": _ex("E2", "s_shape", 13, 13, 1, 20, dict(iterations=3, threshold=0.1, weight=0.005), (0.25, 0.1),
               elev=35.0, azim=-70.0),
     "E3": _ex("E3", "wavy", 22, 41, 4, 50,
-              dict(iterations=10, deviation=1.0, deviation_decay=0.5, weight=0.001), (0.25, 0.1),
+              dict(iterations=10, threshold=1.0, threshold_decay=0.5, weight=0.001), (0.25, 0.1),
               elev=25.0, azim=-30.0),
-    "E4": _ex("E4", "dome", 22, 41, 4, 30, dict(iterations=5, deviation=1.0, weight=0.0005), (0.6, 0.2),
+    "E4": _ex("E4", "dome", 22, 41, 4, 30, dict(iterations=5, threshold=1.0, weight=0.0005), (0.6, 0.2),
               elev=30.0, azim=-60.0),
 })
 
@@ -325,7 +325,8 @@ def _check_seed(seed: Any, name: str = "seed") -> int:
     return int(seed)
 
 
-def run_example(name: str, *, seed: int = 7, noise_fix: Literal["corners", "boundary"] = "corners") -> ExampleResult:
+@_validate.renamed(noise_fix="fix")
+def run_example(name: str, *, seed: int = 7, fix: Literal["corners", "boundary"] = "corners") -> ExampleResult:
     """Run Laplacian, Taubin, the new method and the variants on one noisy example.
 
     Methods (keys of :data:`METHODS`): the noisy ``original``; ``laplacian`` and
@@ -340,8 +341,8 @@ def run_example(name: str, *, seed: int = 7, noise_fix: Literal["corners", "boun
         A key of :data:`THESIS_EXAMPLES`.
     seed : int
         Seed of the noise (7 as in the example graphs).
-    noise_fix : {"corners", "boundary"}
-        Vertices the noise leaves alone: the corners (as in the example graphs,
+    fix : {"corners", "boundary"}
+        Vertices the noise leaves alone (``perturb(fix=...)``): the corners (as in the example graphs,
         so the boundary lines zigzag too) or the whole boundary (noise inside only).
 
     Returns
@@ -351,7 +352,7 @@ def run_example(name: str, *, seed: int = 7, noise_fix: Literal["corners", "boun
     Raises
     ------
     InputError
-        On an unknown example name, a bad seed or ``noise_fix``.
+        On an unknown example name, a bad seed or ``fix``.
 
     Examples
     --------
@@ -361,11 +362,11 @@ def run_example(name: str, *, seed: int = 7, noise_fix: Literal["corners", "boun
     """
     name = _check_names([name])[0]
     seed = _check_seed(seed)
-    noise_fix = _validate.choice(noise_fix, ("corners", "boundary"), "noise_fix")  # type: ignore[assignment]
+    fix = _validate.choice(fix, ("corners", "boundary"), "fix")  # type: ignore[assignment]
     ex = THESIS_EXAMPLES[name]
     clean, fine = _geometry(name)
     t0 = time.perf_counter()
-    noisy = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=seed, fix=noise_fix)
+    noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=seed, fix=fix)
     topo = noisy.topology
     boundary = topo.boundary_vertices
     none = np.zeros(noisy.n_vertices, dtype=bool)
@@ -381,26 +382,26 @@ def run_example(name: str, *, seed: int = 7, noise_fix: Literal["corners", "boun
         moved = np.linalg.norm(mesh.vertices - noisy.vertices, axis=1) > 0
         res.free[key] = moved if free is None else free
 
-    first = _validate.schedule(fp["deviation"], it, "deviation", decay=fp.get("deviation_decay", 1.0))[0]
+    first = _validate.schedule(fp["threshold"], it, "threshold", decay=fp.get("threshold_decay", 1.0))[0]
     zz = detect(noisy, float(first))
     lap, tau = _plural(ex.laplace, "step"), _plural(ex.taubin, "iteration")
     new = f"New method, {_plural(it, 'iteration')}"
     put("original", "Original (noisy input)", noisy, zz.fixed, zz.free)
-    put("laplacian", f"Laplacian, {lap}", laplacian(noisy, iterations=ex.laplace), none)
-    put("taubin", f"Taubin, {tau}", taubin(noisy, iterations=ex.taubin), none)
+    put("laplacian", f"Laplacian, {lap}", laplacian(noisy, iterations=ex.laplace)[0], none)
+    put("taubin", f"Taubin, {tau}", taubin(noisy, iterations=ex.taubin)[0], none)
     put("new", f"{new}, ω = {w:g}", _fair(noisy, **fp)[0], corners)
     put("laplacian_fixed_boundary", f"Laplacian, {lap}, boundary fixed",
-        laplacian(noisy, iterations=ex.laplace, fix="boundary"), boundary)
+        laplacian(noisy, iterations=ex.laplace, fix="boundary")[0], boundary)
     put("taubin_fixed_boundary", f"Taubin, {tau}, boundary fixed",
-        taubin(noisy, iterations=ex.taubin, fix="boundary"), boundary)
+        taubin(noisy, iterations=ex.taubin, fix="boundary")[0], boundary)
     put("new_default_weight", f"{new}, ω = {DEFAULT_WEIGHT:g} (default)",
         _fair(noisy, **{**fp, "weight": DEFAULT_WEIGHT})[0], corners)
     put("new_fixed_boundary", f"{new}, ω = {w:g}, boundary fixed",
-        _fair(noisy, **fp, fix_boundary=True)[0], corners | boundary)
+        _fair(noisy, **fp, fix="boundary")[0], corners | boundary)
     frame = _boundary_frame(clean)
     h = clean.mean_edge_length
     for key in METHODS:
-        row: dict[str, Any] = {"example": name, "seed": seed, "noise_fix": noise_fix, "method": key,
+        row: dict[str, Any] = {"example": name, "seed": seed, "fix": fix, "method": key,
                                "label": res.labels[key], "edge_length_mm": h}
         row.update(measure(noisy, res.meshes[key], clean, fine, boundary_frame=frame))
         res.rows.append(row)
@@ -417,9 +418,9 @@ def _cell(value: Any, fmt: str) -> str:
 
 def _params(ex: ThesisExample) -> str:
     fp = dict(ex.fair)
-    sched = f"deviation {fp['deviation']:g}"
-    if fp.get("deviation_decay", 1.0) != 1.0:
-        sched += f" × {fp['deviation_decay']:g} per iteration"
+    sched = f"threshold {fp['threshold']:g}"
+    if fp.get("threshold_decay", 1.0) != 1.0:
+        sched += f" × {fp['threshold_decay']:g} per iteration"
     return (f"Laplacian {_plural(ex.laplace, 'step')}; Taubin {_plural(ex.taubin, 'iteration')}; new method "
             f"{_plural(fp['iterations'], 'iteration')}, {sched}, weight {fp['weight']:g} (normalized)")
 
@@ -511,10 +512,10 @@ def format_markdown(
 def format_csv(results: Sequence[ExampleResult]) -> str:
     """All rows of all runs as CSV (full precision), one header line.
 
-    Columns: ``example, seed, noise_fix, method, label, edge_length_mm`` and the keys of :data:`COLUMNS`.
+    Columns: ``example, seed, fix, method, label, edge_length_mm`` and the keys of :data:`COLUMNS`.
     """
     buf = io.StringIO()
-    keys = ["example", "seed", "noise_fix", "method", "label", "edge_length_mm", *(c[0] for c in COLUMNS)]
+    keys = ["example", "seed", "fix", "method", "label", "edge_length_mm", *(c[0] for c in COLUMNS)]
     wr = csv.DictWriter(buf, fieldnames=keys, lineterminator="\n")
     wr.writeheader()
     for res in results:
@@ -587,7 +588,7 @@ def thesis_comparison(
     example to the Markdown and ``comparison_seeds.csv``; with
     ``interior_noise``, a run whose noise leaves the boundary clean adds one
     more table per example (its rows are in ``comparison.csv`` too, with
-    ``noise_fix = boundary``).
+    ``fix = boundary``).
 
     Parameters
     ----------
@@ -677,7 +678,7 @@ def thesis_comparison(
                 spread[name].append(run_example(name, seed=s))
         if interior_noise:
             with step(steps - 1, "interior noise"):
-                interior[name] = run_example(name, seed=seed, noise_fix="boundary")
+                interior[name] = run_example(name, seed=seed, fix="boundary")
         say(f"{name}: {_plural(1 + len(extra), 'seed')}{', interior noise' if interior_noise else ''}, "
             f"{time.perf_counter() - t:.2f} s")
     md = write_text_atomic(out / "comparison.md", format_markdown(

@@ -8,10 +8,19 @@ One Laplacian step is ``x' = x + λ L x`` with ``L = W − I`` and ``W`` the
 row-normalized edge weights; a Taubin iteration is a ``λ`` step followed by a ``μ``
 step with ``μ = 1 / (k_PB − 1/λ)`` (eq. 19). Fixed vertices get an empty
 neighbourhood (a zero row), so they never move — Taubin's interpolatory constraint.
+
+The eigenvalues ``k`` of ``I − W`` lie in ``[0, 2]`` (W is a random walk on the
+edge graph with symmetric weights), so a step pair scales frequency ``k`` by
+``f(k) = (1 − λk)(1 − μk)``. A pair with ``|f(k)| > 1`` somewhere in ``[0, 2]``
+amplifies that frequency every iteration and blows the mesh up (``λ = 1`` with
+Taubin's μ does: ``f(2) ≈ −3.2``); such factors are refused, naming the
+frequency and the gain.
 """
 
 from __future__ import annotations
 
+import time
+from dataclasses import asdict, dataclass
 from functools import partial
 from typing import Literal
 
@@ -24,21 +33,63 @@ from . import _validate
 from .errors import InputError
 from .fairing import _RowBlocks
 from .mesh import QuadMesh
+from .topology import fixed_vertices
 
-__all__ = ["laplacian_operator", "taubin_lambda", "fixed_mask", "laplacian", "taubin"]
+__all__ = ["SmoothingReport", "laplacian_operator", "taubin_lambda", "step_gain", "laplacian", "taubin"]
 
-Weights = Literal["uniform", "inverse_length"]
+Weighting = Literal["uniform", "inverse_length"]
 Fix = Literal["none", "corners", "boundary"]
+WEIGHTINGS = ("uniform", "inverse_length")
 
 
-def _weights(mesh: QuadMesh, weights: Weights, vertices: np.ndarray | None, fixed: np.ndarray | None) -> sp.csr_matrix:
+@dataclass(frozen=True)
+class SmoothingReport:
+    """What :func:`laplacian` or :func:`taubin` did (lengths in the mesh's unit)."""
+
+    method: str
+    iterations: int
+    lam: float
+    mu: float | None
+    weighting: str
+    fix: str
+    n_fixed: int
+    moved_max: float
+    moved_mean: float
+    gain_max: float
+    seconds: float
+    unit: str = "mm"
+
+    def to_dict(self) -> dict:
+        """Plain-Python form (JSON-ready)."""
+        return asdict(self)
+
+
+def step_gain(factors: list[float], low: float = 0.0) -> tuple[float, float]:
+    """Largest ``|Π (1 − f k)|`` over ``k ∈ [low, 2]`` for one pass of the step ``factors``, and where.
+
+    Examples
+    --------
+    >>> gain, k = step_gain([1.0, 1.0 / (0.1 - 1.0)], low=0.1)
+    >>> round(gain, 2), k
+    (3.22, 2.0)
+    >>> step_gain([0.5])[0] <= 1
+    True
+    """
+    k = np.linspace(min(low, 2.0), 2.0, 2001)
+    f = np.ones_like(k)
+    for a in factors:
+        f *= 1.0 - a * k
+    i = int(np.argmax(np.abs(f)))
+    return float(abs(f[i])), float(k[i])
+
+
+def _weights(mesh: QuadMesh, weighting: Weighting, vertices: np.ndarray | None, fixed: np.ndarray | None) -> sp.csr_matrix:
     """Row-normalized edge weights ``W`` (rows of fixed vertices empty)."""
-    if weights not in ("uniform", "inverse_length"):
-        raise InputError(f"weights: expected 'uniform' or 'inverse_length', got {weights!r}")
+    weighting = _validate.choice(weighting, WEIGHTINGS, "weighting")  # type: ignore[assignment]
     n = mesh.n_vertices
     indptr, indices, edge_id = mesh.topology.ring
     counts = np.diff(indptr)
-    if weights == "uniform":
+    if weighting == "uniform":
         # 1 / valence on every entry of a row; fixed rows hold zeros
         w = np.divide(1.0, counts, out=np.zeros(n), where=counts > 0)
         if fixed is not None:
@@ -53,16 +104,16 @@ def _weights(mesh: QuadMesh, weights: Weights, vertices: np.ndarray | None, fixe
     row = np.repeat(np.arange(n), counts)
     if fixed is not None:
         c = np.where(fixed[row], 0.0, c)
-    total = np.add.reduceat(c, indptr[:-1]) if c.size else np.zeros(n)
-    total = np.where(counts > 0, total, 0.0)
+    total = np.bincount(row, weights=c, minlength=n)  # per row; unused vertices have none
     scale = np.divide(1.0, total, out=np.zeros(n), where=total > 0)
     return sp.csr_matrix((c * scale[row], indices, indptr), shape=(n, n))
 
 
+@_validate.renamed(weights="weighting")
 def laplacian_operator(
     mesh: QuadMesh,
     *,
-    weights: Weights = "uniform",
+    weighting: Weighting = "uniform",
     vertices: np.ndarray | None = None,
     fixed: np.ndarray | None = None,
 ) -> sp.csr_matrix:
@@ -71,7 +122,7 @@ def laplacian_operator(
     Parameters
     ----------
     mesh : QuadMesh
-    weights : {"uniform", "inverse_length"}
+    weighting : {"uniform", "inverse_length"}
         Equal weights, or Fujiwara weights ``1/||x_i − x_j||`` (thesis 3.2.5).
     vertices : (n, 3) float64, optional
         Positions for the edge lengths (default: the mesh's).
@@ -90,7 +141,10 @@ def laplacian_operator(
     >>> L[4].toarray().round(2).tolist()
     [[0.0, 0.25, 0.0, 0.25, -1.0, 0.25, 0.0, 0.25, 0.0]]
     """
-    W = _weights(mesh, weights, vertices, fixed)
+    _validate.quad_mesh(mesh)
+    if fixed is not None:
+        fixed = _validate.vertex_mask(fixed, mesh.n_vertices, "fixed")
+    W = _weights(mesh, weighting, vertices, fixed)
     moving = np.diff(W.indptr) > 0
     if fixed is not None:
         moving &= ~fixed
@@ -116,39 +170,15 @@ def taubin_lambda(k_pb: float) -> float:
     return float(brentq(g, 1e-6, 1.0 / k_pb - 1e-9))
 
 
-def fixed_mask(mesh: QuadMesh, fix: Fix | ArrayLike) -> np.ndarray:
-    """Resolve a fixing option to a boolean ``(n,)`` mask.
-
-    ``"none"`` (as in the thesis), ``"corners"`` (boundary corners), ``"boundary"``,
-    or a boolean mask / index list.
-
-    Examples
-    --------
-    >>> from quadnodes.mesh import grid
-    >>> int(fixed_mask(grid(4, 4), "boundary").sum())
-    12
-    """
-    n = mesh.n_vertices
-    if isinstance(fix, str):
-        if fix == "none":
-            return np.zeros(n, dtype=bool)
-        if fix == "corners":
-            return mesh.topology.corner_vertices.copy()
-        if fix == "boundary":
-            return mesh.topology.boundary_vertices.copy()
-        raise InputError(f"fix: expected 'none', 'corners', 'boundary' or a mask, got {fix!r}")
-    return _validate.vertex_mask(fix, n, "fix")
-
-
-def _smooth(mesh: QuadMesh, factors: list[float], weights: Weights, fix: Fix | ArrayLike) -> QuadMesh:
-    fixed = fixed_mask(mesh, fix)
+def _smooth(mesh: QuadMesh, factors: list[float], weighting: Weighting, fixed: np.ndarray) -> QuadMesh:
+    """Run the steps ``x' = x + f L x`` for every factor ``f`` in turn; ``fixed`` rows never move."""
     x = mesh.vertices.copy()
     # x' = x + f (W x − x) on moving vertices; fixed ones (empty rows) keep their place
     moving = (np.diff(mesh.topology.ring[0]) > 0) & ~fixed
-    if weights != "uniform":
+    if weighting != "uniform":
         mask = moving.astype(np.float64)[:, None]
         for f in factors:
-            step = _weights(mesh, weights, x, fixed) @ x
+            step = _weights(mesh, weighting, x, fixed) @ x
             step -= x
             step *= mask
             step *= f
@@ -157,7 +187,7 @@ def _smooth(mesh: QuadMesh, factors: list[float], weights: Weights, fix: Fix | A
     # the operator is fixed: x' = (1 − f·moving) x + (f W) x, one product per step,
     # written row range by row range (in parallel on large meshes) into a second buffer;
     # small meshes store the coordinates as (3, n), see fairing.COLUMNS_MAX_NNZ
-    W = _weights(mesh, weights, None, fixed)
+    W = _weights(mesh, weighting, None, fixed)
     blocks = _RowBlocks(W)
     scaled = {f: W.data * f for f in set(factors)}
     still = np.flatnonzero(~moving)  # rows that keep their position (f·W is empty there)
@@ -181,52 +211,76 @@ def _smooth(mesh: QuadMesh, factors: list[float], weights: Weights, fix: Fix | A
     return mesh.with_vertices(x.T if blocks.columns else x)
 
 
+def _finish(mesh: QuadMesh, out: QuadMesh, method: str, iterations: int, lam: float, mu: float | None,
+            weighting: str, fix: str, fixed: np.ndarray, gain: float, t0: float) -> tuple[QuadMesh, SmoothingReport]:
+    moved = np.linalg.norm(out.vertices - mesh.vertices, axis=1)
+    return out, SmoothingReport(
+        method=method, iterations=iterations, lam=lam, mu=mu, weighting=weighting, fix=fix,
+        n_fixed=int(fixed.sum()), moved_max=float(moved.max()), moved_mean=float(moved.mean()),
+        gain_max=gain, seconds=time.perf_counter() - t0, unit=mesh.unit,
+    )
+
+
+@_validate.renamed(weights="weighting")
 def laplacian(
     mesh: QuadMesh,
     *,
     iterations: int = 1,
     lam: float = 0.5,
-    weights: Weights = "uniform",
-    fix: Fix | ArrayLike = "none",
-) -> QuadMesh:
+    weighting: Weighting = "uniform",
+    fix: Fix = "none",
+    fixed: ArrayLike | None = None,
+) -> tuple[QuadMesh, SmoothingReport]:
     """Laplacian smoothing ``x' = x + λ L x``, repeated ``iterations`` times.
 
     Parameters
     ----------
     mesh : QuadMesh
     iterations : int
-        Number of steps (>= 1).
+        Number of steps (1 … 100,000).
     lam : float
-        Scale factor ``0 < λ < 1`` (1 would move each vertex onto its neighbours'
+        Scale factor ``0 < λ <= 1`` (1 moves each vertex onto its neighbours'
         barycenter).
-    weights : {"uniform", "inverse_length"}
-        Inverse-length (Fujiwara) weights are recomputed every step.
-    fix : {"none", "corners", "boundary"} or mask
-        Vertices that do not move; the thesis fixes none.
+    weighting : {"uniform", "inverse_length"}
+        Equal weights, or Fujiwara weights recomputed every step.
+    fix : {"none", "corners", "boundary"}
+        Vertices that do not move (:func:`quadnodes.topology.fixed_vertices`); the
+        thesis fixes none.
+    fixed : (n,) bool or int indices, optional
+        More vertices that do not move.
 
     Returns
     -------
-    QuadMesh
+    mesh : QuadMesh
+    report : SmoothingReport
 
     Raises
     ------
     InputError
-        On a non-positive iteration count, ``λ`` outside (0, 1], or a bad option.
+        On something other than a mesh, a bad iteration count, ``λ`` outside
+        (0, 1], or an unknown option.
 
     Examples
     --------
     >>> from quadnodes.mesh import grid
     >>> z = np.zeros((3, 3)); z[1, 1] = 1.0
-    >>> float(laplacian(grid(3, 3, height=z), lam=0.5, fix="boundary").vertices[4, 2])
-    0.5
+    >>> out, rep = laplacian(grid(3, 3, height=z), lam=0.5, fix="boundary")
+    >>> float(out.vertices[4, 2]), rep.n_fixed
+    (0.5, 8)
     """
-    iterations = _validate.positive_int(iterations, "iterations")
+    t0 = time.perf_counter()
+    _validate.quad_mesh(mesh)
+    iterations = _validate.iteration_count(iterations, "iterations")
     lam = _validate.positive_number(lam, "lam")
     if lam > 1:
-        raise InputError(f"lam: must be in (0, 1], got {lam!r}")
-    return _smooth(mesh, [lam] * iterations, weights, fix)
+        raise InputError(f"lam: must be in (0, 1], got {lam!r} (a larger step overshoots and the mesh oscillates)")
+    weighting = _validate.choice(weighting, WEIGHTINGS, "weighting")  # type: ignore[assignment]
+    held = fixed_vertices(mesh, fix, fixed)
+    out = _smooth(mesh, [lam] * iterations, weighting, held)
+    return _finish(mesh, out, "laplacian", iterations, lam, None, weighting, fix, held, step_gain([lam])[0], t0)
 
 
+@_validate.renamed(weights="weighting")
 def taubin(
     mesh: QuadMesh,
     *,
@@ -234,16 +288,17 @@ def taubin(
     lam: float | None = None,
     k_pb: float = 0.1,
     mu: float | None = None,
-    weights: Weights = "uniform",
-    fix: Fix | ArrayLike = "none",
-) -> QuadMesh:
+    weighting: Weighting = "uniform",
+    fix: Fix = "none",
+    fixed: ArrayLike | None = None,
+) -> tuple[QuadMesh, SmoothingReport]:
     """Taubin λ|μ smoothing: each iteration is a ``λ`` step then a ``μ`` step.
 
     Parameters
     ----------
     mesh : QuadMesh
     iterations : int
-        Number of λ|μ pairs (>= 1).
+        Number of λ|μ pairs (1 … 100,000).
     lam : float, optional
         Positive scale factor; default from Taubin's rule ``f(1) = −f(2)`` for
         ``k_pb`` (λ = 0.6314, μ = −0.6740 for ``k_pb = 0.1``; Taubin quotes the rounded 0.6307).
@@ -251,26 +306,35 @@ def taubin(
         Pass-band frequency; ``μ = 1 / (k_PB − 1/λ)``.
     mu : float, optional
         Give ``μ`` directly instead (must satisfy ``μ < −λ``).
-    weights, fix
+    weighting, fix, fixed
         As in :func:`laplacian`.
 
     Returns
     -------
-    QuadMesh
+    mesh : QuadMesh
+    report : SmoothingReport
 
     Raises
     ------
     InputError
-        On bad counts or factors (``μ`` must be negative with ``|μ| > λ``).
+        On bad counts or factors: ``μ`` must be negative with ``|μ| > λ``, and
+        the pair must not amplify any frequency it should smooth (``|(1 − λk)(1 − μk)| <= 1`` for
+        ``k`` above the pass band ``1/λ + 1/μ``; the message names the frequency and the gain).
 
     Examples
     --------
     >>> from quadnodes.mesh import grid
-    >>> m = taubin(grid(4, 4), iterations=3)
-    >>> bool(np.allclose(m.vertices[:, 2], 0))
-    True
+    >>> m, rep = taubin(grid(4, 4), iterations=3)
+    >>> bool(np.allclose(m.vertices[:, 2], 0)), round(rep.mu, 4)
+    (True, -0.674)
+    >>> taubin(grid(4, 4), lam=1.0)
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: lam=1, mu=-1.111: each iteration multiplies frequency k=2 (of 0..2) by 3.22, so the mesh would grow without bound; use lam <= 0.7 (the default 0.6314 for k_pb=0.1)
     """
-    iterations = _validate.positive_int(iterations, "iterations")
+    t0 = time.perf_counter()
+    _validate.quad_mesh(mesh)
+    iterations = _validate.iteration_count(iterations, "iterations")
     lam = taubin_lambda(k_pb) if lam is None else _validate.positive_number(lam, "lam")
     if mu is None:
         k_pb = _validate.positive_number(k_pb, "k_pb")
@@ -278,7 +342,19 @@ def taubin(
             raise InputError(f"k_pb: must be < 1/lam = {1 / lam:.4g}, got {k_pb!r}")
         mu = 1.0 / (k_pb - 1.0 / lam)
     else:
-        mu = float(mu)
-    if not (np.isfinite(mu) and mu < -lam):
+        mu = _validate.finite_number(mu, "mu")
+    if not mu < -lam:
         raise InputError(f"mu: must be negative with |mu| > lam = {lam:.4g}, got {mu!r}")
-    return _smooth(mesh, [lam, mu] * iterations, weights, fix)
+    # Taubin's pass band k < k_pb = 1/λ + 1/μ is kept (gained very slightly on purpose); above it no
+    # frequency may grow, or the mesh grows without bound there
+    band = 1.0 / lam + 1.0 / mu
+    gain, k = step_gain([lam, mu], low=band)
+    if band >= 2.0 or gain > 1.0 + 1e-9:
+        raise InputError(
+            f"lam={lam:.4g}, mu={mu:.4g}: each iteration multiplies frequency k={k:.3g} (of 0..2) by {gain:.3g}, "
+            "so the mesh would grow without bound; use lam <= 0.7 (the default 0.6314 for k_pb=0.1)"
+        )
+    weighting = _validate.choice(weighting, WEIGHTINGS, "weighting")  # type: ignore[assignment]
+    held = fixed_vertices(mesh, fix, fixed)
+    out = _smooth(mesh, [lam, mu] * iterations, weighting, held)
+    return _finish(mesh, out, "taubin", iterations, lam, mu, weighting, fix, held, gain, t0)

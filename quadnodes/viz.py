@@ -220,7 +220,7 @@ def render_png(
     >>> from quadnodes.mesh import grid
     >>> from quadnodes.noise import perturb
     >>> from quadnodes.zigzag import detect
-    >>> noisy = perturb(grid(6, 8), tangential=0.2, seed=1)
+    >>> noisy, _ = perturb(grid(6, 8), tangential=0.2, seed=1)
     >>> p = render_png([noisy, noisy], pathlib.Path(tempfile.mkdtemp()) / "a.png",
     ...                titles=["noisy", "noisy again"], free=detect(noisy, 0.1), size_px=400)
     >>> p.stat().st_size > 5000

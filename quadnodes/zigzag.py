@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _validate
 from .mesh import QuadMesh
+from .topology import fixed_vertices
 
 __all__ = ["window_edges", "window_deviation", "vertex_deviation", "ZigzagReport", "detect"]
 
@@ -151,11 +153,21 @@ class ZigzagReport:
     vertex_deviation: np.ndarray
     fixed: np.ndarray
     free: np.ndarray
+    fix: str = "corners"
 
     @property
     def n_free(self) -> int:
         """Number of free (zigzag) vertices."""
         return int(self.free.sum())
+
+    @property
+    def n_fixed(self) -> int:
+        """Number of vertices held in place."""
+        return int(self.fixed.sum())
+
+    def to_dict(self) -> dict:
+        """Plain-Python summary (JSON-ready): threshold, fixing, counts and deviation statistics."""
+        return {"threshold": self.threshold, "fix": self.fix, "n_fixed": self.n_fixed, **self.summary()}
 
     def summary(self) -> dict[str, float]:
         """Mean and max window deviation and the number of free vertices."""
@@ -167,12 +179,13 @@ class ZigzagReport:
         }
 
 
+@_validate.renamed(fix_boundary="fix='boundary'")
 def detect(
     mesh: QuadMesh,
     threshold: float = 0.1,
     *,
+    fix: Literal["none", "corners", "boundary"] = "corners",
     fixed: ArrayLike | None = None,
-    fix_boundary: bool = False,
 ) -> ZigzagReport:
     """Find the zigzag vertices of a quad mesh.
 
@@ -186,10 +199,11 @@ def detect(
     mesh : QuadMesh
     threshold : float
         Deviation threshold (>= 0); the thesis uses 0.1 and, for strong noise, 1.
+    fix : {"none", "corners", "boundary"}
+        Vertices held in place (see :func:`quadnodes.topology.fixed_vertices`);
+        corners lie in no window's middle, so they are never free anyway.
     fixed : (n,) bool or int indices, optional
         More vertices to hold in place.
-    fix_boundary : bool
-        Hold every boundary vertex in place.
 
     Returns
     -------
@@ -198,7 +212,7 @@ def detect(
     Raises
     ------
     InputError
-        On a negative or non-finite threshold or a malformed ``fixed``.
+        On a negative or non-finite threshold, an unknown ``fix`` or a malformed ``fixed``.
 
     Examples
     --------
@@ -207,21 +221,20 @@ def detect(
     >>> detect(m, 0.1).free.reshape(3, 6).astype(int).tolist()
     [[0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 1, 0], [0, 0, 0, 0, 0, 0]]
     """
+    _validate.quad_mesh(mesh)
     threshold = _validate.nonnegative_number(threshold, "threshold")
-    user = _validate.vertex_mask(fixed, mesh.n_vertices, "fixed")
-    return _detect(mesh, threshold, user, fix_boundary, _mesh_window_deviation(mesh))
+    held = fixed_vertices(mesh, fix, fixed)
+    return _detect(mesh, threshold, held, _mesh_window_deviation(mesh), fix)
 
 
-def _detect(mesh: QuadMesh, threshold: float, user: np.ndarray, fix_boundary: bool, wd: np.ndarray) -> ZigzagReport:
-    """:func:`detect` with checked arguments and the windows' deviation ``wd`` already known."""
+def _detect(mesh: QuadMesh, threshold: float, held: np.ndarray, wd: np.ndarray, fix: str = "corners") -> ZigzagReport:
+    """:func:`detect` with checked arguments: ``held`` the resolved fixed mask, ``wd`` the windows' deviation."""
     n = mesh.n_vertices
     topo = mesh.topology
     w = topo.windows
     vd = vertex_deviation(wd, w, n)
-    fix = user | ~topo.window_middle
-    if fix_boundary:
-        fix |= topo.boundary_vertices
-    free = (vd > threshold) & ~fix
-    for a in (wd, vd, fix, free):
+    fixed = held | ~topo.window_middle
+    free = (vd > threshold) & ~fixed
+    for a in (wd, vd, fixed, free):
         a.setflags(write=False)
-    return ZigzagReport(float(threshold), w, wd, vd, fix, free)
+    return ZigzagReport(float(threshold), w, wd, vd, fixed, free, fix)

@@ -26,7 +26,7 @@ def irregular(draw) -> QuadMesh:
     base = draw(st.sampled_from(["extraordinary", "lhole"]))
     m = extraordinary_mesh() if base == "extraordinary" else l_shape_with_hole()
     seed = draw(st.integers(0, 2**31 - 1))
-    return perturb(m, tangential=0.2, normal=0.1, jitter=0.05, seed=seed)
+    return perturb(m, tangential=0.2, normal=0.1, jitter=0.05, seed=seed)[0]
 
 
 def meshes():

@@ -89,7 +89,7 @@ def test_check_nodes_new(tmp_path, capsys, monkeypatch):
     assert "fair@1" in listing and "export_step@1" in listing
     assert main(["nodes", "fair"]) == 0
     detail = capsys.readouterr().out
-    assert "deviation_decay" in detail and "default 0.3" in detail
+    assert "threshold_decay" in detail and "default 0.3" in detail
     monkeypatch.chdir(tmp_path)
     assert main(["new", "starter"]) == 0
     assert main(["new", "starter"]) == 1

@@ -1,16 +1,18 @@
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.fairing import FairingSystem, fair, fairing_energy, fairing_matrix
-from quadnodes.mesh import cylinder, grid
+from quadnodes.mesh import QuadMesh, cylinder, grid
 from quadnodes.noise import perturb
 from quadnodes.zigzag import detect, window_deviation
 from meshes import extraordinary_mesh, l_shape_with_hole
 from strategies import meshes
 
-SETTINGS = dict(iterations=2, deviation=0.01)
+SETTINGS = dict(iterations=2, threshold=0.01)
 
 
 def _dense_solve(vertices, windows, free, weight, anchor):
@@ -23,10 +25,10 @@ def _dense_solve(vertices, windows, free, weight, anchor):
     return np.linalg.lstsq(lhs, rhs, rcond=None)[0]
 
 
-@pytest.mark.parametrize("make", [lambda: perturb(grid(6, 7), tangential=0.3, normal=0.1, seed=1),
-                                  lambda: perturb(extraordinary_mesh(), tangential=0.2, seed=2),
-                                  lambda: perturb(l_shape_with_hole(), tangential=0.2, seed=3),
-                                  lambda: perturb(cylinder(5, 9), tangential=0.2, seed=4)])
+@pytest.mark.parametrize("make", [lambda: perturb(grid(6, 7), tangential=0.3, normal=0.1, seed=1)[0],
+                                  lambda: perturb(extraordinary_mesh(), tangential=0.2, seed=2)[0],
+                                  lambda: perturb(l_shape_with_hole(), tangential=0.2, seed=3)[0],
+                                  lambda: perturb(cylinder(5, 9), tangential=0.2, seed=4)[0]])
 @pytest.mark.parametrize("weight", [0.01, 1.0])
 def test_sparse_system_equals_dense_least_squares(make, weight):
     m = make()
@@ -52,7 +54,7 @@ def test_normalized_weight_is_scale_invariant(mesh, s):
 
 
 def test_raw_weight_depends_on_scale():
-    m = perturb(grid(8, 8), tangential=0.3, seed=0)
+    m, _ = perturb(grid(8, 8), tangential=0.3, seed=0)
     a, _ = fair(m, weight=0.01, weight_scale="raw")
     b, _ = fair(m.with_vertices(m.vertices * 1000), weight=0.01, weight_scale="raw")
     assert np.abs(b.vertices / 1000 - a.vertices).max() > 1e-3
@@ -60,20 +62,21 @@ def test_raw_weight_depends_on_scale():
     assert rep.iterations[0].weight_effective == pytest.approx(0.01 / m.mean_edge_length**2)
 
 
-@given(meshes(), st.booleans())
-def test_fixed_vertices_never_move(mesh, fix_boundary):
+@given(meshes(), st.sampled_from(["none", "corners", "boundary"]))
+def test_fixed_vertices_never_move(mesh, fix):
     user = np.zeros(mesh.n_vertices, bool)
     user[:: max(1, mesh.n_vertices // 7)] = True
-    out, _ = fair(mesh, iterations=3, deviation=0.0, fixed=user, fix_boundary=fix_boundary)
+    out, rep = fair(mesh, iterations=3, threshold=0.0, fix=fix, fixed=user)
     still = user | ~mesh.topology.window_middle
-    if fix_boundary:
+    if fix == "boundary":
         still |= mesh.topology.boundary_vertices
+    assert rep.fix == fix and rep.n_fixed >= int(user.sum())
     assert np.array_equal(out.vertices[still], mesh.vertices[still])
 
 
 @given(meshes(), st.sampled_from([0.001, 0.3, 10.0]))
 def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight):
-    out, rep = fair(mesh, iterations=3, deviation=0.0, weight=weight)
+    out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight)
     assert np.isfinite(out.vertices).all()
     for r in rep.iterations:
         assert r.energy_after <= r.energy_before * (1 + 1e-12) + 1e-15
@@ -86,14 +89,17 @@ def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight):
 
 def test_straight_lines_are_unchanged():
     m = grid(7, 9, spacing=(0.5, 2.0))
-    out, rep = fair(m, iterations=3, deviation=0.0)
-    assert out is m and [r.n_free for r in rep.iterations] == [0, 0, 0]
+    out, rep = fair(m, iterations=3, threshold=0.0)
+    # nothing is free and no later threshold is lower: stops after the first iteration, and says so
+    assert out is m and [r.n_free for r in rep.iterations] == [0]
+    assert rep.iterations_asked == 3 and rep.effective_iterations == 0
+    assert "nothing was faired" in rep.notes()[0]
 
 
 def test_removes_zigzag_and_keeps_boundary_close():
-    m = perturb(grid(22, 41, height=np.outer(np.sin(np.linspace(0, 3, 22)), np.ones(41))),
+    m, _ = perturb(grid(22, 41, height=np.outer(np.sin(np.linspace(0, 3, 22)), np.ones(41))),
                 tangential=0.3, normal=0.1, seed=7, fix="corners")
-    out, rep = fair(m, iterations=10, deviation=1.0, deviation_decay=0.5)
+    out, rep = fair(m, iterations=10, threshold=1.0, threshold_decay=0.5)
     before = window_deviation(m.vertices, m.topology.windows)
     after = window_deviation(out.vertices, m.topology.windows)
     assert after.mean() < 0.05 * before.mean()
@@ -102,20 +108,20 @@ def test_removes_zigzag_and_keeps_boundary_close():
 
 
 def test_anchor_input_vs_current():
-    m = perturb(grid(10, 10), tangential=0.4, seed=5)
-    a, _ = fair(m, iterations=4, deviation=0.0, weight=0.05, anchor="current")
-    b, _ = fair(m, iterations=4, deviation=0.0, weight=0.05, anchor="input")
+    m, _ = perturb(grid(10, 10), tangential=0.4, seed=5)
+    a, _ = fair(m, iterations=4, threshold=0.0, weight=0.05, anchor="current")
+    b, _ = fair(m, iterations=4, threshold=0.0, weight=0.05, anchor="input")
     da = np.linalg.norm(a.vertices - m.vertices, axis=1).max()
     db = np.linalg.norm(b.vertices - m.vertices, axis=1).max()
     assert db < da  # anchoring to the input holds vertices closer to it
 
 
 def test_schedules():
-    m = perturb(grid(8, 8), tangential=0.3, seed=0)
-    _, rep = fair(m, iterations=3, deviation=[0.5, 0.1, 0.0], weight=[1.0, 0.5, 0.25])
+    m, _ = perturb(grid(8, 8), tangential=0.3, seed=0)
+    _, rep = fair(m, iterations=3, threshold=[0.5, 0.1, 0.0], weight=[1.0, 0.5, 0.25])
     assert [r.threshold for r in rep.iterations] == [0.5, 0.1, 0.0]
     assert [r.weight for r in rep.iterations] == [1.0, 0.5, 0.25]
-    _, rep = fair(m, iterations=3, weight=1.0, weight_decay=0.1)
+    _, rep = fair(m, iterations=3, threshold=0.0, weight=1.0, weight_decay=0.1)
     assert [r.weight for r in rep.iterations] == pytest.approx([1.0, 0.1, 0.01])
 
 
@@ -126,34 +132,34 @@ def test_schedules():
         (dict(weight=float("nan")), "weight: must be finite"),
         (dict(weight=0.0), "weight: must be > 0"),
         (dict(iterations=3, weight=[1.0, 2.0]), "weight: the schedule has 2 values but 3 iterations"),
-        (dict(iterations=2, deviation=[0.1]), "deviation: the schedule has 1 values"),
-        (dict(deviation=-0.1), "deviation: must be >= 0"),
+        (dict(iterations=2, threshold=[0.1]), "threshold: the schedule has 1 values"),
+        (dict(threshold=-0.1), "threshold: must be >= 0"),
         (dict(iterations=0), "iterations: must be >= 1"),
         (dict(anchor="origin"), "anchor"),
         (dict(weight_scale="metres"), "weight_scale"),
-        (dict(fix_boundary=True, fixed=np.ones(64, bool)), "every vertex .* is fixed"),
-        (dict(deviation=[0.1], deviation_decay=0.5), "decay factor applies to a single number"),
+        (dict(fix="boundary", fixed=np.ones(64, bool)), "every vertex .* is held"),
+        (dict(threshold=[0.1], threshold_decay=0.5), "decay factor applies to a single number"),
     ],
 )
 def test_bad_parameters(kwargs, message):
     with pytest.raises(InputError, match=message):
-        fair(perturb(grid(8, 8), tangential=0.3, seed=0), **kwargs)
+        fair(perturb(grid(8, 8), tangential=0.3, seed=0)[0], **kwargs)
 
 
 def test_every_interior_vertex_fixed_by_boundary_is_an_error():
-    m = perturb(grid(2, 5), tangential=0.3, seed=0)  # every window middle is on the boundary
+    m = perturb(grid(2, 5), tangential=0.3, seed=0)[0]  # every window middle is on the boundary
     with pytest.raises(InputError, match="nothing can be faired"):
-        fair(m, fix_boundary=True)
+        fair(m, fix="boundary")
 
 
 def test_no_zigzag_returns_input_unchanged():
     m = grid(5, 5, height=np.outer(np.arange(5.0), np.ones(5)) * 0.1)
-    out, rep = fair(m, deviation=0.1)
+    out, rep = fair(m, threshold=0.1)
     assert out is m and rep.iterations[0].n_free == 0
 
 
 def test_system_reuses_factorization_for_new_anchors():
-    m = perturb(grid(6, 6), tangential=0.3, seed=1)
+    m, _ = perturb(grid(6, 6), tangential=0.3, seed=1)
     free = detect(m, 0.0).free
     s = FairingSystem(m.vertices, m.topology.windows, free, 0.5)
     x1 = s.solve(m.vertices[free])
@@ -167,9 +173,9 @@ def test_system_reuses_factorization_for_new_anchors():
 
 @pytest.mark.parametrize("weight", [0.001, 0.01, 0.3, 10.0])
 @pytest.mark.parametrize("make", [
-    lambda: perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3).with_vertices,
-    lambda: perturb(extraordinary_mesh(3), tangential=0.2, seed=4).with_vertices,
-    lambda: perturb(cylinder(30, 40), tangential=0.2, seed=5).with_vertices,
+    lambda: perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)[0].with_vertices,
+    lambda: perturb(extraordinary_mesh(3), tangential=0.2, seed=4)[0].with_vertices,
+    lambda: perturb(cylinder(30, 40), tangential=0.2, seed=5)[0].with_vertices,
 ])
 def test_conjugate_gradients_equal_the_direct_solve(make, weight):
     with_vertices = make()
@@ -195,7 +201,7 @@ def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, wei
 
     monkeypatch.setattr(fairing, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
 
-    m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
+    m, _ = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
     free = detect(m, 0.0).free
     w = weight / m.mean_edge_length**2
@@ -214,11 +220,11 @@ def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, wei
 
 
 def test_solver_choice_and_report():
-    m = perturb(grid(60, 60), tangential=0.3, seed=1)
-    _, rep = fair(m, deviation=0.0)
+    m, _ = perturb(grid(60, 60), tangential=0.3, seed=1)
+    _, rep = fair(m, threshold=0.0)
     r = rep.iterations[0]
     assert r.solver == "cg" and r.cg_iterations > 0 and r.residual <= 1e-9
-    _, rep = fair(perturb(grid(10, 10), tangential=0.3, seed=1), deviation=0.0)
+    _, rep = fair(perturb(grid(10, 10), tangential=0.3, seed=1)[0], threshold=0.0)
     assert rep.iterations[0].solver == "direct"
     with pytest.raises(InputError, match="solver"):
         fair(m, solver="magic")
@@ -226,7 +232,7 @@ def test_solver_choice_and_report():
 
 @given(meshes())
 def test_reported_energies_equal_direct_evaluation(mesh):
-    out, rep = fair(mesh, iterations=1, deviation=0.0)
+    out, rep = fair(mesh, iterations=1, threshold=0.0)
     r = rep.iterations[0]
     w = mesh.topology.windows
     assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w), rel=1e-9, abs=1e-12)
@@ -237,7 +243,7 @@ def test_reported_energies_equal_direct_evaluation(mesh):
 def test_shared_window_geometry_gives_the_same_system():
     from quadnodes.zigzag import _window_geometry
 
-    m = perturb(l_shape_with_hole(), tangential=0.2, seed=3)
+    m, _ = perturb(l_shape_with_hole(), tangential=0.2, seed=3)
     w = m.topology.windows
     free = detect(m, 0.05).free
     dev, inverse = _window_geometry(m.vertices, w)
@@ -250,12 +256,12 @@ def test_shared_window_geometry_gives_the_same_system():
 def test_patch_order_and_permutation():
     from quadnodes.fairing import _BlockJacobi, _patch_order, _permuted
 
-    m = perturb(grid(13, 11), tangential=0.2, seed=1)
+    m, _ = perturb(grid(13, 11), tangential=0.2, seed=1)
     free = detect(m, 0.0).free
     s = FairingSystem(m.vertices, m.topology.windows, free, 0.01)
     order = _patch_order(m.topology.windows, s.free_index, 4)
     assert np.array_equal(np.sort(order), np.arange(s.n_free))
-    big = perturb(grid(41, 43), tangential=0.2, seed=1)
+    big, _ = perturb(grid(41, 43), tangential=0.2, seed=1)
     fi = np.flatnonzero(detect(big, 0.0).free)
     ij = np.stack(np.divmod(fi[_patch_order(big.topology.windows, fi, 4)], 43), axis=-1)
     blocks = ij[: len(ij) // 16 * 16].reshape(-1, 16, 2)
@@ -283,7 +289,7 @@ def _threaded_solve_in_child(queue):
 
     fairing.PARALLEL_MIN_ROWS = 10
     fairing._thread_count = lambda: 2
-    m = perturb(grid(20, 20), tangential=0.2, seed=1)
+    m, _ = perturb(grid(20, 20), tangential=0.2, seed=1)
     free = detect(m, 0.0).free
     s = FairingSystem(m.vertices, m.topology.windows, free, 1.0, solver="cg")
     s.solve(m.vertices[free])
@@ -298,7 +304,7 @@ def test_threaded_solve_works_in_a_forked_child(monkeypatch):
 
     monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
     monkeypatch.setattr(fairing, "_thread_count", lambda: 2)
-    m = perturb(grid(20, 20), tangential=0.2, seed=1)
+    m, _ = perturb(grid(20, 20), tangential=0.2, seed=1)
     free = detect(m, 0.0).free
     FairingSystem(m.vertices, m.topology.windows, free, 1.0, solver="cg").solve(m.vertices[free])
     assert fairing._POOL is not None  # the parent's pool exists before the fork
@@ -329,7 +335,7 @@ def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_sha
     from quadnodes.fairing import _GridPattern
 
     rng = np.random.default_rng(seed)
-    m = perturb(grid(rows, cols), tangential=0.2, normal=0.1, seed=seed)
+    m, _ = perturb(grid(rows, cols), tangential=0.2, normal=0.1, seed=seed)
     free = m.topology.window_middle & (rng.random(m.n_vertices) >= fixed_share)
     if not free.any():
         return
@@ -358,7 +364,7 @@ def window_coefficients_all(m):
 def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, threads):
     from quadnodes import fairing
 
-    m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
+    m, _ = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
     free = m.topology.window_middle.copy()
     if fix == "boundary":
@@ -381,7 +387,7 @@ def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, th
 def test_grid_diagonal_path_only_when_it_pays():
     from quadnodes import fairing
 
-    m = perturb(grid(40, 50), tangential=0.25, seed=3)
+    m, _ = perturb(grid(40, 50), tangential=0.25, seed=3)
     free = m.topology.window_middle.copy()
     w = 0.3 / m.mean_edge_length**2
     few = free & (np.random.default_rng(0).random(m.n_vertices) < 0.3)  # mostly fixed: free-index CSR
@@ -391,14 +397,14 @@ def test_grid_diagonal_path_only_when_it_pays():
     s = _grid_system(m, free, 0.003 / m.mean_edge_length**2)  # small weight: block-Jacobi CG
     s.solve(m.vertices[free])
     assert s._cg[1] is not None and not isinstance(s._cg[0], fairing._DiagonalBlocks)
-    c = perturb(cylinder(30, 40), tangential=0.2, seed=5)  # not a complete open grid
+    c = perturb(cylinder(30, 40), tangential=0.2, seed=5)[0]  # not a complete open grid
     assert c.topology.grid_shape is None
 
 
 def test_fair_on_a_grid_uses_diagonal_storage_and_agrees_with_the_direct_solver():
-    m = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
-    a, ra = fair(m, iterations=2, deviation=0.0)
-    b, rb = fair(m, iterations=2, deviation=0.0, solver="direct")
+    m, _ = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
+    a, ra = fair(m, iterations=2, threshold=0.0)
+    b, rb = fair(m, iterations=2, threshold=0.0, solver="direct")
     assert [r.solver for r in ra.iterations] == ["cg", "cg"]
     assert np.abs(a.vertices - b.vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
 
@@ -410,8 +416,82 @@ def test_iterations_reuse_the_grid_pattern(monkeypatch):
     made = []
     init = fairing._GridPattern.__init__
     monkeypatch.setattr(fairing._GridPattern, "__init__", lambda self, *a: (made.append(1), init(self, *a))[1])
-    m = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
-    _, rep = fair(m, iterations=3, deviation=0.0)
+    m, _ = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
+    _, rep = fair(m, iterations=3, threshold=0.0)
     assert [r.solver for r in rep.iterations] == ["cg"] * 3 and len(made) == 1
-    fair(m, iterations=2, deviation=0.0, weight=1.0)  # same mesh, other weight: still the one pattern
+    fair(m, iterations=2, threshold=0.0, weight=1.0)  # same mesh, other weight: still the one pattern
     assert len(made) == 1
+
+
+def test_stops_early_when_nothing_can_change_and_says_so():
+    m, _ = perturb(grid(12, 12), tangential=0.2, seed=3)
+    out, rep = fair(m, iterations=10**5, threshold=0.1)  # was minutes of idle iterations
+    assert len(rep.iterations) < 10 and rep.iterations_asked == 10**5
+    assert rep.iterations[-1].n_free == 0 and rep.effective_iterations >= 1
+    assert any("stopped after iteration" in note for note in rep.notes())
+    # a lower threshold later on keeps it going
+    _, rep2 = fair(m, iterations=3, threshold=[1e3, 1e3, 0.0])
+    assert [r.n_free > 0 for r in rep2.iterations] == [False, False, True]
+    assert rep2.notes() == ["iterations 1–2 freed no vertex"]
+
+
+@pytest.mark.parametrize("iterations", [10**7, 2**63 - 1])
+def test_absurd_iteration_counts_are_refused(iterations):
+    with pytest.raises(InputError, match="iterations: at most 100000"):
+        fair(grid(4, 4), iterations=iterations)
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [(dict(deviation=0.2), "threshold"), (dict(deviation_decay=0.5), "threshold_decay"),
+     (dict(fix_boundary=True), "fix='boundary'")],
+)
+def test_old_names_say_the_new_one(old, new):
+    with pytest.raises(InputError, match=f"was renamed: use {re.escape(new)}"):
+        fair(grid(4, 4), **old)
+    with pytest.raises(InputError, match="was renamed"):
+        detect(grid(4, 4), fix_boundary=True)
+
+
+@pytest.mark.parametrize(
+    ("thing", "hint"),
+    [(None, "got None"), (np.zeros((4, 3)), "an array"), ("mesh.obj", "a file name"),
+     ((grid(3, 3), None), "unpack it")],
+)
+def test_something_other_than_a_mesh_is_named(thing, hint):
+    with pytest.raises(InputError, match=re.escape(hint)):
+        fair(thing)
+    with pytest.raises(InputError, match="mesh: expected a QuadMesh"):
+        detect(thing)
+
+
+def test_a_build123d_face_is_told_to_be_sampled():
+    from quadnodes import surfaces
+
+    with pytest.raises(InputError, match="sample it first"):
+        fair(surfaces.saddle())
+
+
+def test_near_duplicate_vertices_are_named_not_a_singular_factor():
+    m = grid(5, 5)
+    v = m.vertices.copy()
+    v[12] = v[13] - [1e-11, 0, 0]  # vertex 12 sits 1e-11 from vertex 13
+    with pytest.raises(InputError, match="near-duplicate vertices 12 and 13"):
+        QuadMesh(v, m.faces)
+
+
+def test_negligible_weight_is_refused_by_the_direct_solver():
+    m, _ = perturb(grid(6, 6), tangential=0.3, seed=1)
+    with pytest.raises(InputError, match="numerically singular"):
+        fair(m, weight=1e-14, threshold=0.0, solver="direct")
+
+
+def test_held_vertices_far_off_the_reference_are_reported():
+    clean = grid(8, 8)
+    noisy, _ = perturb(clean, normal=0.3, seed=2, fix="none")  # the corners moved too
+    _, rep = fair(noisy, iterations=2, reference=clean)
+    assert rep.held_off_reference > 0.1 * rep.length_scale
+    assert any("off the reference surface" in note for note in rep.notes())
+    kept, _ = perturb(clean, normal=0.3, seed=2)  # the default keeps the corners
+    _, rep = fair(kept, iterations=2, reference=clean)
+    assert rep.held_off_reference == 0 and not any("reference" in n for n in rep.notes())

@@ -30,7 +30,7 @@ from quadnodes.zigzag import detect
 @pytest.fixture(scope="module")
 def meshes():
     clean = grid(6, 8, height=0.1 * np.sin(np.arange(48.0)).reshape(6, 8))
-    noisy = perturb(clean, tangential=0.2, normal=0.1, seed=3, fix="corners")
+    noisy, _ = perturb(clean, tangential=0.2, normal=0.1, seed=3, fix="corners")
     faired, _ = fair(noisy, iterations=2)
     return clean, noisy, faired
 

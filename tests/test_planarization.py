@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.fairing import fair
-from quadnodes.mesh import grid
+from quadnodes.mesh import grid, torus
 from quadnodes.noise import perturb
 from quadnodes.flatness import diagonal_distance
 from quadnodes.planarization import planarize, quad_plane_projection
@@ -31,7 +31,7 @@ def test_a_planar_grid_stays_put():
 def test_a_hyperbolic_paraboloid_becomes_planar_by_bounded_movement():
     m = hypar()
     assert diagonal_distance(m).max() > 0.01
-    out, rep = planarize(m, tolerance=1e-4)
+    out, rep = planarize(m, planar_tolerance=1e-4)
     d = diagonal_distance(out)
     assert rep.converged and d.max() <= 1e-4 and rep.planarity_max == pytest.approx(d.max())
     h = m.mean_edge_length
@@ -44,7 +44,7 @@ def test_a_hyperbolic_paraboloid_becomes_planar_by_bounded_movement():
 
 
 def test_projection_centres_and_flattens_every_quad():
-    m = perturb(hypar(5), tangential=0.1, normal=0.2, seed=3)
+    m, _ = perturb(hypar(5), tangential=0.1, normal=0.2, seed=3)
     q = quad_plane_projection(m.vertices, m.faces)
     np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)
     # every projected quad on its own is flat, and each corner moved by half the diagonal gap
@@ -61,7 +61,7 @@ def test_projection_centres_and_flattens_every_quad():
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 10_000), frac=st.floats(0.05, 0.5))
 def test_fixed_vertices_never_move(seed, frac):
-    m = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
+    m, _ = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
     rng = np.random.default_rng(seed)
     fixed = rng.random(m.n_vertices) < frac
     out, rep = planarize(m, fixed=fixed, fix="none", max_iterations=200)
@@ -73,12 +73,12 @@ def test_fixed_vertices_never_move(seed, frac):
 @settings(max_examples=8, deadline=None)
 @given(seed=st.integers(0, 10_000), scale=st.sampled_from([1e-3, 0.5, 7.0, 1e3]))
 def test_scale_and_translation_equivariant(seed, scale):
-    m = perturb(hypar(6), tangential=0.1, normal=0.1, seed=seed)
+    m, _ = perturb(hypar(6), tangential=0.1, normal=0.1, seed=seed)
     shift = np.array([10.0, -3.0, 2.0])
     m2 = m.with_vertices(scale * m.vertices + shift * scale)
     # a fixed number of steps (a tolerance that is never met, a fixed weight): where a run stops at the
     # tolerance, round-off may decide between two neighbouring iterations
-    kw = {"tolerance": 1e-14, "max_iterations": 40, "adapt": False, "method": "local-global"}
+    kw = {"planar_tolerance": 1e-14, "max_iterations": 40, "adapt": False, "method": "local-global"}
     out, rep = planarize(m, **kw)
     out2, rep2 = planarize(m2, **kw)
     assert rep.iterations == rep2.iterations == 40
@@ -91,7 +91,7 @@ def test_fairness_term_keeps_lines_fair():
     # need to bend the structure lines
     y, x = np.meshgrid(np.linspace(-1, 1, 9), np.linspace(-1, 1, 9), indexing="ij")
     clean = grid(9, 9, spacing=0.25, height=0.3 * (x**2 + 0.5 * y**2))
-    m = perturb(clean, tangential=0.15, normal=0.05, seed=1, fix="corners")
+    m, _ = perturb(clean, tangential=0.15, normal=0.05, seed=1, fix="corners")
     faired, _ = fair(m, iterations=3)
     out, rep = planarize(faired)
     w = faired.topology.windows
@@ -101,7 +101,7 @@ def test_fairness_term_keeps_lines_fair():
 
 def test_reference_surface_keeps_vertices_on_it():
     clean = hypar(9)
-    noisy = perturb(clean, tangential=0.2, normal=0.1, seed=2, fix="corners")
+    noisy, _ = perturb(clean, tangential=0.2, normal=0.1, seed=2, fix="corners")
     faired, _ = fair(noisy, iterations=3)
     a, ra = planarize(faired)
     b, rb = planarize(faired, reference=clean)
@@ -114,7 +114,7 @@ def test_reference_surface_keeps_vertices_on_it():
 
 
 def test_boundary_fix_and_corners():
-    m = perturb(hypar(7), tangential=0.1, normal=0.1, seed=4)
+    m, _ = perturb(hypar(7), tangential=0.1, normal=0.1, seed=4)
     out, _ = planarize(m, fix="boundary", max_iterations=300)
     b = m.topology.boundary_vertices
     np.testing.assert_array_equal(out.vertices[b], m.vertices[b])
@@ -134,8 +134,8 @@ def test_unreachable_tolerance_stops_unconverged():
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"tolerance": 0.0}, "tolerance"),
-        ({"tolerance": float("nan")}, "tolerance"),
+        ({"planar_tolerance": 0.0}, "planar_tolerance"),
+        ({"planar_tolerance": float("nan")}, "planar_tolerance"),
         ({"max_iterations": 0}, "max_iterations"),
         ({"planarity_weight": -1.0}, "planarity_weight"),
         ({"fairness_weight": -0.1}, "fairness_weight"),
@@ -164,7 +164,7 @@ def test_node_and_step_export_write_planar_faces(tmp_path):
     g = Graph(base_dir=tmp_path)
     m = g.add("grid", id="grid", rows=7, cols=7, spacing=1.0)
     noisy = g.add("perturb", m, id="noisy", normal=0.15, seed=5)
-    flat = g.add("planarize", noisy, id="flat", tolerance=1e-4)
+    flat = g.add("planarize", noisy.mesh, id="flat", planar_tolerance=1e-4)
     g.add("export_step", flat.mesh, id="step", path="flat.step", planar_tol=1e-4)
     res = g.run()
     rep = res["flat.report"]
@@ -175,8 +175,8 @@ def test_node_and_step_export_write_planar_faces(tmp_path):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_newton_meets_the_tolerance_with_fixed_vertices_untouched(seed):
-    m = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
-    out, rep = planarize(m, method="newton", tolerance=1e-4)
+    m, _ = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
+    out, rep = planarize(m, method="newton", planar_tolerance=1e-4)
     assert rep.method == "newton" and rep.converged and rep.newton_steps <= 30
     assert diagonal_distance(out).max() <= 1e-4
     c = m.topology.corner_vertices
@@ -188,7 +188,7 @@ def test_auto_falls_back_to_newton_where_local_global_stalls():
     from quadnodes import surfaces
 
     clean = surfaces.example("E1")
-    faired, _ = fair(perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners"), iterations=3)
+    faired, _ = fair(perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")[0], iterations=3)
     lg, rep_lg = planarize(faired, fix="boundary", method="local-global")
     assert not rep_lg.converged
     out, rep = planarize(faired, fix="boundary")
@@ -196,3 +196,68 @@ def test_auto_falls_back_to_newton_where_local_global_stalls():
     assert rep.iterations == rep_lg.iterations  # the local/global iterations it tried first
     b = clean.topology.boundary_vertices
     np.testing.assert_array_equal(out.vertices[b], faired.vertices[b])
+
+
+_CRASH_SCRIPT = r"""
+import sys
+import numpy as np
+from quadnodes.errors import InputError
+from quadnodes.mesh import grid, torus
+from quadnodes.noise import perturb
+from quadnodes.planarization import planarize
+sys.path.insert(0, sys.argv[1])
+from meshes import extraordinary_mesh, l_shape_with_hole
+
+outcomes = []
+for name, base in [("grid", grid(6, 7)), ("torus", torus(6, 8)), ("lhole", l_shape_with_hole()),
+                   ("extraordinary", extraordinary_mesh())]:
+    for seed in range(3):
+        m, _ = perturb(base, normal=0.2, tangential=0.1, seed=seed, fix="none")
+        for method in ("newton", "auto", "local-global"):
+            for fix in ("corners", "none"):
+                try:
+                    out, rep = planarize(m, closeness_weight=0.0, method=method, fix=fix, max_iterations=60,
+                                         newton_steps=4)
+                    assert np.isfinite(out.vertices).all()
+                    outcomes.append("ok")
+                except InputError as exc:
+                    outcomes.append("refused")
+print(len(outcomes), outcomes.count("ok"), outcomes.count("refused"))
+"""
+
+
+def test_zero_closeness_never_crashes_the_interpreter(tmp_path):
+    # was SIGSEGV/SIGABRT: a singular KKT matrix factorized without pivoting
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = tmp_path / "crash.py"
+    script.write_text(_CRASH_SCRIPT)
+    tests = Path(__file__).parent
+    paths = [str(tests.parent), *filter(None, [os.environ.get("PYTHONPATH")])]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+    res = subprocess.run([sys.executable, str(script), str(tests)], capture_output=True, text=True, timeout=600, env=env)
+    assert res.returncode == 0, res.stderr[-2000:]
+    total, ok, refused = map(int, res.stdout.split())
+    assert total == 72 and ok + refused == total and ok > 0
+
+
+def test_zero_closeness_without_a_held_vertex_is_refused_with_the_settings():
+    m, _ = perturb(torus(6, 8), normal=0.2, seed=1)  # a torus has no corners: nothing holds it
+    with pytest.raises(InputError, match=r"closeness_weight=0, input_weight=0, fix='corners': nothing holds"):
+        planarize(m, closeness_weight=0.0, method="local-global")
+
+
+def test_length_tolerance_in_the_mesh_unit():
+    clean = grid(6, 6, spacing=1000.0)  # mm
+    noisy, _ = perturb(clean, normal=0.05, seed=3)
+    out, rep = planarize(noisy, planar_tolerance="0.5 mm")
+    assert rep.converged and rep.tolerance_kind == "length" and rep.tolerance == pytest.approx(0.5)
+    assert diagonal_distance(out, relative=False).max() <= 0.5 + 1e-9
+    assert rep.planarity_max_length <= 0.5 + 1e-9
+    same, rep_m = planarize(noisy.with_unit("m"), planar_tolerance="0.5 mm")
+    assert rep_m.tolerance == pytest.approx(5e-4) and rep_m.unit == "m"
+    with pytest.raises(InputError, match="planar_tolerance"):
+        planarize(noisy, planar_tolerance="half a mm")

@@ -53,10 +53,10 @@ def test_writes_figures_and_tables_with_all_columns(e1):
     assert "Range (min – max) over seeds 1:" in md
     assert "noise on interior vertices only" in md
     rows = list(csv.DictReader(e1.csv.read_text().splitlines()))
-    keys = ["example", "seed", "noise_fix", "method", "label", "edge_length_mm"] + [c[0] for c in report.COLUMNS]
+    keys = ["example", "seed", "fix", "method", "label", "edge_length_mm"] + [c[0] for c in report.COLUMNS]
     assert list(rows[0]) == keys
     assert [r["method"] for r in rows] == list(report.METHODS) * 2
-    assert {r["noise_fix"] for r in rows} == {"corners", "boundary"}
+    assert {r["fix"] for r in rows} == {"corners", "boundary"}
     for r in rows:
         for k in keys[5:]:
             assert np.isfinite(float(r[k])), (r["method"], k)
@@ -128,8 +128,8 @@ def test_errors_name_the_parameter(tmp_path, kwargs, match):
 
 
 def test_run_example_errors():
-    with pytest.raises(InputError, match="noise_fix"):
-        report.run_example("E1", noise_fix="all")
+    with pytest.raises(InputError, match="fix"):
+        report.run_example("E1", fix="all")
     with pytest.raises(InputError, match="examples: unknown example 'X'"):
         report.run_example("X")
 

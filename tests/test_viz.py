@@ -23,7 +23,7 @@ def _wavy(rows=8, cols=11):
 @pytest.fixture(scope="module")
 def meshes():
     clean = _wavy()
-    noisy = qn.perturb(clean, tangential=0.25, normal=0.1, seed=3, fix="corners")
+    noisy, _ = qn.perturb(clean, tangential=0.25, normal=0.1, seed=3, fix="corners")
     faired, _ = qn.fair(noisy, iterations=2)
     return clean, noisy, faired
 
@@ -77,7 +77,7 @@ def test_options_change_the_picture(tmp_path, meshes):
         if px.shape == base.shape:
             assert np.abs(px - base).max() > 0.2, name
     # a reference in every panel: its dashed boundary adds dark pixels outside a shrunk mesh
-    shrunk = qn.laplacian(noisy, iterations=5)
+    shrunk, _ = qn.laplacian(noisy, iterations=5)
     without = _pixels(viz.render_png(shrunk, tmp_path / "s0.png", size_px=400))
     with_ref = _pixels(viz.render_png(shrunk, tmp_path / "s1.png", size_px=400, reference=[clean]))
     assert without.shape[1] == with_ref.shape[1] == 400

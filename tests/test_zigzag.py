@@ -40,7 +40,7 @@ def test_straight_lines_have_zero_deviation():
 
 
 def test_free_means_strictly_greater():
-    m = perturb(grid(8, 8), tangential=0.3, seed=3)
+    m, _ = perturb(grid(8, 8), tangential=0.3, seed=3)
     rep = detect(m, 0.05)
     t = np.sort(rep.vertex_deviation[~rep.fixed])[len(rep.fixed) // 3]
     at = detect(m, float(t))
@@ -49,11 +49,11 @@ def test_free_means_strictly_greater():
 
 
 def test_corners_user_mask_and_boundary_are_fixed():
-    m = perturb(grid(7, 7), tangential=0.4, normal=0.2, seed=0)
+    m, _ = perturb(grid(7, 7), tangential=0.4, normal=0.2, seed=0)
     rep = detect(m, 0.0)
     assert rep.fixed[[0, 6, 42, 48]].all() and not rep.free[[0, 6, 42, 48]].any()
     assert rep.free[m.topology.boundary_vertices & ~rep.fixed].any()
-    rep_b = detect(m, 0.0, fix_boundary=True)
+    rep_b = detect(m, 0.0, fix="boundary")
     assert not rep_b.free[m.topology.boundary_vertices].any()
     rep_u = detect(m, 0.0, fixed=[24, 25])
     assert not rep_u.free[[24, 25]].any() and rep.free[[24, 25]].all()

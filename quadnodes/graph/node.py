@@ -232,6 +232,9 @@ class NodeType:
                     f"{where}: {name!r} is an input port, not a setting; connect it to another node's output",
                     node_id=node_id,
                 )
+            renamed = getattr(self.func, "renamed_settings", {})
+            if name in renamed:
+                raise graph_error(f"{where}: setting {name!r} was renamed: use {renamed[name]}", node_id=node_id)
             hint = did_you_mean(name, self._setting_index, kind="settings")
             raise graph_error(f"{where}: unknown setting {name!r}{hint}", node_id=node_id)
         try:

@@ -80,8 +80,8 @@ class Pair:
 
 
 def test_dataclasses_enums_reports_sparse_and_opt_in():
-    _, rep = fair(grid(4, 4, height=np.eye(4)), iterations=2, deviation=0.01)
-    _, rep2 = fair(grid(4, 4, height=np.eye(4)), iterations=2, deviation=0.01)
+    _, rep = fair(grid(4, 4, height=np.eye(4)), iterations=2, threshold=0.01)
+    _, rep2 = fair(grid(4, 4, height=np.eye(4)), iterations=2, threshold=0.01)
     assert fingerprint(rep) == fingerprint(rep2) is not None
     assert fingerprint(Pair(1, 2)) != fingerprint(Pair(2, 1))
     assert fingerprint(Pair(1, object())) is None
