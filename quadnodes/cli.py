@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -58,7 +60,7 @@ params = {{ path = "panels.step" }}
 [nodes.png]
 op = "render_png@1"
 inputs = {{ mesh = "noisy.mesh", mesh2 = "fair.mesh" }}
-params = {{ path = "fair.png", titles = ["noisy", "faired"] }}
+params = {{ path = "fair.png", titles = ["noisy", "faired, {{fair.iterations}} iterations"] }}
 '''
 
 
@@ -86,59 +88,125 @@ def _default_out(graph_path: Path) -> Path:
     return Path("out") / graph_path.stem
 
 
-def _with_outputs(graph: Any, out: Path) -> Any:
-    """Re-root every relative output path of writer nodes under ``out``."""
-    g = graph.copy()
-    for spec in g.nodes.values():
-        nt = g.registry.get(spec.op, node_id=spec.id)
-        for s in nt.writes:
-            value = spec.params.get(s)
-            if isinstance(value, (str, os.PathLike)) and not Path(value).is_absolute():
-                g.set(spec.id, **{s: str((out / value).resolve())})
-    return g
+def _output_folder(out: Path) -> Path:
+    """Create ``--out`` if needed and make sure files can be made in it; one-line errors otherwise."""
+    from .errors import ExportError
+    from .io._atomic import remove_stale_temporaries
+
+    if out.exists() and not out.is_dir():
+        raise ExportError(f"--out {str(out)!r}: a file is in the way; give a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ExportError(f"--out {str(out)!r}: cannot create the folder: {exc.strerror or exc}") from exc
+    try:  # a probe: root ignores permission bits, a read-only mount or a full disk does not
+        fd, probe = tempfile.mkstemp(prefix=".qn-", suffix=".tmp", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ExportError(f"--out {str(out)!r}: cannot write into the folder: {exc.strerror or exc}") from exc
+    remove_stale_temporaries(out)  # leftovers of a run that was killed while writing
+    return out
 
 
-class _Printer:
-    """Prints node events; progress lines at most every half second per node."""
+class _ProgressLine:
+    """One progress line on a terminal, rewritten in place (at most ten times a second).
+
+    Not on a terminal (a log file, a pipe), it prints nothing: the plain
+    per-step lines of the caller are the whole output there.
+    """
+
+    clock = staticmethod(time.monotonic)  # seconds; replaceable in tests
 
     def __init__(self, stream: TextIO) -> None:
         self.stream = stream
-        self.last = 0.0
+        self.last = -1.0
+        isatty = getattr(stream, "isatty", None)
+        self.tty = bool(isatty()) if callable(isatty) else False
+        self.open = False
+
+    def show(self, fraction: float | None, message: str, *, force: bool = False) -> None:
+        if not self.tty:
+            return
+        now = self.clock()
+        if not force and now - self.last < 0.1 and (fraction or 0) < 1.0:
+            return
+        self.last = now
+        pct = f"{100 * fraction:3.0f}%" if fraction is not None else "    "
+        width = max(20, shutil.get_terminal_size((100, 24)).columns - 1)
+        self.clear()
+        self.stream.write(f"  {pct} {message}"[:width])
+        self.stream.flush()
+        self.open = True
+
+    def clear(self) -> None:
+        if self.open:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+            self.open = False
+
+
+class _Printer:
+    """Prints node events: one plain line per finished node; progress inside a node on a terminal only."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self.line = _ProgressLine(stream)
 
     def __call__(self, ev: Any) -> None:
-        if ev.kind == "progress":
-            now = time.monotonic()
-            if now - self.last >= 0.5 or (ev.fraction or 0) >= 1.0:
-                self.last = now
-                pct = f"{100 * ev.fraction:3.0f}%" if ev.fraction is not None else "    "
-                print(f"        {ev.node_id}: {pct} {ev.message}", file=self.stream, flush=True)
+        if ev.kind == "started":
+            self.line.show(None, f"{ev.node_id} ({ev.op}) ...", force=True)
+        elif ev.kind == "progress":
+            self.line.show(ev.fraction, f"{ev.node_id}: {ev.message}")
         elif ev.kind == "finished" and ev.record is not None:
+            self.line.clear()
             r = ev.record
             print(f"  [{ev.index + 1}/{ev.total}] {r.status:6s} {r.id:16s} {r.op:22s} {r.seconds:8.3f} s",
                   file=self.stream, flush=True)
 
 
+def _shown(path: Path) -> str:
+    """A path as short as it is clear: relative below the working directory, else absolute."""
+    rel = os.path.relpath(path)
+    return str(path) if rel.startswith("..") else rel
+
+
+def _notes(result: Any) -> list[str]:
+    """``node: note`` lines from every output that has a ``notes()`` method (e.g. a fairing report)."""
+    lines = []
+    for r in result.records:
+        for value in result.outputs.get(r.id, {}).values():
+            notes = getattr(value, "notes", None)
+            if callable(notes) and not isinstance(value, type):
+                lines += [f"{r.id}: {n}" for n in notes()]
+    return lines
+
+
 def _run(args: argparse.Namespace, cache: Any, stream: TextIO) -> Any:
+    from .errors import GraphError
     from .graph import load
+    from .graph.paths import output_path_errors
 
     reg = _registry()
     path = Path(args.graph)
     graph = load(path, registry=reg)
-    out = Path(args.out) if args.out else _default_out(path)
-    out.mkdir(parents=True, exist_ok=True)
-    g = _with_outputs(graph, out)
+    sets = _parse_sets(args.set or [])
+    g = graph.with_overrides(sets) if sets else graph
+    errors = output_path_errors(g)  # --set obj.path=/tmp/x is refused like the same text in the file
+    if errors:
+        raise GraphError("\n".join(str(e) for e in errors))
+    out = _output_folder(Path(args.out) if args.out else _default_out(path))
     t0 = time.perf_counter()
     print(f"running {path} -> {out}/", file=stream, flush=True)
-    result = g.run(cache=cache, overrides=_parse_sets(args.set or []), progress=_Printer(stream))
-    written = []
-    for spec in g.nodes.values():
-        nt = g.registry.get(spec.op, node_id=spec.id)
-        for s in nt.writes:
-            written.append(spec.params.get(s))
+    allow = [Path(a) for a in (getattr(args, "allow_read", None) or [])]
+    result = g.run(cache=cache, progress=_Printer(stream), out=out, allow_read=allow)
     print(f"done in {time.perf_counter() - t0:.2f} s: {len(result.ran)} ran, {len(result.cached)} from cache",
           file=stream)
-    for w in written:
-        print(f"  wrote {os.path.relpath(w)}", file=stream)
+    for r in result.records:
+        for f in r.files:
+            print(f"  {'wrote' if r.status == 'ran' else 'unchanged':9s} {_shown(f)}", file=stream)
+    for line in _notes(result):
+        print(f"  note: {line}", file=stream)
     return graph
 
 
@@ -147,8 +215,10 @@ def _cache(args: argparse.Namespace) -> Any:
 
     if args.no_cache:
         return Cache()
-    directory = Path(args.cache) if args.cache else (Path(args.out) if args.out else _default_out(Path(args.graph))) / ".cache"
-    return Cache(directory)
+    if args.cache:
+        return Cache(Path(args.cache))
+    out = _output_folder(Path(args.out) if args.out else _default_out(Path(args.graph)))  # clear errors first
+    return Cache(out / ".cache")
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -176,34 +246,69 @@ def cmd_watch(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from .graph import load
+    from .graph.diagnostics import file_problems
+
+    problems = file_problems(args.graph, registry=_registry())
+    if problems:
+        for err in problems:
+            for line in str(err).splitlines():
+                print(f"error: {line}", file=sys.stderr)
+        n = len(problems)
+        print(f"{args.graph}: {n} problem{'s' if n != 1 else ''}", file=sys.stderr)
+        return 1
+    from .graph.paths import check_paths
 
     g = load(args.graph, registry=_registry())
-    g.validate()
+    out = Path(args.out) if args.out else _default_out(Path(args.graph))
+    # where the files would go and come from (symbolic links followed), as `run` checks before running
+    check_paths(g, out=out, read_roots=[g.base_dir, *[Path(a) for a in (args.allow_read or [])]])
     order = g.order()
     print(f"{args.graph}: ok, {len(order)} nodes: {' -> '.join(order)}")
     return 0
 
 
+def _intro(doc: str) -> str:
+    """A node's docstring without its Parameters section (shown setting by setting instead)."""
+    import re
+
+    m = re.search(r"^Parameters\n-{3,}$", doc, re.M)
+    return (doc[: m.start()] if m else doc).strip()
+
+
 def cmd_nodes(args: argparse.Namespace) -> int:
+    import shutil
+    import textwrap
+
     from .graph import describe
 
     reg = _registry()
     if not args.op:
         rows = [(nt.op, describe(nt.op, registry=reg)["summary"]) for nt in reg.latest()]
         width = max(len(op) for op, _ in rows)
-        for op, summary in rows:
-            print(f"{op:{width}s}  {summary}")
-        print("\n'quadnodes nodes OP' shows a node's inputs, settings and outputs.")
+        cols = max(60, shutil.get_terminal_size((100, 24)).columns) - width - 2
+        for op, summary in rows:  # whole sentences, wrapped, never cut
+            lines = textwrap.wrap(summary, cols) or [""]
+            print(f"{op:{width}s}  {lines[0]}")
+            for more in lines[1:]:
+                print(f"{'':{width}s}  {more}")
+        print("\n'quadnodes nodes OP' shows a node's inputs, settings (type, default, range, meaning) and outputs.")
         return 0
     d = describe(args.op, registry=reg)
-    print(f"{d['op']}\n\n{d['doc'].strip()}\n")
+    print(f"{d['op']}\n\n{_intro(d['doc'])}\n")
     print("inputs:")
     for p in d["inputs"]:
         print(f"  {p['name']}: {p['type']}{'' if p['required'] else '  (optional)'}")
     print("settings:")
     for s in d["settings"]:
-        default = "required" if s["required"] else f"default {s['default']!r}"
-        print(f"  {s['name']}: {s['type']}  ({default}{', file' if s.get('file') else ''})")
+        facts = ["required" if s["required"] else f"default {s['default']!r}"]
+        if s.get("range"):
+            facts.append(f"range {s['range']['text']}")
+        if s.get("file"):
+            facts.append("file read, inside the graph's folder" if s["file"] == "read"
+                         else "file written, inside --out")
+        print(f"  {s['name']}: {s['type']}  ({', '.join(facts)})")
+        if s.get("doc"):
+            print(f"      {s['doc']}")
     print("outputs:")
     for o in d["outputs"]:
         print(f"  {o['name']}: {o['type']}")
@@ -232,14 +337,24 @@ def cmd_compare(args: argparse.Namespace) -> int:
     extra = [s for s in range(1, args.spread_seeds + 2) if s != args.seed][: args.spread_seeds]
     print(f"thesis comparison ({' '.join(args.examples)}; seed {args.seed}"
           f"{', spread over seeds ' + ' '.join(map(str, extra)) if extra else ''}) -> {out}/", flush=True)
-    res = thesis_comparison(out, examples=args.examples, seed=args.seed, spread_seeds=extra,
-                            interior_noise=not args.no_interior_noise, size_px=args.size,
-                            variants_figure=not args.no_variants, log=lambda m: print(f"  {m}", flush=True))
+    from .progress import reporting
+
+    line = _ProgressLine(sys.stdout)
+
+    def log(message: str) -> None:
+        line.clear()
+        print(f"  {message}", flush=True)
+
+    with reporting(line.show):
+        res = thesis_comparison(out, examples=args.examples, seed=args.seed, spread_seeds=extra,
+                                interior_noise=not args.no_interior_noise, size_px=args.size,
+                                variants_figure=not args.no_variants, log=log)
+    line.clear()
     print(f"done in {res.seconds:.1f} s", flush=True)
     files = [*res.figures.values(), *res.variant_figures.values(), res.markdown, res.csv, res.seeds_csv]
     for p in files:
         if p is not None:
-            print(f"  wrote {os.path.relpath(p)}")
+            print(f"  wrote {_shown(p)}")
     return 0
 
 
@@ -255,6 +370,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--out", help="folder for the outputs (default out/<graph name>/)")
         p.add_argument("--cache", help="disk cache folder (default <out>/.cache)")
         p.add_argument("--no-cache", action="store_true", help="do not read or write a disk cache")
+        p.add_argument("--allow-read", action="append", metavar="DIR",
+                       help="let the graph read files from DIR too (by default only from the graph file's folder)")
 
     p = sub.add_parser("run", help="run a graph; print what ran and what came from the cache")
     graph_args(p)
@@ -265,8 +382,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-runs", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--timeout", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_watch)
-    p = sub.add_parser("check", help="validate a graph file without running it")
+    p = sub.add_parser("check", help="validate a graph file without running it; lists every problem")
     p.add_argument("graph")
+    p.add_argument("--out", help="output folder the paths are checked against (default out/<graph name>/)")
+    p.add_argument("--allow-read", action="append", metavar="DIR", help="as for run")
     p.set_defaults(func=cmd_check)
     p = sub.add_parser("nodes", help="list node types, or describe one")
     p.add_argument("op", nargs="?")
@@ -299,8 +418,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except QuadnodesError as exc:
+        from .errors import GraphError
+
         lines = str(exc).splitlines() or [type(exc).__name__]
-        print(f"error: {lines[0]}", file=sys.stderr)
+        # a graph error may list several problems, one per line; other errors say what matters first
+        for line in lines if isinstance(exc, GraphError) else lines[:1]:
+            print(f"error: {line}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a file system refusal outside a writer (e.g. the cache folder)
+        where = f" {str(exc.filename)!r}" if exc.filename else ""
+        print(f"error: cannot use{where}: {exc.strerror or exc}", file=sys.stderr)
         return 1
 
 

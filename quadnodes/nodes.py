@@ -9,6 +9,7 @@ Lengths are in the model's unit (millimetres for the built-in surfaces).
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -24,6 +25,7 @@ from .errors import InputError
 from .fairing import DEFAULT_WEIGHT, FairingReport
 from .fairing import fair as _fair
 from .graph import node
+from .graph.node import Range
 from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .mesh import grid as _grid
@@ -42,42 +44,109 @@ FixMode = Literal["none", "corners", "boundary"]
 # --- sources ---------------------------------------------------------------------
 
 
-@node("saddle", outputs=("face",))
+@node("saddle", outputs=("face",),
+      ranges={"width": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True), "rise": Range(min=0)})
 def saddle(*, width: float = 5000.0, depth: float = 5000.0, rise: float = 1000.0) -> Face:
-    """A hyperbolic paraboloid z = rise·(ξ² − η²) over width × depth (build123d face)."""
+    """A hyperbolic paraboloid z = rise·(ξ² − η²) over width × depth (build123d face).
+
+    Parameters
+    ----------
+    width, depth : float
+        Extent in x and y (model units, mm).
+    rise : float
+        Height of the saddle's highs above its corners (0 gives a plane).
+    """
     return _surfaces.saddle(width, depth, rise)
 
 
-@node("s_shape", outputs=("face",))
+@node("s_shape", outputs=("face",),
+      ranges={"width": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True), "rise": Range(min=0),
+              "taper": Range(min=0, max=1), "bend": Range(min=0)})
 def s_shape(*, width: float = 6000.0, depth: float = 6000.0, rise: float = 1200.0,
             taper: float = 0.5, bend: float = 600.0) -> Face:
-    """An S-shaped free-form surface (bicubic B-spline face)."""
+    """An S-shaped free-form surface (bicubic B-spline face).
+
+    Parameters
+    ----------
+    width, depth : float
+        Extent in x and y (model units, mm).
+    rise : float
+        Amplitude of the S at the near edge.
+    taper : float
+        Relative loss of amplitude towards the far edge, 0 to 1.
+    bend : float
+        Sideways bow in plan of the middle section.
+    """
     return _surfaces.s_shape(width, depth, rise, taper=taper, bend=bend)
 
 
-@node("wavy", outputs=("face",))
+@node("wavy", outputs=("face",),
+      ranges={"width": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True),
+              "amplitude": Range(min=0), "waves_u": Range(min=0, min_open=True),
+              "waves_v": Range(min=0, min_open=True)})
 def wavy(*, width: float = 4000.0, depth: float = 8000.0, amplitude: float = 500.0,
          waves_u: float = 0.5, waves_v: float = 1.5) -> Face:
-    """A wavy sheet: a product of two cosines (bicubic B-spline face)."""
+    """A wavy sheet: a product of two cosines (bicubic B-spline face).
+
+    Parameters
+    ----------
+    width, depth : float
+        Extent in x and y (model units, mm).
+    amplitude : float
+        Height of the crests.
+    waves_u, waves_v : float
+        Number of full waves along x and along y.
+    """
     return _surfaces.wavy(width, depth, amplitude, waves_u=waves_u, waves_v=waves_v)
 
 
-@node("dome", outputs=("face",))
+@node("dome", outputs=("face",),
+      ranges={"span": Range(min=0, min_open=True), "depth": Range(min=0, min_open=True),
+              "rise": Range(min=0, min_open=True)})
 def dome(*, span: float = 6000.0, depth: float = 6000.0, rise: float = 1200.0) -> Face:
-    """A spherical dome patch (exact OCCT sphere) over span × depth."""
+    """A spherical dome patch (exact OCCT sphere) over span × depth.
+
+    Parameters
+    ----------
+    span, depth : float
+        Extent in x and y (model units, mm).
+    rise : float
+        Height of the dome (at most span/2, a half sphere).
+    """
     return _surfaces.dome(span, depth, rise)
 
 
-@node("cylinder_segment", outputs=("face",))
+@node("cylinder_segment", outputs=("face",),
+      ranges={"radius": Range(min=0, min_open=True), "length": Range(min=0, min_open=True),
+              "angle": Range(min=0, max=360, min_open=True, max_open=True)})
 def cylinder_segment(*, radius: float = 5000.0, length: float = 8000.0, angle: float = 90.0) -> Face:
-    """A barrel vault: a cylinder segment of the given opening angle (degrees)."""
+    """A barrel vault: a cylinder segment of the given opening angle (degrees).
+
+    Parameters
+    ----------
+    radius : float
+        Radius of the vault.
+    length : float
+        Length along the axis.
+    angle : float
+        Opening angle in degrees.
+    """
     return _surfaces.cylinder_segment(radius, length, angle)
 
 
-@node("torus_patch", outputs=("face",))
+@node("torus_patch", outputs=("face",),
+      ranges={"major": Range(min=0, min_open=True), "minor": Range(min=0, min_open=True)})
 def torus_patch(*, major: float = 6000.0, minor: float = 2000.0,
                 u_range: list[float] | None = None, v_range: list[float] | None = None) -> Face:
-    """A patch of a torus; angle ranges in degrees (defaults -45..45 and 0..90)."""
+    """A patch of a torus; angle ranges in degrees (defaults -45..45 and 0..90).
+
+    Parameters
+    ----------
+    major, minor : float
+        Radii of the torus (minor < major).
+    u_range, v_range : list of float
+        Start and end angle in degrees (defaults -45..45 and 0..90).
+    """
     kw: dict[str, Any] = {}
     if u_range is not None:
         kw["u_range"] = tuple(u_range)
@@ -86,34 +155,75 @@ def torus_patch(*, major: float = 6000.0, minor: float = 2000.0,
     return _surfaces.torus_patch(major, minor, **kw)
 
 
-@node("read_step_surface", outputs=("face",), reads=("path",))
+@node("read_step_surface", outputs=("face",), reads=("path",),
+      ranges={"face": Range(min=0)})
 def read_step_surface(*, path: str, face: int = 0) -> Face:
-    """Read one face (by index) of a STEP file, e.g. a surface drawn in Rhino."""
+    """Read one face (by index) of a STEP file, e.g. a surface drawn in Rhino.
+
+    Parameters
+    ----------
+    path : str
+        The STEP file, relative to the graph file's folder.
+    face : int
+        Index of the face to use (0: the first).
+    """
     return _surfaces.from_step(path, face=face)
 
 
-@node("sample", outputs=("mesh",))
+@node("sample", outputs=("mesh",),
+      ranges={"nu": Range(min=2), "nv": Range(min=2)})
 def sample(face: Face, *, nu: int = 10, nv: int = 10,
            method: Literal["auto", "bspline", "analytic", "occt"] = "auto") -> QuadMesh:
-    """Sample a face on a uniform (u, v) grid of nu × nv vertices into a quad mesh."""
+    """Sample a face on a uniform (u, v) grid of nu × nv vertices into a quad mesh.
+
+    Parameters
+    ----------
+    nu, nv : int
+        Vertices along u and v.
+    method : str
+        How points are evaluated: B-spline, analytic formula, OCCT, or auto (the fastest exact one).
+    """
     return _surfaces.sample(face, nu, nv, method=method)
 
 
 @node("thesis_example", outputs=("mesh",))
 def thesis_example(*, name: Literal["E1", "E2", "E3", "E4"] = "E1") -> QuadMesh:
-    """The clean surface of one of the thesis's examples, sampled (E1 10×10 … E4 22×41)."""
+    """The clean surface of one of the thesis's examples, sampled (E1 10×10 … E4 22×41).
+
+    Parameters
+    ----------
+    name : str
+        Which example: E1 saddle, E2 S-shape, E3 wavy sheet, E4 dome.
+    """
     return _surfaces.example(name)
 
 
-@node("grid", outputs=("mesh",))
+@node("grid", outputs=("mesh",),
+      ranges={"rows": Range(min=2), "cols": Range(min=2), "spacing": Range(min=0, min_open=True)})
 def grid(*, rows: int = 10, cols: int = 10, spacing: float = 1.0) -> QuadMesh:
-    """A flat rows × cols grid in the xy plane."""
+    """A flat rows × cols grid in the xy plane.
+
+    Parameters
+    ----------
+    rows, cols : int
+        Vertices along y and x.
+    spacing : float
+        Distance between neighbouring vertices.
+    """
     return _grid(rows, cols, spacing=spacing)
 
 
 @node("read_mesh", outputs=("mesh",), reads=("path",))
 def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "error") -> QuadMesh:
-    """Read a quad mesh from OBJ (quads kept) or quadnodes JSON, by extension."""
+    """Read a quad mesh from OBJ (quads kept) or quadnodes JSON, by extension.
+
+    Parameters
+    ----------
+    path : str
+        The .obj or .json file, relative to the graph file's folder.
+    non_quads : str
+        What to do with faces that are not quads: refuse the file, drop them, or split them.
+    """
     if Path(path).suffix.lower() == ".obj":
         return _io.load_obj(path, non_quads=non_quads)
     return _io.load(path)
@@ -122,34 +232,75 @@ def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "erro
 # --- processing --------------------------------------------------------------------
 
 
-@node("perturb", outputs=("mesh", "report"))
+@node("perturb", outputs=("mesh", "report"),
+      ranges={"tangential": Range(min=0), "normal": Range(min=0), "jitter": Range(min=0)})
 def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray | None = None, *,
             tangential: float = 0.0, normal: float = 0.0, jitter: float = 0.0, seed: int = 0,
             fix: FixMode = "corners") -> tuple[QuadMesh, NoiseReport]:
     """Seeded zigzag noise; amplitudes in local edge lengths (tangential, normal, jitter);
     only the vertices of an optional ``region`` mask move (e.g. from select_fixed with a box);
-    ``fix``/``fixed`` vertices stay (corners by default, as fairing holds them)."""
+    ``fix``/``fixed`` vertices stay (corners by default, as fairing holds them).
+
+    Parameters
+    ----------
+    tangential : float
+        Zigzag amplitude along the surface, in local edge lengths.
+    normal : float
+        Amplitude across the surface, in local edge lengths.
+    jitter : float
+        Random extra displacement, in local edge lengths.
+    seed : int
+        Seed of the random numbers (same seed, same noise).
+    fix : str
+        Vertices that do not move: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
+    """
     return _perturb(mesh, tangential=tangential, normal=normal, jitter=jitter, seed=seed, fix=fix, fixed=fixed,
                     region=region)
 
 
-@node("detect", outputs=("report", "free"))
+@node("detect", outputs=("report", "free"),
+      ranges={"threshold": Range(min=0)})
 @_validate.renamed(fix_boundary="fix = \"boundary\"")
 def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float = 0.1,
            fix: FixMode = "corners") -> tuple[ZigzagReport, np.ndarray]:
-    """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask."""
+    """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask.
+
+    Parameters
+    ----------
+    threshold : float
+        Zigzag cut-off: a vertex whose deviation is strictly above it is freed.
+    fix : str
+        Vertices never freed: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
+    """
     rep = _detect(mesh, threshold, fix=fix, fixed=fixed)
     return rep, rep.free
 
 
-@node("select_fixed", outputs=("fixed",))
+@node("select_fixed", outputs=("fixed",),
+      ranges={"indices": Range(min=0)})
 def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners: bool = False,
                  boundary: bool = False, indices: list[int] | None = None,
                  box: list[float] | None = None,
                  zigzag: Literal["none", "fixed", "free"] = "none", invert: bool = False) -> np.ndarray:
     """A mask of vertices to hold: union of corners, boundary, indices, an axis box
     [xmin, ymin, zmin, xmax, ymax, zmax] and, with a report, its fixed or free vertices;
-    ``invert`` flips the result."""
+    ``invert`` flips the result.
+
+    Parameters
+    ----------
+    corners : bool
+        Include the corner vertices.
+    boundary : bool
+        Include every boundary vertex.
+    indices : list of int
+        Include these vertex indices.
+    box : list of float
+        Include the vertices inside the axis box [xmin, ymin, zmin, xmax, ymax, zmax].
+    zigzag : str
+        With a zigzag report: include its fixed or its free vertices.
+    invert : bool
+        Select the complement.
+    """
     n = mesh.n_vertices
     mask = np.zeros(n, dtype=bool)
     if corners:
@@ -174,7 +325,10 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
     return ~mask if invert else mask
 
 
-@node("fair", outputs=("mesh", "report"))
+@node("fair", outputs=("mesh", "report"),
+      ranges={"iterations": Range(min=1), "threshold": Range(min=0),
+              "threshold_decay": Range(min=0, min_open=True), "weight": Range(min=0, min_open=True),
+              "weight_decay": Range(min=0, min_open=True)})
 @_validate.renamed(deviation="threshold", deviation_decay="threshold_decay", fix_boundary="fix = \"boundary\"")
 def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | Face | None = None, *,
          iterations: int = 1,
@@ -185,13 +339,39 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          fix: FixMode = "corners",
          solver: Literal["auto", "direct", "cg"] = "auto") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
-    with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it."""
+    with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
+
+    Parameters
+    ----------
+    iterations : int
+        Rounds of detect-then-solve (each re-detects the zigzag vertices).
+    threshold : float or list of float
+        Zigzag cut-off per round (eq. 30): vertices deviating more are freed.
+    threshold_decay : float
+        Factor applied to the cut-off after each round (1: constant).
+    weight : float or list of float
+        Penalty weight ω pulling freed vertices to their anchor (eq. 34); larger moves them less.
+    weight_decay : float
+        Factor applied to the weight after each round (1: constant).
+    weight_scale : str
+        normalized: ω relative to the mesh's edge length (the default, unit-free); raw: the thesis's ω as is.
+    anchor : str
+        Pull towards the current positions of each round or the input positions.
+    fix : str
+        Vertices held in place: none, the corners (the default), or the whole boundary (plus a ``fixed`` mask).
+    solver : str
+        Linear solver: direct factorization, conjugate gradients, or auto by size.
+    """
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
                  fix=fix, fixed=fixed, solver=solver, reference=reference)
 
 
-@node("planarize", outputs=("mesh", "report"))
+@node("planarize", outputs=("mesh", "report"),
+      ranges={"planar_tolerance": Range(min=0, min_open=True), "max_iterations": Range(min=1),
+              "planarity_weight": Range(min=0, min_open=True), "fairness_weight": Range(min=0),
+              "closeness_weight": Range(min=0), "input_weight": Range(min=0), "reference_samples": Range(min=1),
+              "newton_steps": Range(min=1)})
 @_validate.renamed(tolerance="planar_tolerance")
 def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: np.ndarray | None = None, *,
               planar_tolerance: float | str = DEFAULT_TOLERANCE, max_iterations: int = 2000,
@@ -203,29 +383,82 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
     structure lines fair and the vertices close to a reference surface (a face or a mesh; they may slide
     along it) or to their input positions; corners, boundary or a mask held fixed. method: local/global
     projection, Newton steps with planarity as a hard constraint, or auto (local/global, Newton where it
-    stalls)."""
+    stalls).
+
+    Parameters
+    ----------
+    planar_tolerance : float or str
+        Target planarity: a number is diagonal distance / mean diagonal, text such as "2 mm" a length.
+    max_iterations : int
+        Most local/global iterations.
+    planarity_weight : float
+        Weight of planarity in the energy.
+    fairness_weight : float
+        Weight of straight, evenly spaced structure lines.
+    closeness_weight : float
+        Weight of staying on the reference surface.
+    input_weight : float
+        Weight of staying at the input positions (default: the closeness weight without a reference, else 0).
+    fix : str
+        Vertices held in place: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
+    reference_samples : int
+        Reference surface sampled this many times finer than the mesh for closest points.
+    method : str
+        local-global projection, newton steps with planarity as a hard constraint, or auto (newton where it stalls).
+    newton_steps : int
+        Most Newton steps.
+    """
     return _planarize(mesh, reference=reference, planar_tolerance=planar_tolerance, max_iterations=max_iterations,
                       planarity_weight=planarity_weight, fairness_weight=fairness_weight,
                       closeness_weight=closeness_weight, input_weight=input_weight, fix=fix, fixed=fixed,
                       reference_samples=reference_samples, method=method, newton_steps=newton_steps)
 
 
-@node("laplacian", outputs=("mesh", "report"))
+@node("laplacian", outputs=("mesh", "report"),
+      ranges={"iterations": Range(min=1), "lam": Range(min=0, max=1, min_open=True)})
 @_validate.renamed(weights="weighting")
 def laplacian(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1, lam: float = 0.5,
               weighting: Literal["uniform", "inverse_length"] = "uniform",
               fix: FixMode = "none") -> tuple[QuadMesh, SmoothingReport]:
-    """Laplacian smoothing x' = x + λ L x on the quad edge 1-ring (the thesis's baseline; fixes none by default)."""
+    """Laplacian smoothing x' = x + λ L x on the quad edge 1-ring (the thesis's baseline; fixes none by default).
+
+    Parameters
+    ----------
+    iterations : int
+        Smoothing steps.
+    lam : float
+        Step size λ.
+    weighting : str
+        Neighbour weights: uniform or inverse edge length.
+    fix : str
+        Vertices held in place: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
+    """
     return _smoothing.laplacian(mesh, iterations=iterations, lam=lam, weighting=weighting, fix=fix, fixed=fixed)
 
 
-@node("taubin", outputs=("mesh", "report"))
+@node("taubin", outputs=("mesh", "report"),
+      ranges={"iterations": Range(min=1), "lam": Range(min=0, min_open=True),
+              "k_pb": Range(min=0, max=1, min_open=True, max_open=True)})
 @_validate.renamed(weights="weighting")
 def taubin(mesh: QuadMesh, fixed: np.ndarray | None = None, *, iterations: int = 1,
            lam: float | None = None, k_pb: float = 0.1,
            weighting: Literal["uniform", "inverse_length"] = "uniform",
            fix: FixMode = "none") -> tuple[QuadMesh, SmoothingReport]:
-    """Taubin λ|μ smoothing (μ = 1/(k_PB − 1/λ)) on the quad edge 1-ring (fixes none by default, as the thesis)."""
+    """Taubin λ|μ smoothing (μ = 1/(k_PB − 1/λ)) on the quad edge 1-ring (fixes none by default, as the thesis).
+
+    Parameters
+    ----------
+    iterations : int
+        λ|μ step pairs.
+    lam : float
+        Shrinking step λ (default from k_pb).
+    k_pb : float
+        Pass-band frequency k_PB; μ = 1/(k_PB − 1/λ).
+    weighting : str
+        Neighbour weights: uniform or inverse edge length.
+    fix : str
+        Vertices held in place: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
+    """
     return _smoothing.taubin(mesh, iterations=iterations, lam=lam, k_pb=k_pb, weighting=weighting, fix=fix,
                              fixed=fixed)
 
@@ -240,10 +473,17 @@ def planarity(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray, dict]:
     return p["diagonal"], p["angle_defect"], {k: _summary(v) for k, v in p.items()}
 
 
-@node("compare", outputs=("metrics",))
+@node("compare", outputs=("metrics",),
+      ranges={"thresholds": Range(min=0, min_open=True)})
 def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | None = None, *,
             thresholds: list[float] | None = None) -> dict:
-    """Zigzag, displacement, boundary, bounding-box, planarity (and distance to a reference) numbers."""
+    """Zigzag, displacement, boundary, bounding-box, planarity (and distance to a reference) numbers.
+
+    Parameters
+    ----------
+    thresholds : list of float
+        Zigzag cut-offs to count vertices above (default 0.1 and 0.01).
+    """
     return _metrics.compare(original, result, reference=reference,
                             thresholds=tuple(thresholds) if thresholds else (0.1, 0.01))
 
@@ -251,29 +491,65 @@ def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | None = N
 # --- outputs -------------------------------------------------------------------------
 
 
-@node("export_step", outputs=("path",), writes=("path",))
+@node("export_step", outputs=("path",), writes=("path",),
+      ranges={"planar_tol": Range(min=0, min_open=True)})
 def export_step(mesh: QuadMesh, *, path: str, mode: Literal["compound", "shell", "assembly"] = "assembly",
                 planar_tol: float = _io.DEFAULT_PLANAR_TOL, mesh_unit: str = "mm",
                 colors: bool = False) -> Path:
-    """Panels to STEP: planar faces within planar_tol, else exact bilinear patches; assembly keeps labels."""
+    """Panels to STEP: planar faces within planar_tol, else exact bilinear patches; assembly keeps labels.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    mode : str
+        assembly (one labelled part per panel), shell, or compound.
+    planar_tol : float
+        Panels this planar (relative) become plane faces, others bilinear patches.
+    mesh_unit : str
+        Unit of the mesh coordinates.
+    colors : bool
+        Colour panels by planarity.
+    """
     return _io.save_step(mesh, path, mode=mode, planar_tol=planar_tol, mesh_unit=mesh_unit, colors=colors)
 
 
 @node("export_obj", outputs=("path",), writes=("path",))
 def export_obj(mesh: QuadMesh, *, path: str) -> Path:
-    """The mesh as OBJ with quads kept."""
+    """The mesh as OBJ with quads kept.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    """
     return _io.save_obj(mesh, path)
 
 
-@node("export_csv", outputs=("path",), writes=("path",))
+@node("export_csv", outputs=("path",), writes=("path",),
+      ranges={"planar_tol": Range(min=0, min_open=True)})
 def export_csv(mesh: QuadMesh, *, path: str, planar_tol: float = _io.DEFAULT_PLANAR_TOL) -> Path:
-    """The panel schedule: id, row/col, corners, area, edge lengths, planarity, planar flag."""
+    """The panel schedule: id, row/col, corners, area, edge lengths, planarity, planar flag.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    planar_tol : float
+        Panels this planar (relative) are flagged planar.
+    """
     return _io.save_schedule(mesh, path, planar_tol=planar_tol)
 
 
 @node("export_json", outputs=("path",), writes=("path",))
 def export_json(mesh: QuadMesh, *, path: str) -> Path:
-    """The mesh as quadnodes JSON (exact round trip)."""
+    """The mesh as quadnodes JSON (exact round trip).
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    """
     return _io.save_json(mesh, path)
 
 
@@ -295,7 +571,15 @@ def _plain(value: Any) -> Any:
 def export_report(data: Any, data2: Any = None, data3: Any = None, data4: Any = None, *, path: str,
                   names: list[str] | None = None) -> Path:
     """Up to four reports (metrics, fairing logs, planarity summaries) as one pretty JSON file,
-    under the given names (default: the input port names)."""
+    under the given names (default: the input port names).
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    names : list of str
+        Key of each connected report in the file (default: the port names).
+    """
     items = [d for d in (data, data2, data3, data4) if d is not None]
     labels = names if names is not None else ["data", "data2", "data3", "data4"][: len(items)]
     if len(labels) != len(items):
@@ -304,7 +588,9 @@ def export_report(data: Any, data2: Any = None, data3: Any = None, data4: Any = 
     return write_text_atomic(path, json.dumps(body, indent=2, sort_keys=True) + "\n")
 
 
-@node("render_png", outputs=("path",), writes=("path",))
+@node("render_png", outputs=("path",), writes=("path",),
+      ranges={"elev": Range(min=-90, max=90), "ncols": Range(min=1), "vmin": Range(min=0, min_open=True),
+              "vmax": Range(min=0, min_open=True), "size_px": Range(min=200)}, templates=("titles", "notes"))
 def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | None = None,
                mesh4: QuadMesh | None = None, reference: QuadMesh | None = None,
                zigzag: ZigzagReport | None = None, *, path: str, titles: list[str] | None = None,
@@ -313,7 +599,27 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
                size_px: int = 1200) -> Path:
     """Up to four meshes side by side: shaded, structure lines coloured by zigzag deviation (one log
     scale); optional faint clean ``reference``, freed/fixed markers from a ``zigzag`` report (on every
-    panel), faces coloured by planarity."""
+    panel), faces coloured by planarity.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    titles : list of str
+        One title per mesh; {node.setting} is replaced by that setting, e.g. "{fair.iterations} iterations".
+    notes : list of str
+        Lines under the figure; {node.setting} is replaced as in titles.
+    planarity : bool
+        Colour faces by planarity.
+    elev, azim : float
+        Camera elevation and azimuth in degrees.
+    ncols : int
+        Panels per row (default: up to 2, 3 for three meshes).
+    vmin, vmax : float
+        Ends of the deviation colour scale (log).
+    size_px : int
+        Figure width in pixels.
+    """
     from . import viz
 
     meshes = [m for m in (mesh, mesh2, mesh3, mesh4) if m is not None]
@@ -324,14 +630,28 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
                           size_px=size_px)
 
 
-@node("render_html", outputs=("path",), writes=("path",))
+@node("render_html", outputs=("path",), writes=("path",),
+      ranges={"elev": Range(min=-90, max=90), "vmin": Range(min=0, min_open=True),
+              "vmax": Range(min=0, min_open=True)}, templates=("titles",))
 def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | None = None,
                 mesh4: QuadMesh | None = None, reference: QuadMesh | None = None, *, path: str,
                 titles: list[str] | None = None, elev: float = 35.0, azim: float = -60.0,
                 vmin: float = 1e-4, vmax: float = 1.0) -> Path:
     """Up to four meshes in one self-contained interactive HTML page (works offline), buttons switching
     between them; structure lines coloured by zigzag deviation; hover shows vertex and panel ids,
-    deviation and planarity; an optional clean reference is shown as grey edges."""
+    deviation and planarity; an optional clean reference is shown as grey edges.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    titles : list of str
+        One button label per mesh; {node.setting} is replaced by that setting.
+    elev, azim : float
+        Camera elevation and azimuth in degrees.
+    vmin, vmax : float
+        Ends of the deviation colour scale (log).
+    """
     from . import html
 
     meshes = [m for m in (mesh, mesh2, mesh3, mesh4) if m is not None]
@@ -349,7 +669,17 @@ from .io.dxf import DxfReport  # noqa: E402  (kept beside the nodes that use it)
 @node("read_surface", outputs=("face",), reads=("path",))
 def read_surface(*, path: str, face: int | str | None = None, allow_trimmed: bool = False) -> Face:
     """The designer's surface from STEP, IGES or Rhino .3dm (NURBS converted exactly, in mm), by index or name;
-    a file with several faces needs face=, a trimmed face is refused unless allow_trimmed."""
+    a file with several faces needs face=, a trimmed face is refused unless allow_trimmed.
+
+    Parameters
+    ----------
+    path : str
+        The surface file (.step, .stp, .iges, .igs or .3dm), relative to the graph's folder.
+    face : int or str
+        Which face: its index, or its name (Rhino object name or STEP label); needed when the file has several.
+    allow_trimmed : bool
+        Accept a trimmed face (its untrimmed underlying surface is sampled).
+    """
     return _surfaces.from_file(path, face=face, allow_trimmed=allow_trimmed)
 
 
@@ -358,19 +688,102 @@ def export_3dm(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io
                lines: bool = True, user_text: bool = True) -> Path:
     """Rhino .3dm in the mesh's unit: the quad mesh, every panel a named degree-1 surface with user text on
     layer panels::planar or panels::bilinear (planar_tolerance: relative, or a length such as "2 mm"), and
-    the structure lines as polylines."""
+    the structure lines as polylines.
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    planar_tolerance : float or str
+        Panels this planar go on layer panels::planar: a relative number, or a length such as "2 mm".
+    lines : bool
+        Also write the structure lines as polylines.
+    user_text : bool
+        Attach user text (id, row/col, planarity, area, edges) to every panel.
+    """
     return _io.save_3dm(mesh, path, planar_tolerance=planar_tolerance, lines=lines, user_text=user_text)
 
 
-@node("export_dxf", outputs=("path", "report"), writes=("path",))
+@node("export_dxf", outputs=("path", "report"), writes=("path",),
+      ranges={"per_row": Range(min=1), "gap": Range(min=0), "text_height": Range(min=0, min_open=True)})
 def export_dxf(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io.DEFAULT_PLANAR_TOL,
                per_row: int | None = None, gap: float | None = None,
                text_height: float | None = None) -> tuple[Path, DxfReport]:
     """DXF unrolls for fabrication: every panel flat (unfolded along a diagonal), in rows without overlaps, on
     layer PANELS (green planar, orange bilinear) with its label on LABELS; the report gives each panel's
-    distortion (largest edge or diagonal length change, in the mesh's unit)."""
+    distortion (largest edge or diagonal length change, in the mesh's unit).
+
+    Parameters
+    ----------
+    path : str
+        Output file, relative to the output folder.
+    planar_tolerance : float or str
+        Panels this planar are drawn green: a relative number, or a length such as "2 mm".
+    per_row : int
+        Panels per row of the layout (default: about the square root of the panel count).
+    gap : float
+        Space between unrolled panels, in the mesh's unit (default: a tenth of the mean edge).
+    text_height : float
+        Height of the labels, in the mesh's unit (default: from the panel size).
+    """
     return _io.dxf_report(mesh, path, planar_tolerance=planar_tolerance, per_row=per_row, gap=gap,
                           text_height=text_height)
+
+
+# --- advice in the run summary ----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Advice:
+    """Short notes for the run summary (``quadnodes run`` prints every output's ``notes()``)."""
+
+    lines: tuple[str, ...] = ()
+
+    def notes(self) -> list[str]:
+        """The notes, one line each (none when the condition did not hold)."""
+        return list(self.lines)
+
+
+@node("advise", outputs=("advice",), templates=("message",))
+def advise(metrics: dict, baseline: dict | None = None, *, key: str, above: float | None = None,
+           below: float | None = None, message: str = "") -> Advice:
+    """Say why a result looks bad, in the run summary, when a number of a metrics table crosses a limit.
+
+    The limit is ``above``/``below``, or else the same number of a connected
+    ``baseline`` table (e.g. Laplacian's metrics: note when the new method is
+    worse). The note names the number, its value and the limit, then
+    ``message``; when the limit is not crossed there is no note, so a summary
+    never claims what the run did not show.
+
+    Parameters
+    ----------
+    key : str
+        The number to watch, a key of the connected metrics (e.g. boundary_displacement_max).
+    above, below : float
+        Note when the number is above or below this limit (default: above the baseline's number).
+    message : str
+        The explanation and the setting that fixes it; {node.setting} is replaced by that setting.
+    """
+    def number(table: dict, what: str) -> float:
+        if key not in table:
+            raise InputError(f"key: no {key!r} in the {what} (keys: {', '.join(sorted(map(str, table)))})")
+        return float(table[key])
+
+    value = number(metrics, "metrics")
+    limit = ""
+    if above is None and below is None:
+        if baseline is None:
+            raise InputError("above, below: give a limit, or connect a baseline to compare with")
+        ref = number(baseline, "baseline")
+        if value > ref:
+            limit = f"above the baseline's {ref:.4g}"
+    elif above is not None and value > above:
+        limit = f"above {above:g}"
+    elif below is not None and value < below:
+        limit = f"below {below:g}"
+    if not limit:
+        return Advice()
+    return Advice((f"{key} = {value:.4g} ({limit})" + (f": {message}" if message else ""),))
 
 
 __all__: list[str] = []  # import for the side effect of registering the nodes

@@ -17,7 +17,7 @@ import contextvars
 import math
 from collections.abc import Callable, Iterator
 
-__all__ = ["report_progress", "reporting"]
+__all__ = ["report_progress", "reporting", "part"]
 
 _REPORTER: contextvars.ContextVar[Callable[[float, str], None] | None] = contextvars.ContextVar(
     "quadnodes_progress", default=None
@@ -60,3 +60,30 @@ def reporting(callback: Callable[[float, str], None]) -> Iterator[None]:
         yield
     finally:
         _REPORTER.reset(token)
+
+
+@contextlib.contextmanager
+def part(start: float, end: float, prefix: str = "") -> Iterator[None]:
+    """Map the progress reported inside the block onto ``[start, end]`` of the current one.
+
+    For a long step made of library calls that report their own progress (a
+    figure inside a report): their 0..1 becomes ``start..end`` of the caller's,
+    and ``prefix`` goes before their messages. Without a current reporter,
+    nothing is reported.
+
+    Examples
+    --------
+    >>> seen = []
+    >>> with reporting(lambda f, m: seen.append((f, m))):
+    ...     with part(0.5, 1.0, "E1: "):
+    ...         report_progress(0.5, "figure")
+    >>> seen
+    [(0.75, 'E1: figure')]
+    """
+    outer = _REPORTER.get()
+    if outer is None:
+        yield
+        return
+    lo, hi = float(start), float(end)
+    with reporting(lambda f, m: outer(lo + (hi - lo) * f, prefix + m)):
+        yield

@@ -43,6 +43,7 @@ from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .metrics import compare, distance_to_mesh
 from .noise import perturb, vertex_normals
+from .progress import part, report_progress
 from .smoothing import laplacian, taubin
 from .zigzag import detect
 
@@ -647,16 +648,37 @@ def thesis_comparison(
     interior: dict[str, ExampleResult] = {}
     figures: dict[str, Path] = {}
     variants: dict[str, Path] = {}
-    for name in names:
+    steps = 2 + bool(variants_figure) + len(extra) + bool(interior_noise)  # per example, for progress
+    for i, name in enumerate(names):
         t = time.perf_counter()
-        res = run_example(name, seed=seed)
+
+        def step(k: int, what: str, i: int = i, name: str = name) -> Any:
+            """Report the start of step ``k`` of this example; inside it, the messages of the library calls.
+
+            A figure's own progress maps onto the step; a run of several methods
+            (each reporting 0..1 of its own) keeps the step's start, so the
+            fraction never goes back.
+            """
+            lo, hi = (i + k / steps) / len(names), (i + (k + 1) / steps) / len(names)
+            label = f"{name} ({i + 1}/{len(names)}): {what}"
+            report_progress(lo, label)
+            return part(lo, hi if "figure" in what else lo, f"{label}: ")
+
+        with step(0, f"seed {seed}"):
+            res = run_example(name, seed=seed)
         results.append(res)
-        figures[name] = _figure(res, METHODS[:4], out / f"{name}.png", size_px, palette)
+        with step(1, "figure"):
+            figures[name] = _figure(res, METHODS[:4], out / f"{name}.png", size_px, palette)
         if variants_figure:
-            variants[name] = _figure(res, METHODS[4:], out / f"{name}_variants.png", size_px, palette)
-        spread[name] = [run_example(name, seed=s) for s in extra]
+            with step(2, "variants figure"):
+                variants[name] = _figure(res, METHODS[4:], out / f"{name}_variants.png", size_px, palette)
+        spread[name] = []
+        for j, s in enumerate(extra):
+            with step(2 + bool(variants_figure) + j, f"seed {s} ({j + 1} of {len(extra)} for the spread)"):
+                spread[name].append(run_example(name, seed=s))
         if interior_noise:
-            interior[name] = run_example(name, seed=seed, fix="boundary")
+            with step(steps - 1, "interior noise"):
+                interior[name] = run_example(name, seed=seed, fix="boundary")
         say(f"{name}: {_plural(1 + len(extra), 'seed')}{', interior noise' if interior_noise else ''}, "
             f"{time.perf_counter() - t:.2f} s")
     md = write_text_atomic(out / "comparison.md", format_markdown(

@@ -29,6 +29,7 @@ from . import _validate
 from .errors import InputError
 from .io._atomic import write_atomic
 from .mesh import QuadMesh
+from .progress import report_progress
 from ._view import camera, edge_deviation, face_normals, light
 from .zigzag import ZigzagReport
 
@@ -331,6 +332,7 @@ def render_png(
     thinned: list[int] = []
     unit = ms[0].unit
     for i, m in enumerate(ms):
+        report_progress(0.8 * i / len(ms), f"drawing mesh {i + 1}/{len(ms)} ({m.n_faces} panels)")
         r, c = divmod(i, cols)
         x0 = margin + c * (pw + gap)
         top = margin + r * (head + ph + gap)
@@ -430,7 +432,10 @@ def render_png(
         fig.legend(handles=handles, loc="lower center", ncol=len(handles) if one_row else 1, frameon=False,
                    fontsize=fs_foot, bbox_to_anchor=(0.5, 0.0), borderaxespad=0.3)
     try:
-        return write_atomic(path, lambda tmp: _save(fig, tmp, palette))
+        report_progress(0.8, f"writing {Path(path).name}")
+        out = write_atomic(path, lambda tmp: _save(fig, tmp, palette))
+        report_progress(1.0, f"wrote {out.name}")
+        return out
     finally:
         plt.close(fig)
 

@@ -1,3 +1,4 @@
+import os
 import shutil
 import signal
 import subprocess
@@ -158,3 +159,364 @@ def test_ctrl_c_stops_watch_cleanly(tmp_path):
     out, err = p.communicate(timeout=30)
     assert p.returncode == 0, err
     assert "stopped" in out and "Traceback" not in err
+
+
+# ----------------------------------------------------------------- output confinement (issue 12, item 2)
+def _with_obj_path(tmp_path, path_text, name="g.toml"):
+    p = tmp_path / name
+    p.write_text(SMALL.format(seed=1).replace('path = "faired.obj"', f"path = {path_text}"))
+    return p
+
+
+@pytest.mark.parametrize("path_text, words", [
+    ('"../escape.obj"', "leads out of the output folder"),
+    ('"sub/../../escape.obj"', "leads out of the output folder"),
+    ("'{abs}'", "is an absolute path"),
+])
+def test_a_graph_file_cannot_write_outside_out(tmp_path, capsys, path_text, words):
+    target = tmp_path / "escape.obj"
+    g = _with_obj_path(tmp_path, path_text.format(abs=target))
+    out = tmp_path / "work" / "out"
+    assert main(["run", str(g), "--out", str(out)]) == 1
+    cap = capsys.readouterr()
+    assert "node 'obj' (export_obj@1): setting 'path'" in cap.err and words in cap.err
+    assert not target.exists() and "[1/" not in cap.out          # refused before anything ran
+    assert main(["check", str(g)]) == 1
+    assert "node 'obj'" in capsys.readouterr().err
+
+
+def test_set_cannot_send_an_output_elsewhere(tmp_path, capsys):
+    g = _graph(tmp_path)
+    target = tmp_path / "elsewhere" / "x.obj"
+    target.parent.mkdir()
+    rc = main(["run", str(g), "--out", str(tmp_path / "out"), "--set", f"obj.path={target}"])
+    cap = capsys.readouterr()
+    assert rc == 1 and "node 'obj' (export_obj@1): setting 'path'" in cap.err and "absolute" in cap.err
+    assert not target.exists() and "wrote" not in cap.out.replace(str(tmp_path), "")
+
+
+def test_a_symlink_leading_out_is_refused_before_anything_runs(tmp_path, capsys):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "link").symlink_to(outside, target_is_directory=True)
+    g = _with_obj_path(tmp_path, '"link/faired.obj"')
+    assert main(["run", str(g), "--out", str(out)]) == 1
+    cap = capsys.readouterr()
+    assert "node 'obj' (export_obj@1): setting 'path'" in cap.err and "symbolic link" in cap.err
+    assert os.listdir(outside) == [] and "[1/" not in cap.out
+    assert main(["check", str(g), "--out", str(out)]) == 1
+    assert "symbolic link" in capsys.readouterr().err
+
+
+def test_two_writers_of_one_file_are_an_error_naming_both(tmp_path, capsys):
+    g = tmp_path / "two.toml"
+    g.write_text(SMALL.format(seed=1) + '\n[nodes.obj2]\nop = "export_obj@1"\ninputs = { mesh = "noisy.mesh" }\n'
+                 'params = { path = "./faired.obj" }\n')
+    assert main(["check", str(g)]) == 1
+    err = capsys.readouterr().err
+    assert "node 'obj2'" in err and "node 'obj'" in err and "also written by" in err
+
+
+def test_reads_stay_in_the_graph_folder_unless_allowed(tmp_path, capsys):
+    from quadnodes.io import save_obj
+    from quadnodes.mesh import grid
+
+    data = tmp_path / "data"
+    data.mkdir()
+    save_obj(grid(4, 5), data / "in.obj")
+    gdir = tmp_path / "graphs"
+    gdir.mkdir()
+    g = gdir / "r.toml"
+    g.write_text('format = "quadnodes-graph"\nversion = 1\n[nodes.read]\nop = "read_mesh@1"\n'
+                 'params = { path = "../data/in.obj" }\n')
+    assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache"]) == 1
+    err = capsys.readouterr().err
+    assert "node 'read' (read_mesh@1): setting 'path'" in err and "--allow-read" in err
+    assert main(["check", str(g)]) == 1                                   # check says it too, before any run
+    assert "node 'read' (read_mesh@1): setting 'path'" in capsys.readouterr().err
+    assert main(["check", str(g), "--allow-read", str(data)]) == 0
+    capsys.readouterr()
+    assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache", "--allow-read", str(data)]) == 0
+    assert _statuses(capsys.readouterr().out) == {"read": "ran"}
+
+
+def test_python_api_outputs_stay_in_the_run_folder(tmp_path):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.errors import GraphError
+    from quadnodes.graph import Graph
+
+    g = Graph()
+    m = g.add("grid", id="m", rows=3, cols=3)
+    g.add("export_obj", m.mesh, id="obj", path=str(tmp_path / "elsewhere.obj"))
+    with pytest.raises(GraphError, match=r"node 'obj' \(export_obj@1\): setting 'path'.*outside the output folder"):
+        g.run(out=tmp_path / "out")
+    assert not (tmp_path / "elsewhere.obj").exists()
+    g.set("obj", path="inside.obj")
+    (tmp_path / "out").mkdir()
+    r = g.run(out=tmp_path / "out")
+    assert r.record("obj").files == ((tmp_path / "out" / "inside.obj"),) and (tmp_path / "out" / "inside.obj").exists()
+
+
+# --------------------------------------------------------------- wrote / unchanged (issue 12, item 8)
+def test_run_reports_wrote_only_for_files_written_this_run(tmp_path, capsys):
+    from quadnodes.cli import _shown
+
+    g = _graph(tmp_path)
+    out = tmp_path / "out"
+    assert main(["run", str(g), "--out", str(out)]) == 0
+    first = capsys.readouterr().out
+    assert "wrote" in first and _shown(out / "faired.obj") in first
+    assert main(["run", str(g), "--out", str(out)]) == 0
+    second = capsys.readouterr().out
+    assert not any(line.split()[:1] == ["wrote"] for line in second.splitlines())
+    assert f"unchanged {_shown(out / 'faired.obj')}" in second
+    (out / "faired.obj").write_text("edited by hand\n")
+    assert main(["run", str(g), "--out", str(out)]) == 0
+    third = capsys.readouterr().out
+    assert f"wrote     {_shown(out / 'faired.obj')}" in third
+    assert not any(line.split()[:1] == ["unchanged"] for line in third.splitlines())
+
+
+# --------------------------------------------------------------- the output folder (issue 12, item 4)
+def test_out_onto_a_file_is_one_clear_line(tmp_path, capsys):
+    g = _graph(tmp_path)
+    (tmp_path / "afile").write_text("x")
+    assert main(["run", str(g), "--no-cache", "--out", str(tmp_path / "afile")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out") and "a file is in the way" in err and err.count("\n") == 1
+    assert main(["run", str(g), "--no-cache", "--out", str(tmp_path / "afile" / "sub")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out") and "Traceback" not in err and err.count("\n") == 1
+    assert main(["run", str(g), "--out", str(tmp_path / "afile")]) == 1          # with the disk cache in --out
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out") and "a file is in the way" in err and err.count("\n") == 1
+
+
+def test_out_onto_a_read_only_folder_is_one_clear_line(tmp_path, capsys, monkeypatch):
+    # root ignores permission bits: inject the refusal where the OS gives it (creating a file in the folder)
+    g = _graph(tmp_path)
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real_open = os.open
+
+    def no_create(path, flags, *args, **kwargs):
+        if os.path.dirname(os.path.abspath(os.fspath(path))) == str(ro) and flags & os.O_CREAT:
+            raise PermissionError(13, "Permission denied", os.fspath(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", no_create)
+    assert main(["run", str(g), "--no-cache", "--out", str(ro)]) == 1
+    err = capsys.readouterr().err
+    assert err == f"error: --out {str(ro)!r}: cannot write into the folder: Permission denied\n"
+    assert os.listdir(ro) == []
+
+
+# --------------------------------------------------------------- check lists every problem (issue 12, item 7)
+MANY_ERRORS = '''format = "quadnodes-graph"
+version = 1
+
+[nodes.mesh]
+op = "grid@1"
+params = { rows = 8, colz = 9 }
+
+[nodes.noisy]
+op = "perturbb@1"
+inputs = { mesh = "mesh.mesh" }
+
+[nodes.fair]
+op = "fair@1"
+inputs = { mesh = "noisy.mesh", fixd = "mesh.mesh" }
+params = { iterations = -1, weight = [0.3, -0.1], solver = "fast" }
+
+[nodes.png]
+op = "render_png@1"
+inputs = { mesh = "fair.mesh", mesh2 = "mesh.nope" }
+params = { path = "../f.png", titles = ["a", "faired {fair.iteratons} times"] }
+
+[nodes.loop_a]
+op = "laplacian@1"
+inputs = { mesh = "loop_b.mesh" }
+
+[nodes.loop_b]
+op = "laplacian@1"
+inputs = { mesh = "loop_a.mesh" }
+'''
+
+
+def test_check_reports_every_error_of_a_file(tmp_path, capsys):
+    p = tmp_path / "many.toml"
+    p.write_text(MANY_ERRORS)
+    assert main(["check", str(p)]) == 1
+    err = capsys.readouterr().err
+    expected = [
+        "line 4: node 'mesh' (grid@1): unknown setting 'colz'; did you mean 'cols'?",
+        "line 8: node 'noisy': unknown op 'perturbb@1'; did you mean 'perturb'?",
+        "line 12: node 'fair' (fair@1): setting 'iterations': -1 is out of range (must be >= 1)",
+        "line 12: node 'fair' (fair@1): setting 'weight'[1]: -0.1 is out of range (must be > 0)",
+        "line 12: node 'fair' (fair@1): setting 'solver'",
+        "line 12: node 'fair' (fair@1): unknown input port 'fixd'; did you mean 'fixed'?",
+        "line 17: node 'png' (render_png@1): input 'mesh2' refers to 'mesh.nope'",
+        "line 17: node 'png' (render_png@1): setting 'path': '../f.png' leads out of the output folder",
+        "line 17: node 'png' (render_png@1): setting 'titles'[1]: '{fair.iteratons}' names no setting 'iteratons'"
+        " of node 'fair' (fair@1); did you mean 'iterations'?",
+        "cycle: loop_",
+    ]
+    for e in expected:
+        assert e in err, e
+    assert "refers to 'noisy.mesh'" not in err           # the unknown op is reported once, not again downstream
+    assert err.strip().endswith("10 problems")
+    assert main(["run", str(p), "--out", str(tmp_path / "o")]) == 1   # run stops at the first, before running
+    assert "[1/" not in capsys.readouterr().out
+
+
+def test_value_ranges_are_checked_when_the_file_is_loaded(tmp_path, capsys):
+    from quadnodes.errors import GraphError
+    from quadnodes.graph import load
+
+    p = tmp_path / "neg.toml"
+    p.write_text(SMALL.format(seed=1).replace("iterations = 2", "iterations = -1"))
+    with pytest.raises(GraphError, match=r"line \d+: node 'fair' \(fair@1\): setting 'iterations': -1 is out of range"):
+        load(p)
+    assert main(["run", str(p), "--out", str(tmp_path / "o")]) == 1
+    cap = capsys.readouterr()
+    assert "-1 is out of range (must be >= 1)" in cap.err and "[1/" not in cap.out
+    assert main(["run", str(_graph(tmp_path)), "--out", str(tmp_path / "o"), "--set", "noisy.tangential=-0.5"]) == 1
+    assert "setting 'tangential': -0.5 is out of range (must be >= 0)" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------- nodes shows every setting (issue 12, item 9)
+def test_nodes_op_shows_type_default_range_and_meaning_of_every_setting(capsys):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import REGISTRY, describe
+
+    assert main(["nodes", "fair"]) == 0
+    out = capsys.readouterr().out
+    assert "iterations: int  (default 1, range >= 1)\n      Rounds of detect-then-solve" in out
+    assert "Parameters\n----------" not in out                       # the section is shown setting by setting
+    for nt in REGISTRY.latest():
+        d = describe(nt.op)
+        for s in d["settings"]:
+            assert s["doc"], f"{nt.op}: setting {s['name']!r} has no line of meaning in the docstring"
+
+
+def test_nodes_list_shows_whole_first_sentences(capsys):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import REGISTRY, describe
+
+    assert main(["nodes"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    for nt in REGISTRY.latest():
+        summary = describe(nt.op)["summary"]
+        assert " ".join(summary.split()) in out, nt.op
+        assert summary.rstrip().endswith((".", ")")) or ";" in summary or summary == "", (nt.op, summary)
+
+
+# --------------------------------------------------------------- progress on a terminal (issue 12, item 12)
+class _Terminal:
+    """A stdout stand-in that says it is a terminal."""
+
+    def __init__(self):
+        self.text = ""
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return True
+
+
+PNG_STEP = SMALL + '''
+[nodes.step]
+op = "export_step@1"
+inputs = {{ mesh = "fair.mesh" }}
+params = {{ path = "faired.step" }}
+
+[nodes.png]
+op = "render_png@1"
+inputs = {{ mesh = "noisy.mesh", mesh2 = "fair.mesh" }}
+params = {{ path = "f.png", size_px = 300, titles = ["noisy", "faired, {{fair.iterations}} iterations"] }}
+'''
+
+
+def test_progress_of_step_and_png_on_a_terminal_and_none_in_a_log(tmp_path, monkeypatch):
+    import argparse
+    import io
+
+    from quadnodes import cli
+    from quadnodes.graph import Cache
+
+    g = tmp_path / "g.toml"
+    g.write_text(PNG_STEP.format(seed=1))
+    args = argparse.Namespace(graph=str(g), out=str(tmp_path / "o"), set=None, allow_read=None)
+    ticks = iter(range(10**6))                     # a clock that advances 1 s per look: no update is throttled
+    monkeypatch.setattr(cli._ProgressLine, "clock", staticmethod(lambda: float(next(ticks))))
+    tty = _Terminal()
+    cli._run(args, Cache(), tty)
+    assert "step: " in tty.text and "building panel" in tty.text     # STEP writing, in place ...
+    assert "png: " in tty.text and "drawing mesh 1/2" in tty.text     # ... and PNG rendering
+    assert "\r\033[K" in tty.text
+    plain = io.StringIO()                                              # a log file: no progress, plain lines
+    cli._run(args, Cache(), plain)
+    text = plain.getvalue()
+    assert "\r" not in text and "\033" not in text and "building panel" not in text
+    assert "[6/6] ran" in text
+
+
+# --------------------------------------------------------------- notes in the summary (issue 12, items 10-11)
+def test_notes_of_any_output_are_printed_in_the_summary(tmp_path, capsys):
+    from dataclasses import dataclass
+
+    from quadnodes.graph import REGISTRY, node
+
+    @dataclass
+    class Rep:
+        n_free: tuple
+
+        def notes(self):
+            idle = [i + 1 for i, n in enumerate(self.n_free) if n == 0]
+            return [f"{len(self.n_free)} iterations asked, iterations {idle} freed no vertex"] if idle else []
+
+    @node("test_noted", outputs=("report",))
+    def test_noted(*, n_free: list[int] = [3, 0, 0]) -> Rep:  # noqa: B006
+        """A report with notes (test only)."""
+        return Rep(tuple(n_free))
+
+    try:
+        g = tmp_path / "n.toml"
+        g.write_text('format = "quadnodes-graph"\nversion = 1\n[nodes.fair]\nop = "test_noted@1"\n')
+        assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache"]) == 0
+        assert "  note: fair: 3 iterations asked, iterations [2, 3] freed no vertex" in capsys.readouterr().out
+        assert main(["run", str(g), "--out", str(tmp_path / "o"), "--no-cache", "--set", "fair.n_free=[1, 2]"]) == 0
+        assert "note:" not in capsys.readouterr().out
+    finally:
+        REGISTRY.unregister("test_noted@1")
+
+
+def test_e3_says_why_the_boundary_moves_and_what_fixes_it(tmp_path, capsys):
+    from pathlib import Path
+
+    e3 = Path(__file__).resolve().parent.parent / "examples" / "e3_wavy.toml"
+    text = e3.read_text()
+    assert "fair.weight=0.3" in text and "boundary" in text.split("format =")[0]      # the file's comments say it
+    out = tmp_path / "e3"
+    assert main(["run", str(e3), "--out", str(out)]) == 0
+    summary = capsys.readouterr().out
+    note = [line for line in summary.splitlines() if line.startswith("  note: advice:")]
+    assert note and "boundary_displacement_max" in note[0] and "fair.weight=0.3" in note[0]
+    assert main(["run", str(e3), "--out", str(out), "--set", "fair.weight=0.3"]) == 0
+    assert "note: advice:" not in capsys.readouterr().out       # fixed: no note
+
+
+def test_check_keeps_the_loaders_own_error_next_to_the_others(tmp_path, capsys):
+    p = tmp_path / "dup.json"
+    p.write_text('{"format": "quadnodes-graph", "version": 1, "nodes": {"m": {"op": "grid@1", '
+                 '"params": {"rows": 0, "rows": 3}}, "f": {"op": "fair@1", "inputs": {"mesh": "m.mesh"}, '
+                 '"params": {"iterations": 0}}}}')
+    assert main(["check", str(p)]) == 1
+    err = capsys.readouterr().err
+    assert "'rows' appears twice" in err and "setting 'iterations': 0 is out of range" in err

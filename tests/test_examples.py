@@ -47,7 +47,7 @@ def test_e1_graph_end_to_end(tmp_path):
 
 
 def test_design_script_builds_the_e3_graph(tmp_path):
-    script = _module("e3_design_script").build(tmp_path)
+    script = _module("e3_design_script").build()
     toml = load(EXAMPLES / "e3_wavy.toml")
     assert set(script.nodes) == set(toml.nodes)
     for nid, spec in toml.nodes.items():

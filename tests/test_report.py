@@ -17,11 +17,27 @@ from quadnodes.mesh import grid
 ROOT = Path(__file__).resolve().parents[1]
 
 
+PROGRESS: list[tuple[float, str]] = []
+
+
 @pytest.fixture(scope="module")
 def e1(tmp_path_factory):
+    from quadnodes.progress import reporting
+
     out = tmp_path_factory.mktemp("compare")
-    return report.thesis_comparison(out, examples=["e1"], spread_seeds=(1,), size_px=500,
-                                    variants_figure=True)
+    with reporting(lambda f, m: PROGRESS.append((f, m))):
+        return report.thesis_comparison(out, examples=["e1"], spread_seeds=(1,), size_px=500,
+                                        variants_figure=True)
+
+
+def test_progress_for_every_step_of_every_example(e1):
+    messages = [m for _, m in PROGRESS]
+    for step in ("E1 (1/1): seed 7", "E1 (1/1): figure", "E1 (1/1): variants figure",
+                 "E1 (1/1): seed 1 (1 of 1 for the spread)", "E1 (1/1): interior noise"):
+        assert step in messages, step
+    assert any(m.startswith("E1 (1/1): figure: drawing mesh") for m in messages)   # the PNG's own progress
+    fractions = [f for f, _ in PROGRESS]
+    assert fractions == sorted(fractions) and 0 <= fractions[0] and fractions[-1] <= 1
 
 
 def test_writes_figures_and_tables_with_all_columns(e1):

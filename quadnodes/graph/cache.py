@@ -10,8 +10,11 @@ that refers to them. It covers None, bool, int, float, str, lists, tuples,
 dicts, sets, paths, NumPy arrays and scalars, enums, and dataclasses (rebuilt by
 calling their constructor, so a :class:`~quadnodes.mesh.QuadMesh` comes back
 validated with read-only arrays). An output of any other type is kept in memory
-only. Reading an entry can therefore not run arbitrary code, only dataclass and
-enum constructors named in it.
+only. Reading an entry can therefore not run arbitrary code: the classes an
+entry names (dataclasses, enums, paths) must be on an allow-list — classes of
+the quadnodes package and the :mod:`pathlib` path classes — checked on the name
+*before* any module is imported; an entry naming anything else is unreadable (a
+miss). Values of other classes are kept in memory only.
 
 Writes are atomic (temporary file in the same folder, then ``os.replace``), so
 concurrent runs sharing a folder never see half an entry. A corrupt or
@@ -27,6 +30,8 @@ import io
 import json
 import os
 import pathlib
+import re
+import sys
 import warnings
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -209,7 +214,10 @@ def _read_entry(path: Path, key: str) -> CacheEntry:
 
 
 def _cls_name(cls: type) -> str:
-    return f"{cls.__module__}:{cls.__qualname__}"
+    name = f"{cls.__module__}:{cls.__qualname__}"
+    if not _allowed(name):
+        raise _Unsupported(f"{name} is not on the cache's allow-list")  # kept in memory only
+    return name
 
 
 def encode(value: Any, arrays: list[np.ndarray]) -> Any:
@@ -259,11 +267,44 @@ def encode(value: Any, arrays: list[np.ndarray]) -> Any:
     raise _Unsupported(type(value).__qualname__)
 
 
+_PATH_CLASSES = frozenset(f"pathlib:{c}" for c in
+                          ("Path", "PosixPath", "WindowsPath", "PurePath", "PurePosixPath", "PureWindowsPath"))
+_QUADNODES_CLASS = re.compile(r"quadnodes(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
+
+
+def _allowed(name: str) -> bool:
+    """Whether a cache entry may name this ``module:qualname`` (decided on the text alone, nothing imported).
+
+    Examples
+    --------
+    >>> _allowed("quadnodes.mesh:QuadMesh"), _allowed("pathlib:PosixPath")
+    (True, True)
+    >>> _allowed("os:system"), _allowed("quadnodes_evil:X"), _allowed("quadnodes.mesh:QuadMesh.__init__.__globals__")
+    (False, False, False)
+    """
+    if name in _PATH_CLASSES:
+        return True
+    return bool(_QUADNODES_CLASS.match(name)) and "__" not in name
+
+
 def _find_class(name: str) -> Any:
+    """The class an entry names, if it is on the allow-list (checked before any import).
+
+    Raises
+    ------
+    ValueError
+        For a name outside the allow-list (nothing is imported), or one that does
+        not exist.
+    """
+    if not isinstance(name, str) or not _allowed(name):
+        raise ValueError(f"class {name!r} is not one a cache entry may name (quadnodes classes and pathlib paths)")
     module, _, qual = name.partition(":")
-    obj: Any = importlib.import_module(module)
-    for part in qual.split("."):
-        obj = getattr(obj, part)
+    try:
+        obj: Any = sys.modules.get(module) or importlib.import_module(module)
+        for part in qual.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"class {name!r} does not exist: {exc}") from None
     return obj
 
 

@@ -205,8 +205,10 @@ def from_dict(
     GraphError
         Naming the node id and field at fault: wrong or missing ``format``,
         unsupported ``version``, unknown top-level key or node field, malformed
-        id, missing or unknown op, a malformed reference, and everything
-        :meth:`Graph.validate` checks.
+        id, missing or unknown op, a malformed reference, everything
+        :meth:`Graph.validate` checks, and an output path that is absolute, leads
+        out of the output folder with ``..`` or is written by two nodes
+        (:func:`quadnodes.graph.paths.output_path_errors`).
     """
     if not isinstance(data, Mapping):
         raise GraphError(f"expected a table at the top level, got {type(data).__name__}")
@@ -262,6 +264,10 @@ def from_dict(
         g._check_new_id(node_id, nt.op)
         g._insert(node_id, nt, conns, params, check_refs=False)
     g.validate()
+    from .paths import output_path_errors
+
+    for err in output_path_errors(g):  # a graph file writes only inside the output folder
+        raise err
     return g
 
 

@@ -387,13 +387,18 @@ class Graph:
             Naming the node and the port or setting at fault: unknown op, unknown
             or wrong-typed setting, unknown input port, a reference to a missing
             node or output port, mismatched types across a connection, a missing
-            required input, or a cycle (naming every node on it).
+            required input, a cycle (naming every node on it), or a
+            ``{node.setting}`` in a template setting naming no such setting.
         """
+        from .templates import template_errors
+
         for spec in self._nodes.values():
             nt = self._registry.get(spec.op, node_id=spec.id)
             nt.resolve_settings(spec.params, node_id=spec.id)
             self._check_inputs(spec.id, nt, spec.inputs)
         self.order()
+        for err in template_errors(self):
+            raise err
 
     def order(self) -> list[str]:
         """Node ids in an order where every node follows the nodes it reads from.
@@ -430,11 +435,13 @@ class Graph:
         cache: Cache | None = None,
         overrides: Mapping[str, Any] | None = None,
         progress: Callable[[Any], None] | None = None,
+        out: str | os.PathLike[str] | None = None,
+        allow_read: Any = (),
     ) -> RunResult:
         """Run the graph; see :func:`quadnodes.graph.run.run`."""
         from .run import run
 
-        return run(self, cache=cache, overrides=overrides, progress=progress)
+        return run(self, cache=cache, overrides=overrides, progress=progress, out=out, allow_read=allow_read)
 
     def to_dict(self) -> dict[str, Any]:
         """The file model; see :func:`quadnodes.graph.files.to_dict`."""
@@ -512,6 +519,14 @@ class Graph:
         self._nodes[node_id] = NodeSpec(node_id, nt.op, inputs, coerced)
 
     def _check_inputs(self, node_id: str, nt: NodeType, inputs: Mapping[str, PortRef | Constant]) -> None:
+        for err in self._input_errors(node_id, nt, inputs):
+            raise err
+
+    def _input_errors(
+        self, node_id: str, nt: NodeType, inputs: Mapping[str, PortRef | Constant]
+    ) -> list[GraphError]:
+        """Every problem of a node's connections (unknown port, missing node/output, type, missing input)."""
+        errors: list[GraphError] = []
         where = label(node_id, nt.op)
         for port, conn in inputs.items():
             p = nt.input(port)
@@ -522,33 +537,38 @@ class Graph:
                     msg = f"{where}: unknown input port {port!r}" + did_you_mean(
                         port, [q.name for q in nt.inputs], kind="inputs"
                     )
-                raise graph_error(msg, node_id=node_id)
+                errors.append(graph_error(msg, node_id=node_id))
+                continue
             if isinstance(conn, Constant):
                 if not _types.maybe_instance(conn.value, p.annotation):
-                    raise graph_error(
+                    errors.append(graph_error(
                         f"{where}: input {port!r} expects {p.type_name}, got a {type(conn.value).__name__}",
                         node_id=node_id,
-                    )
+                    ))
                 continue
             src = self._nodes.get(conn.node)
             if src is None:
                 hint = did_you_mean(conn.node, [n for n in self._nodes if n != node_id], kind="nodes")
-                raise graph_error(f"{where}: input {port!r} refers to {str(conn)!r}: no node {conn.node!r}{hint}",
-                                  node_id=node_id)
+                errors.append(graph_error(
+                    f"{where}: input {port!r} refers to {str(conn)!r}: no node {conn.node!r}{hint}", node_id=node_id))
+                continue
             src_nt = self._registry.get(src.op, node_id=src.id)
             out = src_nt.output(conn.port)
             if out is None:
                 hint = did_you_mean(conn.port, src_nt.output_names, kind="outputs")
-                raise graph_error(
+                errors.append(graph_error(
                     f"{where}: input {port!r} refers to {str(conn)!r}: "
                     f"node {conn.node!r} ({src_nt.op}) has no output {conn.port!r}{hint}",
                     node_id=node_id,
-                )
+                ))
+                continue
             if not _types.maybe_compatible(out.annotation, p.annotation):
-                raise graph_error(
+                errors.append(graph_error(
                     f"{where}: input {port!r} expects {p.type_name}, but {str(conn)!r} gives {out.type_name}",
                     node_id=node_id,
-                )
+                ))
         for p in nt.inputs:
             if p.required and p.name not in inputs:
-                raise graph_error(f"{where}: missing required input {p.name!r} ({p.type_name})", node_id=node_id)
+                errors.append(graph_error(f"{where}: missing required input {p.name!r} ({p.type_name})",
+                                          node_id=node_id))
+        return errors

@@ -32,6 +32,7 @@ import inspect
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, TypeVar, get_args, get_origin
 
 from ..errors import GraphError
@@ -41,6 +42,7 @@ from .fingerprint import code_fingerprint
 
 __all__ = [
     "NO_DEFAULT",
+    "Range",
     "Port",
     "Setting",
     "NodeType",
@@ -48,6 +50,8 @@ __all__ = [
     "REGISTRY",
     "node",
     "describe",
+    "first_sentence",
+    "setting_docs",
 ]
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -58,6 +62,63 @@ NO_DEFAULT: Any = inspect.Parameter.empty
 _NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _OP_RE = re.compile(r"(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?:@(?P<version>[0-9]+))?\Z")
 _RESERVED = {"id"}  # Graph.add(op, *inputs, id=..., **settings)
+
+
+@dataclass(frozen=True)
+class Range:
+    """The allowed values of a numeric setting (each number of a list setting), declared with ``@node(ranges=...)``.
+
+    ``min``/``max`` are bounds (None: unbounded); ``min_open``/``max_open`` make
+    them strict. NaN is never in range. The same object feeds the load-time check,
+    ``quadnodes nodes`` and editors' sliders (:func:`describe`).
+
+    Examples
+    --------
+    >>> r = Range(min=0, max=1, min_open=True)
+    >>> str(r), r.problem(0.5), r.problem(0)
+    ('> 0 and <= 1', None, '0 is out of range (must be > 0 and <= 1)')
+    >>> str(Range(min=1)), Range(min=1).problem([3, -1])
+    ('>= 1', '[1]: -1 is out of range (must be >= 1)')
+    """
+
+    min: float | None = None
+    max: float | None = None
+    min_open: bool = False
+    max_open: bool = False
+
+    def __str__(self) -> str:
+        parts = []
+        if self.min is not None:
+            parts.append(f"{'>' if self.min_open else '>='} {self.min:g}")
+        if self.max is not None:
+            parts.append(f"{'<' if self.max_open else '<='} {self.max:g}")
+        return " and ".join(parts) or "any number"
+
+    def _out(self, v: float) -> bool:
+        if v != v:  # NaN
+            return True
+        if self.min is not None and (v <= self.min if self.min_open else v < self.min):
+            return True
+        return self.max is not None and (v >= self.max if self.max_open else v > self.max)
+
+    def problem(self, value: Any, where: str = "") -> str | None:
+        """A message when ``value`` (a number, or numbers nested in lists) is out of range, else None."""
+        if isinstance(value, bool) or value is None:
+            return None
+        if isinstance(value, (int, float)):
+            return f"{where + ': ' if where else ''}{value!r} is out of range (must be {self})" if self._out(
+                value) else None
+        if isinstance(value, (list, tuple)):
+            for i, v in enumerate(value):
+                msg = self.problem(v, f"{where}[{i}]")
+                if msg:
+                    return msg
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"min", "max", "min_open", "max_open", "text"}`` (JSON-ready, for editors' sliders)."""
+        return {"min": self.min, "max": self.max, "min_open": self.min_open, "max_open": self.max_open,
+                "text": str(self)}
 
 
 @dataclass(frozen=True)
@@ -84,12 +145,16 @@ class Setting:
 
     ``file`` is ``"read"`` for paths the node reads (their bytes enter the cache
     key), ``"write"`` for paths it writes (checked before reusing a cached result).
+    ``range`` bounds a numeric setting; ``template`` marks a text setting whose
+    ``{node.setting}`` fields the runner fills in (see :func:`node`).
     """
 
     name: str
     annotation: Any = NO_DEFAULT
     default: Any = NO_DEFAULT
     file: str | None = None
+    range: Range | None = None
+    template: bool = False
 
     @property
     def required(self) -> bool:
@@ -173,11 +238,16 @@ class NodeType:
             hint = did_you_mean(name, self._setting_index, kind="settings")
             raise graph_error(f"{where}: unknown setting {name!r}{hint}", node_id=node_id)
         try:
-            return _types.coerce(value, s.annotation)
+            coerced = _types.coerce(value, s.annotation)
         except _types.Mismatch as exc:
             raise graph_error(
                 f"{label(node_id, self.op)}: setting {name!r}{exc.where}: {exc.message}", node_id=node_id
             ) from None
+        problem = s.range.problem(coerced) if s.range is not None else None
+        if problem:
+            sep = "" if problem.startswith("[") else ": "
+            raise graph_error(f"{label(node_id, self.op)}: setting {name!r}{sep}{problem}", node_id=node_id)
+        return coerced
 
     def resolve_settings(self, params: Mapping[str, Any], *, node_id: str) -> dict[str, Any]:
         """All settings of a node: ``params`` coerced, defaults filled in.
@@ -393,6 +463,8 @@ def node(
     outputs: Sequence[str] | Mapping[str, Any] = ("out",),
     reads: Sequence[str] = (),
     writes: Sequence[str] = (),
+    ranges: Mapping[str, Range] | None = None,
+    templates: Sequence[str] = (),
     registry: Registry | None = None,
 ) -> Callable[[F], F]:
     """Register a function as a node type ``name@version``.
@@ -412,7 +484,16 @@ def node(
         their bytes enter the cache key.
     writes : sequence of str
         Settings that name output files: a cached result is reused only while
-        those files still hold what the node wrote.
+        those files still hold what the node wrote. Their paths must stay inside
+        the run's output folder (:mod:`quadnodes.graph.paths`).
+    ranges : mapping setting name -> Range, optional
+        Allowed values of numeric settings (every number of a list setting),
+        checked whenever a setting is given (graph file load, ``--set``,
+        :meth:`Graph.add`), so a bad value is refused before any node runs.
+    templates : sequence of str
+        Text settings (str or list of str) in which ``{node.setting}`` is replaced
+        by the resolved value of another node's setting when the graph runs, e.g.
+        ``titles = ["faired, {fair.iterations} iterations"]`` (``{{`` for a brace).
     registry : Registry, optional
         Defaults to :data:`REGISTRY`.
 
@@ -447,7 +528,7 @@ def node(
     reg = REGISTRY if registry is None else registry
 
     def decorate(func: F) -> F:
-        nt = _make_node_type(func, name, version, outputs, reads, writes)
+        nt = _make_node_type(func, name, version, outputs, reads, writes, ranges or {}, templates)
         reg.register(nt)
         func.node_type = nt  # type: ignore[attr-defined]
         return func
@@ -462,6 +543,8 @@ def _make_node_type(
     outputs: Sequence[str] | Mapping[str, Any],
     reads: Sequence[str],
     writes: Sequence[str],
+    ranges: Mapping[str, Range] = MappingProxyType({}),
+    templates: Sequence[str] = (),
 ) -> NodeType:
     if not isinstance(name, str) or not _NAME_RE.match(name):
         raise GraphError(f"node name {name!r}: expected a Python identifier")
@@ -501,9 +584,16 @@ def _make_node_type(
                     f"{_types.type_name(ann)}: {exc.message}"
                 ) from None
         file = "read" if p.name in reads else "write" if p.name in writes else None
-        settings.append(Setting(p.name, ann, default, file))
+        rng = ranges.get(p.name)
+        if rng is not None and not isinstance(rng, Range):
+            raise GraphError(f"op {op!r}: ranges[{p.name!r}] must be a Range, got {rng!r}")
+        if rng is not None and default is not NO_DEFAULT and rng.problem(default):
+            raise GraphError(f"op {op!r}: setting {p.name!r}: default {rng.problem(default)}")
+        settings.append(Setting(p.name, ann, default, file, rng, p.name in templates))
     setting_names = {s.name for s in settings}
-    for kind, names in (("reads", reads), ("writes", writes)):
+    if isinstance(templates, str):
+        raise GraphError(f"op {op!r}: templates must be a sequence of setting names, not a string")
+    for kind, names in (("reads", reads), ("writes", writes), ("ranges", list(ranges)), ("templates", templates)):
         for n in names:
             if n not in setting_names:
                 hint = did_you_mean(n, setting_names, kind="settings")
@@ -552,10 +642,12 @@ def describe(op: str | NodeType, *, registry: Registry | None = None) -> dict[st
     -------
     dict
         ``op``, ``name``, ``version``, ``versions`` (all registered), ``summary``
-        (first doc line), ``doc``, ``inputs`` / ``settings`` / ``outputs`` as lists
-        of dicts with ``name`` and ``type``; inputs add ``required``, settings add
-        ``required``, ``default`` (JSON form, absent when required) and ``file``
-        (``"read"``, ``"write"`` or None).
+        (the docstring's first whole sentence), ``doc``, ``inputs`` / ``settings``
+        / ``outputs`` as lists of dicts with ``name`` and ``type``; inputs add
+        ``required``, settings add ``required``, ``default`` (JSON form, absent
+        when required), ``file`` (``"read"``, ``"write"`` or None), ``range``
+        (:meth:`Range.to_dict` or None) and ``doc`` (one line of meaning from the
+        docstring's ``Parameters`` section, ``""`` when undocumented).
 
     Raises
     ------
@@ -575,15 +667,18 @@ def describe(op: str | NodeType, *, registry: Registry | None = None) -> dict[st
     >>> d["op"], d["summary"], d["inputs"]
     ('smooth@1', 'Smooth a mesh.', [{'name': 'mesh', 'type': 'any', 'required': True}])
     >>> d["settings"][1]
-    {'name': 'mode', 'type': "'uniform' | 'cotan'", 'required': False, 'file': None, 'default': 'uniform'}
+    {'name': 'mode', 'type': "'uniform' | 'cotan'", 'required': False, 'file': None, 'default': 'uniform', 'range': None, 'doc': ''}
     """
     reg = REGISTRY if registry is None else registry
     nt = op if isinstance(op, NodeType) else reg.get(op)
+    meanings = setting_docs(nt.doc)
     settings = []
     for s in nt.settings:
         d: dict[str, Any] = {"name": s.name, "type": s.type_name, "required": s.required, "file": s.file}
         if not s.required:
             d["default"] = _types.to_plain(s.default)
+        d["range"] = s.range.to_dict() if s.range is not None else None
+        d["doc"] = meanings.get(s.name, "")
         settings.append(d)
     versions = sorted(int(o.split("@")[1]) for o in reg.ops() if o.split("@")[0] == nt.name) or [nt.version]
     return {
@@ -591,9 +686,66 @@ def describe(op: str | NodeType, *, registry: Registry | None = None) -> dict[st
         "name": nt.name,
         "version": nt.version,
         "versions": versions,
-        "summary": nt.doc.split("\n", 1)[0] if nt.doc else "",
+        "summary": first_sentence(nt.doc),
         "doc": nt.doc,
         "inputs": [{"name": p.name, "type": p.type_name, "required": p.required} for p in nt.inputs],
         "settings": settings,
         "outputs": [{"name": p.name, "type": p.type_name} for p in nt.outputs],
     }
+
+
+_SENTENCE_END = re.compile(r"(?<=[.!?])\s+(?=[A-Z(\"'`])")
+_SECTION = re.compile(r"^(\w[\w ]*)\n-{3,}$", re.M)
+
+
+def first_sentence(doc: str) -> str:
+    """The first whole sentence of a docstring's first paragraph (lines joined), never cut mid-sentence.
+
+    Examples
+    --------
+    >>> first_sentence("Smooth a mesh\\nin place. Then more.\\n\\nDetails.")
+    'Smooth a mesh in place.'
+    >>> first_sentence("Fair lines (eq. 32) e.g. on a grid")
+    'Fair lines (eq. 32) e.g. on a grid'
+    """
+    para = " ".join(line.strip() for line in doc.strip().split("\n\n", 1)[0].splitlines()).strip()
+    return _SENTENCE_END.split(para, maxsplit=1)[0] if para else ""
+
+
+def setting_docs(doc: str) -> dict[str, str]:
+    """One line of meaning per parameter of a NumPy ``Parameters`` section: its first sentence.
+
+    Several names may share an entry (``lam, mu : float``).
+
+    Examples
+    --------
+    >>> setting_docs("Do it.\\n\\nParameters\\n----------\\niterations : int\\n"
+    ...              "    Rounds of fairing. Each one re-detects.\\nlam, mu : float\\n    Step sizes.\\n")
+    {'iterations': 'Rounds of fairing.', 'lam': 'Step sizes.', 'mu': 'Step sizes.'}
+    """
+    text = inspect.cleandoc(doc or "")
+    m = re.search(r"^Parameters\n-{3,}\n", text, re.M)
+    if m is None:
+        return {}
+    body = text[m.end():]
+    nxt = _SECTION.search(body)
+    if nxt is not None:
+        body = body[: nxt.start()]
+    out: dict[str, str] = {}
+    names: list[str] = []
+    desc: list[str] = []
+
+    def flush() -> None:
+        sentence = first_sentence(" ".join(desc))
+        for n in names:
+            out[n] = sentence
+
+    for line in body.splitlines():
+        if line and not line[0].isspace():
+            flush()
+            names = [n.strip() for n in line.split(":", 1)[0].split(",") if n.strip()]
+            desc = []
+        elif line.strip():
+            desc.append(line.strip())
+    flush()
+    return out

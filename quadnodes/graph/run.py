@@ -18,6 +18,11 @@ downstream of it. Nothing stale is ever reused.
 
 A node with ``writes`` settings is reused from the cache only while every file
 it wrote is still there with the same bytes; otherwise it runs again.
+
+Before anything runs, the paths are checked (:mod:`quadnodes.graph.paths`):
+writer paths resolve inside the run's output folder (``out``, else the graph's
+folder, else the working directory), no two writers share a file, and a graph
+loaded from a file reads only inside its own folder (plus ``allow_read``).
 """
 
 from __future__ import annotations
@@ -25,8 +30,8 @@ from __future__ import annotations
 import hashlib
 import os
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 from typing import Any, Literal
 
@@ -37,6 +42,7 @@ from .cache import Cache, CacheEntry
 from .fingerprint import canonical_json, file_digest, fingerprint
 from .graph import Constant, Graph, NodeHandle, NodeSpec, PortRef
 from .node import NodeType
+from .templates import expand
 from ..progress import reporting
 
 __all__ = ["RunRecord", "ProgressEvent", "RunResult", "run", "keys"]
@@ -48,7 +54,10 @@ class RunRecord:
 
     ``status`` is ``"ran"`` (the function was called) or ``"cached"`` (outputs
     reused); ``key`` is None for a node that cannot be cached; ``seconds`` is
-    the wall time spent on the node in this run.
+    the wall time spent on the node in this run. ``files`` are the files of its
+    ``writes`` settings that exist after the run: written by this run when
+    ``status`` is ``"ran"``, found intact (same bytes as when written) when
+    ``"cached"``.
     """
 
     id: str
@@ -56,6 +65,7 @@ class RunRecord:
     status: Literal["ran", "cached"]
     seconds: float
     key: str | None
+    files: tuple[Path, ...] = field(default=())
 
 
 @dataclass(frozen=True)
@@ -183,14 +193,16 @@ def _prepare(
     spec: NodeSpec,
     keys: Mapping[str, str | None],
     outputs: Mapping[str, Mapping[str, Any]] | None,
+    out: Path | None = None,
 ) -> _Prepared:
     node_id = spec.id
     nt = g.registry.get(spec.op, node_id=node_id)
     where = label(node_id, nt.op)
-    settings = nt.resolve_settings(spec.params, node_id=node_id)
+    settings = expand(g, nt, nt.resolve_settings(spec.params, node_id=node_id))  # {node.setting} in titles
     base = Path(g.base_dir) if g.base_dir is not None else None
-    file_settings = set(nt.reads) | set(nt.writes)
-    call_settings = {k: _resolve(v, base, strings=k in file_settings) for k, v in settings.items()}
+    out_base = out if out is not None else base
+    call_settings = {k: _resolve(v, out_base if k in nt.writes else base, strings=k in nt.reads or k in nt.writes)
+                     for k, v in settings.items()}
     cacheable = nt.code_fingerprint is not None
     inputs: dict[str, Any] = {}
     parts: list[list[Any]] = []
@@ -229,6 +241,15 @@ def _prepare(
         }
         key = hashlib.sha256(canonical_json(payload).encode()).hexdigest()
     return _Prepared(node_id, nt, call_settings, inputs, key)
+
+
+def _stamp(path: Any) -> tuple[int, int, int] | None:
+    """``(mtime_ns, inode, size)`` of a file, None when missing: tells a file rewritten by this run."""
+    try:
+        st = os.stat(os.fspath(path))
+    except (OSError, TypeError, ValueError):
+        return None
+    return (st.st_mtime_ns, st.st_ino, st.st_size)
 
 
 def _written(nt: NodeType, settings: Mapping[str, Any]) -> dict[str, list[str | None]]:
@@ -275,6 +296,8 @@ def run(
     cache: Cache | None = None,
     overrides: Mapping[str, Any] | None = None,
     progress: Callable[[ProgressEvent], None] | None = None,
+    out: str | os.PathLike[str] | None = None,
+    allow_read: Sequence[str | os.PathLike[str]] = (),
 ) -> RunResult:
     """Run every node of ``graph`` in dependency order, reusing cached results.
 
@@ -289,6 +312,13 @@ def run(
     progress : callable, optional
         Called with a :class:`ProgressEvent` when a node starts and finishes, and
         whenever its function calls :func:`~quadnodes.progress.report_progress`.
+    out : path-like, optional
+        The output folder: relative paths of ``writes`` settings are joined to it,
+        and every output must resolve inside it. Default: the graph's folder
+        (``graph.base_dir``), else the working directory.
+    allow_read : paths
+        Folders besides the graph file's own that a graph loaded from a file may
+        read from (a graph built in Python, without ``base_dir``, reads anywhere).
 
     Returns
     -------
@@ -299,7 +329,9 @@ def run(
     Raises
     ------
     GraphError
-        If the graph (after overrides) is invalid; nothing runs then.
+        If the graph (after overrides) is invalid, or an output leaves ``out``, two
+        outputs share a file, or a read leaves the graph's folder (see
+        :mod:`quadnodes.graph.paths`); nothing runs then.
     NodeError
         ``"node 'fair1' (fair@1): <message>"`` when a node's function raises (the
         original exception is chained as ``__cause__``), or a file named in its
@@ -329,8 +361,12 @@ def run(
     ...
     quadnodes.errors.NodeError: node 'y' (inv@1): ZeroDivisionError: float division by zero
     """
+    from .paths import check_paths
+
     g = graph.with_overrides(overrides) if overrides else graph
     g.validate()
+    out_dir = Path(out) if out is not None else Path(g.base_dir) if g.base_dir is not None else Path.cwd()
+    check_paths(g, out=out_dir, read_roots=None if g.base_dir is None else [g.base_dir, *allow_read])
     order = g.order()
     total = len(order)
     node_keys: dict[str, str | None] = {}
@@ -342,10 +378,12 @@ def run(
         t0 = time.perf_counter()
         if progress is not None:
             progress(ProgressEvent("started", node_id, op, index, total))
-        prep = _prepare(g, spec, node_keys, outputs)
+        prep = _prepare(g, spec, node_keys, outputs, out_dir)
         nt, key = prep.nt, prep.key
         node_keys[node_id] = key
         entry = cache.get(key) if (cache is not None and key is not None) else None
+        now: dict[str, list[str | None]] = {}
+        now_reported: dict[str, list[str | None]] = {}
         if entry is not None and nt.writes:
             now = _written(nt, prep.settings)
             if any(now.get(s) != list(entry.files.get(s, ())) for s in nt.writes):
@@ -354,13 +392,20 @@ def run(
             outputs[node_id] = dict(entry.outputs)
             status: Literal["ran", "cached"] = "cached"
         else:
+            before = {p: _stamp(p) for s in nt.writes for p in _path_values(prep.settings[s])}
             outputs[node_id] = _execute(prep, op, index, total, progress)
             status = "ran"
+            now = _written(nt, prep.settings) if nt.writes else {}
+            # a file this run did not touch (the node skipped it) is not reported as written
+            now_reported = {s: [d if d is not None and _stamp(p) != before.get(p) else None
+                                for p, d in zip(_path_values(prep.settings[s]), ds)] for s, ds in now.items()}
             if cache is not None and key is not None:
-                written = _written(nt, prep.settings)
-                if all(d is not None for ds in written.values() for d in ds):
-                    cache.put(key, CacheEntry(dict(outputs[node_id]), written))  # type: ignore[arg-type]
-        record = RunRecord(node_id, op, status, time.perf_counter() - t0, key)
+                if all(d is not None for ds in now.values() for d in ds):
+                    cache.put(key, CacheEntry(dict(outputs[node_id]), now))  # type: ignore[arg-type]
+        shown = now_reported if status == "ran" else now
+        files = tuple(Path(os.fspath(p)) for s in nt.writes
+                      for p, d in zip(_path_values(prep.settings[s]), shown.get(s, ())) if d is not None)
+        record = RunRecord(node_id, op, status, time.perf_counter() - t0, key, files)
         records.append(record)
         if progress is not None:
             progress(ProgressEvent("finished", node_id, op, index, total, record=record))

@@ -98,8 +98,14 @@ def watch(
     start = time.monotonic()
     graph: Graph | None = None
 
-    def once() -> None:
+    def once() -> dict[Path, Stamp]:
+        """Run, and return the stamps of the watched files as they were when the run *started*.
+
+        An edit saved while the run is in progress then differs from these stamps
+        and triggers the next run; stamps taken after the run would hide it.
+        """
         nonlocal graph
+        before = snapshot(watched_files(graph_path, graph))
         state.runs += 1
         try:
             g = run_once()
@@ -109,16 +115,16 @@ def watch(
             state.errors += 1
             if on_error is not None:
                 on_error(exc)
+        files = watched_files(graph_path, graph)
+        new = [f for f in files if f not in before]  # named by the edit just run: stamp them now
+        return {**{f: before[f] for f in files if f in before}, **snapshot(new)}
 
-    once()
-    files = watched_files(graph_path, graph)
-    stamps = snapshot(files)
+    stamps = once()
     while (max_runs is None or state.runs < max_runs) and (timeout is None or time.monotonic() - start < timeout):
-        sleep(interval)
-        now = snapshot(files)
+        now = snapshot(stamps)
         if now != stamps:
             sleep(settle)
-            once()
-            files = watched_files(graph_path, graph)
-            stamps = snapshot(files)
+            stamps = once()
+            continue
+        sleep(interval)
     return state

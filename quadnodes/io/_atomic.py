@@ -4,20 +4,74 @@ Every writer in :mod:`quadnodes.io` goes through :func:`write_atomic`, so a file
 at the target path is either the complete new content or whatever was there
 before: a failure part-way (a full disk, an OCCT error, Ctrl-C) leaves the old
 file untouched and removes the temporary file.
+
+The temporary file has a short hidden name, ``.qn-XXXXXXXX.tmp``, whatever the
+target's name, so any file name the file system allows (up to 255 bytes) can be
+written. A process killed part-way cannot remove its temporary file; such
+leftovers (that name pattern, older than :data:`STALE_SECONDS`) are removed by the
+next write into the same folder (once per folder and process).
 """
 
 from __future__ import annotations
 
 import os
+import re
 import tempfile
+import time
 from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import ExportError
 
-__all__ = ["write_atomic", "write_text_atomic", "write_bytes_atomic"]
+__all__ = ["write_atomic", "write_text_atomic", "write_bytes_atomic", "remove_stale_temporaries",
+           "STALE_SECONDS"]
 
 _MODE: int | None = None
+
+#: A temporary file older than this (seconds) is a leftover of a killed write.
+STALE_SECONDS = 600.0
+_TMP_PREFIX, _TMP_SUFFIX = ".qn-", ".tmp"
+_TMP_RE = re.compile(r"\.qn-[A-Za-z0-9_]{8}\.tmp\Z")  # mkstemp's 8 random characters
+_SWEPT: set[str] = set()
+
+
+def remove_stale_temporaries(folder: str | os.PathLike[str], *, older_than: float = STALE_SECONDS) -> list[Path]:
+    """Delete temporary files of killed writes (``.qn-XXXXXXXX.tmp``) older than ``older_than`` seconds.
+
+    Files of other names, and recent temporary files (a write in progress in
+    another process), are left alone. Errors (a missing or unreadable folder, a
+    file removed meanwhile) are ignored: this is housekeeping.
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> old = d / ".qn-abcd1234.tmp"; _ = old.write_text("half a file")
+    >>> os.utime(old, (0, 0))                       # modified in 1970
+    >>> [p.name for p in remove_stale_temporaries(d)], old.exists()
+    (['.qn-abcd1234.tmp'], False)
+    """
+    removed: list[Path] = []
+    limit = time.time() - older_than
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for e in entries:
+        if not _TMP_RE.match(e.name):
+            continue
+        try:
+            if e.is_file(follow_symlinks=False) and e.stat(follow_symlinks=False).st_mtime < limit:
+                os.unlink(e.path)
+                removed.append(Path(e.path))
+        except OSError:
+            continue
+    return removed
 
 
 def _file_mode() -> int:
@@ -74,8 +128,12 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> 
     """
     target = Path(os.fspath(path))
     folder = target.parent
+    key = os.path.abspath(folder)
+    if key not in _SWEPT:
+        _SWEPT.add(key)
+        remove_stale_temporaries(folder)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, suffix=_TMP_SUFFIX, dir=folder)
     except OSError as exc:
         raise ExportError(f"cannot write {str(target)!r}: {exc}") from exc
     os.close(fd)

@@ -183,7 +183,8 @@ def test_describe(reg):
     d = describe("zoo", registry=reg)
     assert d["op"] == "zoo@1" and d["summary"] == "Every kind of setting."
     by_name = {s["name"]: s for s in d["settings"]}
-    assert by_name["req"] == {"name": "req", "type": "int", "required": True, "file": None}
+    assert by_name["req"] == {"name": "req", "type": "int", "required": True, "file": None, "range": None,
+                              "doc": ""}
     assert by_name["ff"]["type"] == "float | list[float]" and by_name["ff"]["default"] == 0.1
     assert by_name["t"]["default"] == [0.0, 0.0]
     assert by_name["mode"]["type"] == "'uniform' | 'cotan'"
@@ -196,3 +197,55 @@ def test_describe(reg):
     import json
 
     json.dumps(describe("zoo", registry=reg))  # JSON-ready
+
+
+# ------------------------------------------------------------ ranges and setting docs (issue 12, items 7 and 9)
+def test_ranges_are_checked_whenever_a_setting_is_given():
+    from quadnodes.graph import Graph
+    from quadnodes.graph.node import Range
+
+    reg = Registry()
+
+    @node("smooth", registry=reg, ranges={"rounds": Range(min=1), "lam": Range(min=0, max=1, min_open=True)})
+    def smooth(x: float, *, rounds: int = 1, lam: float | list[float] = 0.5) -> float:
+        """Smooth.
+
+        Parameters
+        ----------
+        rounds : int
+            How many passes. More is smoother.
+        lam : float or list of float
+            Step size (per pass when a list).
+        """
+        return x
+
+    nt = reg.get("smooth")
+    with pytest.raises(GraphError, match=r"^node 's' \(smooth@1\): setting 'rounds': -1 is out of range \(must be >= 1\)$"):
+        nt.coerce_setting("rounds", -1, node_id="s")
+    with pytest.raises(GraphError, match=r"setting 'lam'\[1\]: 0.0 is out of range \(must be > 0 and <= 1\)"):
+        nt.coerce_setting("lam", [0.5, 0], node_id="s")
+    with pytest.raises(GraphError, match="nan is out of range"):
+        nt.coerce_setting("lam", float("nan"), node_id="s")
+    g = Graph(registry=reg)
+    h = g.add("smooth", 1.0, id="s")
+    with pytest.raises(GraphError, match="'rounds': 0 is out of range"):
+        g.with_overrides({"s.rounds": 0})
+    assert g.run(overrides={"s.rounds": 2})[h] == 1.0
+    d = describe("smooth", registry=reg)
+    by = {s["name"]: s for s in d["settings"]}
+    assert by["rounds"]["range"] == {"min": 1, "max": None, "min_open": False, "max_open": False, "text": ">= 1"}
+    assert by["rounds"]["doc"] == "How many passes." and by["lam"]["doc"] == "Step size (per pass when a list)."
+
+
+def test_a_default_outside_its_range_or_a_range_of_no_setting_is_refused():
+    from quadnodes.graph.node import Range
+
+    reg = Registry()
+    with pytest.raises(GraphError, match="setting 'n': default 0 is out of range"):
+        @node("a", registry=reg, ranges={"n": Range(min=1)})
+        def a(*, n: int = 0) -> int:
+            return n
+    with pytest.raises(GraphError, match="ranges names 'm', which is not a setting"):
+        @node("b", registry=reg, ranges={"m": Range(min=1)})
+        def b(*, n: int = 1) -> int:
+            return n

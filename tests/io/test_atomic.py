@@ -1,4 +1,5 @@
 import os
+import time
 import stat
 
 import pytest
@@ -102,17 +103,55 @@ def test_unwritable_folder_raises_export_error(tmp_path, monkeypatch):
     assert os.listdir(tmp_path) == []
 
 
-@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root ignores permissions")
-def test_read_only_folder_raises_export_error(tmp_path):
+def test_read_only_folder_raises_export_error(tmp_path, monkeypatch):
+    # root ignores permission bits, so the refusal of a read-only folder is injected where the OS gives it:
+    # creating the temporary file (os.open inside mkstemp) fails with EACCES
     ro = tmp_path / "ro"
     ro.mkdir()
-    ro.chmod(0o500)
-    try:
-        with pytest.raises(ExportError):
-            write_text_atomic(ro / "a.txt", "x")
-    finally:
-        ro.chmod(0o700)
+    real_open = os.open
+
+    def no_create(path, flags, *args, **kwargs):
+        if os.path.dirname(os.fspath(path)) == str(ro) and flags & os.O_CREAT:
+            raise PermissionError(13, "Permission denied", os.fspath(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", no_create)
+    with pytest.raises(ExportError, match="Permission denied"):
+        write_text_atomic(ro / "a.txt", "x")
     assert os.listdir(ro) == []
+
+
+def test_failed_rename_leaves_nothing_and_keeps_the_old_file(tmp_path, monkeypatch):
+    (tmp_path / "a.txt").write_text("old")
+
+    def denied(src, dst):
+        raise PermissionError(13, "Permission denied", os.fspath(dst))
+
+    monkeypatch.setattr(os, "replace", denied)
+    with pytest.raises(ExportError, match="Permission denied"):
+        write_text_atomic(tmp_path / "a.txt", "new")
+    assert os.listdir(tmp_path) == ["a.txt"] and (tmp_path / "a.txt").read_text() == "old"
+
+
+def test_a_250_character_name_is_writable(tmp_path):
+    name = "p" * 246 + ".obj"
+    assert len(name) == 250
+    p = write_text_atomic(tmp_path / name, "v 0 0 0\n")
+    assert p.read_text() == "v 0 0 0\n" and os.listdir(tmp_path) == [name]
+
+
+def test_stale_temporary_files_are_removed_by_the_next_write(tmp_path, monkeypatch):
+    monkeypatch.setattr(_atomic, "_SWEPT", set())
+    stale = tmp_path / ".qn-k1ll3d00.tmp"
+    fresh = tmp_path / ".qn-inflight.tmp"            # another process writing right now
+    other = tmp_path / ".notes.tmp"                  # not ours
+    for p in (stale, fresh, other):
+        p.write_text("half")
+    old = time.time() - 2 * _atomic.STALE_SECONDS
+    os.utime(stale, (old, old))
+    os.utime(other, (old, old))
+    write_text_atomic(tmp_path / "a.txt", "x")
+    assert sorted(os.listdir(tmp_path)) == sorted([fresh.name, other.name, "a.txt"])
 
 
 def test_directory_in_the_way_raises_export_error(tmp_path):
