@@ -26,6 +26,7 @@ from .io._atomic import write_text_atomic
 from .mesh import QuadMesh
 from .mesh import grid as _grid
 from .noise import perturb as _perturb
+from .flatness import DEFAULT_PLANAR_TOLERANCE
 from .flatness import planarity as _planarity_of
 from .planarization import DEFAULT_TOLERANCE, PlanarizeReport
 from .planarization import planarize as _planarize
@@ -242,12 +243,14 @@ def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | None = N
 # --- outputs -------------------------------------------------------------------------
 
 
-@node("export_step", outputs=("path",), writes=("path",))
-def export_step(mesh: QuadMesh, *, path: str, mode: Literal["compound", "shell", "assembly"] = "assembly",
-                planar_tol: float = _io.DEFAULT_PLANAR_TOL, mesh_unit: str = "mm",
-                colors: bool = False) -> Path:
-    """Panels to STEP: planar faces within planar_tol, else exact bilinear patches; assembly keeps labels."""
-    return _io.save_step(mesh, path, mode=mode, planar_tol=planar_tol, mesh_unit=mesh_unit, colors=colors)
+@node("export_step", outputs=("path", "report"), writes=("path",))
+def export_step(mesh: QuadMesh, *, path: str, mode: Literal["compound", "shell", "assembly"] = "shell",
+                planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
+                colors: bool = False) -> tuple[Path, _io.StepReport]:
+    """Panels to STEP in the mesh's unit: plane faces for panels within planar_tolerance (relative, or a length
+    such as "2 mm"; corners moved onto the plane, the report gives the largest move), else exact bilinear
+    patches. shell: one sewn shell with faces named P_<row>_<col>; assembly: one labelled part per panel."""
+    return _io.write_step(mesh, path, mode=mode, planar_tolerance=planar_tolerance, colors=colors)
 
 
 @node("export_obj", outputs=("path",), writes=("path",))
@@ -257,9 +260,11 @@ def export_obj(mesh: QuadMesh, *, path: str) -> Path:
 
 
 @node("export_csv", outputs=("path",), writes=("path",))
-def export_csv(mesh: QuadMesh, *, path: str, planar_tol: float = _io.DEFAULT_PLANAR_TOL) -> Path:
-    """The panel schedule: id, row/col, corners, area, edge lengths, planarity, planar flag."""
-    return _io.save_schedule(mesh, path, planar_tol=planar_tol)
+def export_csv(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
+               precision: Literal["rounded", "full"] = "rounded") -> Path:
+    """The panel schedule: id, row/col, corners, area, edge lengths, both planarity measures, kind (planar flag),
+    corner move; column names carry the mesh's unit; numbers to 0.001 mm unless precision="full"."""
+    return _io.save_schedule(mesh, path, planar_tolerance=planar_tolerance, precision=precision)
 
 
 @node("export_json", outputs=("path",), writes=("path",))

@@ -10,7 +10,11 @@ returning the path:
 - ``csv`` (panel schedule, write only): :func:`~.schedule.schedule_csv` /
   :func:`~.schedule.save_schedule`.
 - ``step`` / ``stp`` (write only; read with ``build123d.import_step``):
-  :func:`~.step.step_shape` / :func:`~.step.save_step`.
+  :func:`~.step.step_panels` / :func:`~.step.save_step` (:func:`~.step.write_step`
+  also returns a :class:`~.step.StepReport`).
+
+Which panels are planar is :func:`quadnodes.flatness.planar_panels` for every
+writer (one ``planar_tolerance``: relative, or a length such as ``"2 mm"``).
 
 :func:`save` and :func:`load` pick the format from the file extension (or an
 explicit ``file_type``) through the :data:`EXPORTERS` and :data:`LOADERS`
@@ -28,9 +32,9 @@ from ..errors import InputError
 from ..mesh import QuadMesh
 from .json_mesh import load_json, mesh_to_json, save_json
 from .obj import load_obj, obj_text, parse_obj, save_obj
-from .panels import DEFAULT_PLANAR_TOL, panel_labels, planar_mask
+from .panels import panel_labels
 from .schedule import panel_schedule, save_schedule, schedule_csv
-from .step import save_step, step_shape
+from .step import StepReport, save_step, step_panels, step_shape, write_step
 
 __all__ = [
     "EXPORTERS",
@@ -44,14 +48,15 @@ __all__ = [
     "save_schedule",
     "save_step",
     "step_shape",
+    "step_panels",
+    "write_step",
+    "StepReport",
     "obj_text",
     "parse_obj",
     "mesh_to_json",
     "schedule_csv",
     "panel_schedule",
     "panel_labels",
-    "planar_mask",
-    "DEFAULT_PLANAR_TOL",
 ]
 
 EXPORTERS: dict[str, Callable[..., Path]] = {
