@@ -90,7 +90,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..errors import ExportError, GraphError
+from ..errors import ExportError, GraphError, InputError
+from ..units import parse_length
 from . import _types
 from ..io._atomic import write_atomic
 from ._util import did_you_mean, graph_error, label
@@ -238,6 +239,10 @@ def from_dict(
     for k, v in shared.items():
         if isinstance(v, bool) or not isinstance(v, (int, float, str)):
             raise GraphError(f"{k}: expected a number or a length such as '2 mm', got {v!r}")
+        try:
+            parse_length(v, "mm", k)
+        except InputError as exc:
+            raise GraphError(f"top-level setting {exc}") from None
     g = Graph(registry=registry, base_dir=base_dir)
     g.graph_settings = shared  # type: ignore[attr-defined]
     for node_id, body in nodes.items():
