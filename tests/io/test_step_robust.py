@@ -210,3 +210,14 @@ def test_report_to_dict_is_plain_data(tmp_path):
     d = report.to_dict()
     assert json.loads(json.dumps(d)) == d
     assert d["mode"] == "shell" and d["unit"] == "mm" and d["n_panels"] == 4
+
+
+def test_shell_faces_carry_their_planarity_colours(tmp_path):
+    m = grid(3, 4, spacing=100.0, height=[[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 20, 0]])
+    planar = planar_panels(m)
+    assert 0 < planar.sum() < m.n_faces
+    text = save_step(m, tmp_path / "c.step", mode="shell", colors=True).read_text()
+    assert text.count("STYLED_ITEM(") == m.n_faces  # one style per named face
+    rgb = {tuple(round(float(c), 2) for c in t.split(",")) for t in
+           __import__("re").findall(r"COLOUR_RGB\('[^']*',([^)]*)\)", text)}
+    assert tuple(round(c, 2) for c in step_mod._PLANAR_RGB) in rgb and len(rgb) >= 2
