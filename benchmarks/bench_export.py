@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from quadnodes.io import load_obj, save_obj, save_step, step_shape
-from quadnodes.io.panels import planar_mask
+from quadnodes.flatness import planar_panels as planar_mask
 from quadnodes.mesh import QuadMesh, grid
 
 

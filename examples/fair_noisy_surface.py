@@ -45,7 +45,7 @@ def main(out: Path) -> dict:
 
     io.save_obj(noisy, out / "noisy.obj")
     io.save_obj(faired, out / "faired.obj")
-    io.save_step(faired, out / "faired.step", mode="assembly")
+    io.save_step(faired, out / "faired.step", mode="shell")  # one sewn shell, faces named P_<row>_<col>
     io.save_schedule(faired, out / "faired_panels.csv")
     viz.render_png([noisy, *results.values()], out / "comparison.png",
                    titles=["noisy input", *results], elev=35, azim=-65)

@@ -19,7 +19,15 @@ __all__ = [
     "planar_panels",
     "folded_panels",
     "nonconvex_panels",
+    "simple_panels",
+    "DEFAULT_PLANAR_TOLERANCE",
 ]
+
+DEFAULT_PLANAR_TOLERANCE: float = 1e-3
+"""The package's one default ``planar_tolerance``: relative diagonal distance
+``1e-3`` (e.g. 1.4 mm across a 1 m × 1 m panel). It is the planarize target, so a
+mesh planarized with the defaults is written as plane faces by every exporter
+(see docs/design-notes.md, session 5)."""
 
 
 def diagonal_distance(mesh: QuadMesh, *, relative: bool = True) -> np.ndarray:
@@ -176,15 +184,54 @@ def resolve_planar_tolerance(planar_tolerance: float | str, unit: str = "mm") ->
     return kind, value
 
 
-def planar_panels(mesh: QuadMesh, planar_tolerance: float | str) -> np.ndarray:
-    """Which panels are planar within ``planar_tolerance`` (relative, or a length such as ``"2 mm"``).
+def simple_panels(mesh: QuadMesh) -> np.ndarray:
+    """Which quads are simple polygons in their own plane: neither folded (bow-tie) nor degenerate.
 
-    The one test every exporter and the panel schedule use, so they agree on
-    which panels are planar.
+    The plane of a quad is the mid-plane of its two diagonal lines (normal
+    ``(p2 - p0) × (p3 - p1)``); seen along that normal a convex quad turns the
+    same way at all four corners, a dart (one reflex corner) at three, a bow-tie
+    at two. A quad with parallel diagonals (zero vector area) is not simple.
 
     Returns
     -------
     (m,) bool
+
+    Examples
+    --------
+    >>> square, dart, bowtie = [0, 1, 2, 3], [0, 1, 4, 3], [0, 5, 1, 3]
+    >>> v = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.2, 0.2, 0], [2, 1.5, 0]])
+    >>> [bool(simple_panels(QuadMesh(v, [f]))[0]) for f in (square, dart, bowtie)]
+    [True, True, False]
+    """
+    p = mesh.vertices[mesh.faces]
+    n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+    nn = np.linalg.norm(n, axis=1)
+    e = np.roll(p, -1, axis=1) - p  # edge k: corner k -> k+1
+    turn = np.einsum("fkj,fj->fk", np.cross(np.roll(e, 1, axis=1), e), n)  # at corner k
+    scale = np.linalg.norm(e, axis=2).max(axis=1)
+    nonzero = nn > 1e-12 * scale * scale
+    return nonzero & ((turn < 0).sum(axis=1) <= 1)
+
+
+def planar_panels(mesh: QuadMesh, planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE) -> np.ndarray:
+    """Which panels are planar within ``planar_tolerance`` (relative, or a length such as ``"2 mm"``).
+
+    The one test every exporter and the panel schedule use, so they agree on
+    which panels are planar. A panel is planar when its diagonal distance
+    (:func:`diagonal_distance`, relative or as a length) is at most the
+    tolerance **and** it is a simple polygon in its plane (:func:`simple_panels`;
+    a folded or degenerate quad cannot be a plane face whatever its distance).
+    Its corners then lie exactly half the diagonal distance from that plane,
+    the most any corner moves when an exporter flattens it.
+
+    Returns
+    -------
+    (m,) bool
+
+    Raises
+    ------
+    InputError
+        On a negative, non-finite or unreadable ``planar_tolerance``.
 
     Examples
     --------
@@ -194,14 +241,15 @@ def planar_panels(mesh: QuadMesh, planar_tolerance: float | str) -> np.ndarray:
     ([True, True], [True, False])
     """
     kind, value = resolve_planar_tolerance(planar_tolerance, mesh.unit)
-    return diagonal_distance(mesh, relative=(kind == "relative")) <= value
+    return (diagonal_distance(mesh, relative=(kind == "relative")) <= value) & simple_panels(mesh)
 
 
 def folded_panels(mesh: QuadMesh, planar_tolerance: float | str) -> np.ndarray:
     """Flat panels (within ``planar_tolerance``) whose outline crosses itself: bow-ties, ``(m,) bool``.
 
-    Such a panel cannot be built as a plane face (its edges intersect); every
-    exporter refuses it, naming the panel.
+    Such a panel is neither a plane face (its edges intersect) nor a sound
+    bilinear patch (the patch folds over itself); every exporter refuses it,
+    naming the panel (see :func:`simple_panels`).
 
     Examples
     --------
@@ -210,8 +258,10 @@ def folded_panels(mesh: QuadMesh, planar_tolerance: float | str) -> np.ndarray:
     >>> folded_panels(QuadMesh(v, [[0, 1, 2, 3]]), 1e-3).tolist()
     [True]
     """
-    against, _ = _validate.corner_turns(mesh.vertices, mesh.faces)
-    return (against >= 2) & planar_panels(mesh, planar_tolerance)
+    kind, value = resolve_planar_tolerance(planar_tolerance, mesh.unit)
+    flat = diagonal_distance(mesh, relative=(kind == "relative")) <= value
+    against, no_area = _validate.corner_turns(mesh.vertices, mesh.faces)
+    return flat & (against >= 2) & ~no_area
 
 
 def nonconvex_panels(mesh: QuadMesh) -> np.ndarray:

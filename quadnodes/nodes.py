@@ -31,6 +31,7 @@ from .mesh import QuadMesh
 from .mesh import grid as _grid
 from .noise import NoiseReport
 from .noise import perturb as _perturb
+from .flatness import DEFAULT_PLANAR_TOLERANCE
 from .flatness import planarity as _planarity_of
 from .planarization import DEFAULT_TOLERANCE, PlanarizeReport
 from .planarization import planarize as _planarize
@@ -491,27 +492,27 @@ def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | None = N
 # --- outputs -------------------------------------------------------------------------
 
 
-@node("export_step", outputs=("path",), writes=("path",),
-      ranges={"planar_tol": Range(min=0, min_open=True)})
-def export_step(mesh: QuadMesh, *, path: str, mode: Literal["compound", "shell", "assembly"] = "assembly",
-                planar_tol: float = _io.DEFAULT_PLANAR_TOL, mesh_unit: str = "mm",
-                colors: bool = False) -> Path:
-    """Panels to STEP: planar faces within planar_tol, else exact bilinear patches; assembly keeps labels.
+@node("export_step", outputs=("path", "report"), writes=("path",))
+@_validate.renamed(planar_tol="planar_tolerance", mesh_unit="the mesh's own unit (mesh.with_unit)")
+def export_step(mesh: QuadMesh, *, path: str, mode: Literal["compound", "shell", "assembly"] = "shell",
+                planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
+                colors: bool = False) -> tuple[Path, _io.StepReport]:
+    """Panels to STEP in the mesh's unit: plane faces for panels within planar_tolerance, else exact bilinear
+    patches; shell: one sewn shell with faces named P_<row>_<col>; assembly: one labelled part per panel.
 
     Parameters
     ----------
     path : str
         Output file, relative to the output folder.
     mode : str
-        assembly (one labelled part per panel), shell, or compound.
-    planar_tol : float
-        Panels this planar (relative) become plane faces, others bilinear patches.
-    mesh_unit : str
-        Unit of the mesh coordinates.
+        shell (one sewn shell of named faces, the default), assembly (one labelled part per panel), or compound.
+    planar_tolerance : float or str
+        Panels this planar become plane faces (corners moved onto the plane, at most half of it; the report
+        gives the largest move), others exact bilinear patches: a relative number, or a length such as "2 mm".
     colors : bool
         Colour panels by planarity.
     """
-    return _io.save_step(mesh, path, mode=mode, planar_tol=planar_tol, mesh_unit=mesh_unit, colors=colors)
+    return _io.write_step(mesh, path, mode=mode, planar_tolerance=planar_tolerance, colors=colors)
 
 
 @node("export_obj", outputs=("path",), writes=("path",))
@@ -526,19 +527,23 @@ def export_obj(mesh: QuadMesh, *, path: str) -> Path:
     return _io.save_obj(mesh, path)
 
 
-@node("export_csv", outputs=("path",), writes=("path",),
-      ranges={"planar_tol": Range(min=0, min_open=True)})
-def export_csv(mesh: QuadMesh, *, path: str, planar_tol: float = _io.DEFAULT_PLANAR_TOL) -> Path:
-    """The panel schedule: id, row/col, corners, area, edge lengths, planarity, planar flag.
+@node("export_csv", outputs=("path",), writes=("path",))
+@_validate.renamed(planar_tol="planar_tolerance")
+def export_csv(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
+               precision: Literal["rounded", "full"] = "rounded") -> Path:
+    """The panel schedule: id, row/col, corners, area, edge lengths, both planarity measures, kind (planar flag),
+    corner move; column names carry the mesh's unit.
 
     Parameters
     ----------
     path : str
         Output file, relative to the output folder.
-    planar_tol : float
-        Panels this planar (relative) are flagged planar.
+    planar_tolerance : float or str
+        Panels this planar are of kind planar: a relative number, or a length such as "2 mm".
+    precision : str
+        rounded (lengths to 0.001 mm, as a schedule is read) or full (exact floats).
     """
-    return _io.save_schedule(mesh, path, planar_tol=planar_tol)
+    return _io.save_schedule(mesh, path, planar_tolerance=planar_tolerance, precision=precision)
 
 
 @node("export_json", outputs=("path",), writes=("path",))
@@ -684,7 +689,7 @@ def read_surface(*, path: str, face: int | str | None = None, allow_trimmed: boo
 
 
 @node("export_3dm", outputs=("path",), writes=("path",))
-def export_3dm(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io.DEFAULT_PLANAR_TOL,
+def export_3dm(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
                lines: bool = True, user_text: bool = True) -> Path:
     """Rhino .3dm in the mesh's unit: the quad mesh, every panel a named degree-1 surface with user text on
     layer panels::planar or panels::bilinear (planar_tolerance: relative, or a length such as "2 mm"), and
@@ -706,7 +711,7 @@ def export_3dm(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io
 
 @node("export_dxf", outputs=("path", "report"), writes=("path",),
       ranges={"per_row": Range(min=1), "gap": Range(min=0), "text_height": Range(min=0, min_open=True)})
-def export_dxf(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = _io.DEFAULT_PLANAR_TOL,
+def export_dxf(mesh: QuadMesh, *, path: str, planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
                per_row: int | None = None, gap: float | None = None,
                text_height: float | None = None) -> tuple[Path, DxfReport]:
     """DXF unrolls for fabrication: every panel flat (unfolded along a diagonal), in rows without overlaps, on

@@ -51,12 +51,13 @@ from .progress import report_progress
 from .reference import Reference, as_reference
 from .linalg import factorize, regularization
 from .topology import adjacency, fixed_vertices
-from .flatness import resolve_planar_tolerance
+from .flatness import DEFAULT_PLANAR_TOLERANCE, resolve_planar_tolerance
 
 __all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "DEFAULT_TOLERANCE"]
 
-#: Default planarity tolerance: diagonal distance / mean diagonal length.
-DEFAULT_TOLERANCE = 1e-3
+#: Default planarity tolerance: diagonal distance / mean diagonal length — the package's one default
+#: (:data:`quadnodes.flatness.DEFAULT_PLANAR_TOLERANCE`), which the exporters use too.
+DEFAULT_TOLERANCE = DEFAULT_PLANAR_TOLERANCE
 #: With a reference surface, a weak pull to the input positions keeps vertices from sliding far along it.
 DEFAULT_INPUT_WEIGHT = 0.01
 #: ``method="auto"`` tries Newton steps after an unconverged local/global run up to this many free vertices.

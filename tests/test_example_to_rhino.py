@@ -74,14 +74,13 @@ def test_to_rhino_end_to_end(tmp_path):
     out, cache = tmp_path / "out", tmp_path / "cache"
     assert main(["run", str(EXAMPLE), "--out", str(out), "--cache", str(cache)]) == 0
     n_planar = check_agreement(out, 169)
-    assert n_planar == 169  # planarized to 0.001, every output calls every panel planar at 0.0015
+    assert n_planar == 169  # planarized to the graph's 2 mm, every output calls every panel planar at 2 mm
     report = json.loads((out / "report.json").read_text())
     assert report["unrolls"]["n_planar"] == 169 and report["unrolls"]["max_distortion"] < 1.0
     assert len(report["unrolls"]["distortion"]) == 169
 
     # a tighter tolerance splits the panels; the four outputs still agree panel by panel
-    tight = ["--set", "step.planar_tol=0.0001", "--set", "csv.planar_tol=0.0001",
-             "--set", "rhino.planar_tolerance=0.0001", "--set", "dxf.planar_tolerance=0.0001"]
+    tight = [a for node in ("step", "csv", "rhino", "dxf") for a in ("--set", f'{node}.planar_tolerance="0.2 mm"')]
     tighter = tmp_path / "tight"
     assert main(["run", str(EXAMPLE), "--out", str(tighter), "--cache", str(cache), *tight]) == 0
     n_planar = check_agreement(tighter, 169)

@@ -82,7 +82,9 @@ def test_quickstart_the_readme_main_job(tmp_path):
     assert main(["run", str(EXAMPLES / "quickstart.toml"), "--out", str(out)]) == 0
     shape = import_step(out / "faired.step")
     assert len(shape.faces()) == 21 * 40
-    assert {c.label for c in shape.children} >= {"P_0_0", "P_20_39"}
+    assert len(shape.edges()) == 21 * 41 + 22 * 40  # one sewn shell: neighbours share their edges
+    text = (out / "faired.step").read_text()
+    assert "ADVANCED_FACE('P_0_0'" in text and "ADVANCED_FACE('P_20_39'" in text
     m = json.loads((out / "metrics.json").read_text())
     assert m["fair"]["boundary_displacement_max"] < m["laplace"]["boundary_displacement_max"]
     assert m["fair"]["reference_vertex_mean"] < m["taubin"]["reference_vertex_mean"]
@@ -101,3 +103,8 @@ def test_planar_panels_graph_end_to_end(tmp_path):
     assert flat["reference_distance_max"] < 0.05 * flat["length_scale"]
     faces = import_step(out / "planar.step").faces()
     assert len(faces) == 225 and {f.geom_type for f in faces} == {GeomType.PLANE}
+    # the graph-wide planar_tolerance: the schedule lists exactly the STEP file's plane faces as planar
+    import csv
+
+    rows = list(csv.DictReader((out / "planar_panels.csv").open()))
+    assert sum(r["kind"] == "planar" for r in rows) == 225

@@ -165,7 +165,7 @@ def test_node_and_step_export_write_planar_faces(tmp_path):
     m = g.add("grid", id="grid", rows=7, cols=7, spacing=1.0)
     noisy = g.add("perturb", m, id="noisy", normal=0.15, seed=5)
     flat = g.add("planarize", noisy.mesh, id="flat", planar_tolerance=1e-4)
-    g.add("export_step", flat.mesh, id="step", path="flat.step", planar_tol=1e-4)
+    g.add("export_step", flat.mesh, id="step", path="flat.step", planar_tolerance=1e-4)
     res = g.run()
     rep = res["flat.report"]
     assert rep.converged and rep.planarity_max <= 1e-4

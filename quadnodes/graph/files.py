@@ -90,7 +90,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..errors import ExportError, GraphError
+from ..errors import ExportError, GraphError, InputError
+from ..units import parse_length
 from . import _types
 from ..io._atomic import write_atomic
 from ._util import did_you_mean, graph_error, label
@@ -108,6 +109,7 @@ __all__ = [
     "load",
     "parse_value",
     "toml_dumps",
+    "GRAPH_SETTINGS",
 ]
 
 #: The ``format`` value at the top of every graph file.
@@ -115,7 +117,10 @@ FORMAT = "quadnodes-graph"
 #: The newest graph file version this code reads and the one it writes.
 VERSION = 1
 
-_TOP_KEYS = ("format", "version", "nodes")
+#: Graph-wide settings: set once at the top of a graph file, inherited by every node that has a
+#: setting of that name and does not set it itself (e.g. ``planar_tolerance = "2 mm"``).
+GRAPH_SETTINGS = ("planar_tolerance",)
+_TOP_KEYS = ("format", "version", "nodes") + GRAPH_SETTINGS
 _NODE_KEYS = ("op", "inputs", "params")
 _SUFFIXES = {".toml": "toml", ".json": "json"}
 
@@ -140,6 +145,7 @@ def to_dict(graph: Graph, *, base_dir: str | os.PathLike[str] | None = None) -> 
     """
     src_dir = Path(graph.base_dir) if graph.base_dir is not None else Path.cwd()
     dst_dir = Path(base_dir) if base_dir is not None else None
+    shared = dict(getattr(graph, "graph_settings", {}))
     nodes: dict[str, Any] = {}
     for node_id in sorted(graph.nodes):
         spec = graph.nodes[node_id]
@@ -160,13 +166,15 @@ def to_dict(graph: Graph, *, base_dir: str | os.PathLike[str] | None = None) -> 
         params = {}
         for k in sorted(spec.params):
             v = spec.params[k]
+            if k in shared and _types.to_plain(v) == shared[k]:
+                continue  # inherited from the graph-wide setting
             if dst_dir is not None:
                 v = _rebase(v, src_dir, dst_dir)
             params[k] = _sorted(_types.to_plain(v))
         if params:
             body["params"] = params
         nodes[node_id] = _sorted(body)
-    return {"format": FORMAT, "version": VERSION, "nodes": nodes}
+    return {"format": FORMAT, "version": VERSION, **{k: shared[k] for k in sorted(shared)}, "nodes": nodes}
 
 
 def _rebase(value: Any, src: Path, dst: Path) -> Any:
@@ -229,7 +237,16 @@ def from_dict(
     nodes = data.get("nodes", {})
     if not isinstance(nodes, Mapping):
         raise GraphError(f"nodes: expected a table of nodes by id, got {type(nodes).__name__}")
+    shared = {k: data[k] for k in GRAPH_SETTINGS if k in data}
+    for k, v in shared.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+            raise GraphError(f"{k}: expected a number or a length such as '2 mm', got {v!r}")
+        try:
+            parse_length(v, "mm", k)
+        except InputError as exc:
+            raise GraphError(f"top-level setting {exc}") from None
     g = Graph(registry=registry, base_dir=base_dir)
+    g.graph_settings = shared  # type: ignore[attr-defined]
     for node_id, body in nodes.items():
         if not isinstance(node_id, str) or not _ID_RE.match(node_id):
             raise graph_error(
@@ -261,8 +278,9 @@ def from_dict(
                 conns[port] = PortRef.parse(ref, where=f"{label(node_id, nt.op)}: field 'inputs.{port}': ")
             except GraphError as exc:
                 raise graph_error(str(exc), node_id=node_id) from None
+        inherited = {k: v for k, v in shared.items() if k not in params and nt.setting(k) is not None}
         g._check_new_id(node_id, nt.op)
-        g._insert(node_id, nt, conns, params, check_refs=False)
+        g._insert(node_id, nt, conns, {**params, **inherited}, check_refs=False)
     g.validate()
     from .paths import output_path_errors
 

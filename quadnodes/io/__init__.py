@@ -10,10 +10,14 @@ returning the path:
 - ``csv`` (panel schedule, write only): :func:`~.schedule.schedule_csv` /
   :func:`~.schedule.save_schedule`.
 - ``step`` / ``stp`` (write only; read with ``build123d.import_step``):
-  :func:`~.step.step_shape` / :func:`~.step.save_step`.
+  :func:`~.step.step_panels` / :func:`~.step.save_step` (:func:`~.step.write_step`
+  also returns a :class:`~.step.StepReport`).
 - ``3dm`` (Rhino): :func:`~.rhino.model_3dm` / :func:`~.rhino.save_3dm`; read with :func:`~.rhino.load_3dm`.
 - ``dxf`` (flat unrolls, write only): :func:`~.dxf.dxf_document` / :func:`~.dxf.save_dxf`.
 - ``off``, ``ply`` (read only): :func:`~.off.load_off`, :func:`~.ply.load_ply`.
+
+Which panels are planar is :func:`quadnodes.flatness.planar_panels` for every
+writer (one ``planar_tolerance``: relative, or a length such as ``"2 mm"``).
 
 :func:`save` and :func:`load` pick the format from the file extension (or an
 explicit ``file_type``) through the :data:`EXPORTERS` and :data:`LOADERS`
@@ -31,9 +35,9 @@ from ..errors import InputError
 from ..mesh import QuadMesh
 from .json_mesh import load_json, mesh_to_json, save_json
 from .obj import load_obj, obj_text, parse_obj, save_obj
-from .panels import DEFAULT_PLANAR_TOL, panel_labels, planar_mask
+from .panels import panel_labels
 from .schedule import panel_schedule, save_schedule, schedule_csv
-from .step import save_step, step_shape
+from .step import StepReport, save_step, step_panels, step_shape, write_step
 from .dxf import dxf_report, panel_distortion, save_dxf, unfold
 from .off import load_off
 from .ply import load_ply
@@ -51,14 +55,15 @@ __all__ = [
     "save_schedule",
     "save_step",
     "step_shape",
+    "step_panels",
+    "write_step",
+    "StepReport",
     "obj_text",
     "parse_obj",
     "mesh_to_json",
     "schedule_csv",
     "panel_schedule",
     "panel_labels",
-    "planar_mask",
-    "DEFAULT_PLANAR_TOL",
     "save_3dm",
     "load_3dm",
     "model_3dm",

@@ -30,8 +30,8 @@ from ..errors import ExportError
 from ..flatness import planar_panels, resolve_planar_tolerance
 from ..mesh import QuadMesh
 from ._atomic import write_text_atomic
-from ._degenerate import check_panel_areas
-from .panels import DEFAULT_PLANAR_TOL, panel_labels, panel_rows_cols
+from ..flatness import DEFAULT_PLANAR_TOLERANCE as DEFAULT_PLANAR_TOL
+from .panels import check_panels, panel_labels, panel_rows_cols
 
 __all__ = [
     "INSUNITS", "Unfolding", "DxfReport", "unfold", "panel_distortion", "layout", "dxf_document", "save_dxf", "dxf_report",
@@ -268,7 +268,7 @@ def dxf_document(
         per_row = _validate.positive_int(per_row, "per_row")
     if gap is not None:
         gap = _validate.nonnegative_number(gap, "gap")
-    check_panel_areas(mesh, "dxf")
+    check_panels(mesh, planar_tolerance, "dxf")
     planar = planar_panels(mesh, planar_tolerance)
     unf = unfold(mesh)
     if per_row is None and mesh.grid_shape is not None and panel_rows_cols(mesh) is not None:

@@ -1,8 +1,10 @@
-"""Per-panel facts shared by the exporters: labels, planar-or-bilinear, area, edges.
+"""Per-panel facts shared by the exporters: labels, area, edges, degenerate panels, corner moves.
 
-The STEP exporter and the panel schedule use the same functions, so a panel
-listed as ``planar`` in the schedule is exactly a panel written as a plane in
-the STEP file.
+Which panels are planar is decided in one place for every exporter and the
+schedule: :func:`quadnodes.flatness.planar_panels`. The STEP exporter and the
+panel schedule use these functions too, so a panel listed as ``planar`` in the
+schedule is exactly a panel written as a plane in the STEP file, and the
+schedule's corner move is the STEP file's.
 """
 
 from __future__ import annotations
@@ -14,18 +16,14 @@ from ..mesh import QuadMesh
 from ..flatness import diagonal_distance
 
 __all__ = [
-    "DEFAULT_PLANAR_TOL",
     "panel_labels",
     "panel_rows_cols",
-    "planar_mask",
     "bilinear_area",
     "edge_lengths",
+    "degenerate_panels",
+    "check_panels",
+    "corner_moves",
 ]
-
-DEFAULT_PLANAR_TOL: float = 1e-6
-"""Default planarity tolerance: relative diagonal distance (distance between the
-two diagonal lines divided by the mean diagonal length, see
-:func:`quadnodes.flatness.diagonal_distance`)."""
 
 _GAUSS_N = 8
 _GX, _GW = np.polynomial.legendre.leggauss(_GAUSS_N)
@@ -81,36 +79,6 @@ def panel_labels(mesh: QuadMesh) -> list[str]:
     if rc is None:
         return [f"P_{k}" for k in range(mesh.n_faces)]
     return [f"P_{i}_{j}" for i, j in zip(rc[0].tolist(), rc[1].tolist())]
-
-
-def planar_mask(mesh: QuadMesh, *, planar_tol: float = DEFAULT_PLANAR_TOL) -> np.ndarray:
-    """Which panels are made as planar faces (the others as bilinear patches).
-
-    Parameters
-    ----------
-    mesh : QuadMesh
-    planar_tol : float
-        Largest relative diagonal distance (default ``1e-6``) of a panel that is
-        treated as planar. ``0`` keeps only exactly planar quads.
-
-    Returns
-    -------
-    (m,) bool
-
-    Raises
-    ------
-    InputError
-        If ``planar_tol`` is negative or not finite.
-
-    Examples
-    --------
-    >>> from quadnodes.mesh import grid
-    >>> planar_mask(grid(2, 3, height=[[0, 0, 0], [0, 0, 1]])).tolist()
-    [True, False]
-    """
-    _validate.quad_mesh(mesh)
-    tol = _validate.nonnegative_number(planar_tol, "planar_tol")
-    return diagonal_distance(mesh) <= tol
 
 
 def bilinear_area(mesh: QuadMesh) -> np.ndarray:
@@ -169,3 +137,120 @@ def edge_lengths(mesh: QuadMesh) -> np.ndarray:
     _validate.quad_mesh(mesh)
     p = mesh.vertices[mesh.faces]
     return np.linalg.norm(np.roll(p, -1, axis=1) - p, axis=2)
+
+
+def degenerate_panels(mesh: QuadMesh) -> tuple[np.ndarray, list[str]]:
+    """Panels no CAD kernel can build: an edge of (almost) zero length, or zero area.
+
+    An edge is zero when it is shorter than ``1e-12`` times the panel's longest
+    edge; the area is zero when the bilinear patch's area
+    (:func:`bilinear_area`) is below ``1e-12`` times the longest edge squared
+    (all four corners on one line).
+
+    Returns
+    -------
+    mask : (m,) bool
+    reasons : list of str
+        One reason per degenerate panel, in face order.
+
+    Examples
+    --------
+    >>> v = np.array([[0., 0, 0], [1, 0, 0], [2, 1, 0], [3, 0, 0], [0, 1, 0]])
+    >>> m = QuadMesh(v, [[0, 1, 2, 3], [4, 1, 0, 2]])
+    >>> v[2, 1] = 0.0  # processing moved corner 2 onto the line of the others (QuadMesh() refuses that)
+    >>> mask, why = degenerate_panels(m.with_vertices(v))
+    >>> mask.tolist(), why
+    ([True, False], ['zero area (all four corners on one line)'])
+    """
+    _validate.quad_mesh(mesh)
+    edges = edge_lengths(mesh)
+    longest = edges.max(axis=1)
+    short = edges <= 1e-12 * longest[:, None]
+    flat = bilinear_area(mesh) <= 1e-12 * longest * longest
+    mask = short.any(axis=1) | flat | ~(longest > 0)
+    reasons = []
+    for k in np.flatnonzero(mask).tolist():
+        if short[k].any():
+            e = int(np.flatnonzero(short[k])[0])
+            reasons.append(f"edge {e}-{(e + 1) % 4} has zero length")
+        else:
+            reasons.append("zero area (all four corners on one line)")
+    return mask, reasons
+
+
+def corner_moves(mesh: QuadMesh, planar: np.ndarray) -> np.ndarray:
+    """How far the corners of every panel move when the planar ones are flattened.
+
+    A planar panel (``planar[k]``, from :func:`quadnodes.flatness.planar_panels`)
+    is made on the mid-plane of its two diagonal lines; each of its four corners
+    lies exactly half the diagonal distance from that plane and is moved onto it
+    along the normal. Bilinear panels keep their corners (move 0).
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+    planar : (m,) bool
+
+    Returns
+    -------
+    (m,) float64, in the mesh's unit
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> m = grid(2, 2, spacing=1000.0, height=[[0, 0], [0, 0.4]])
+    >>> round(float(corner_moves(m, np.array([True]))[0]), 6)
+    0.1
+    """
+    _validate.quad_mesh(mesh)
+    gap = diagonal_distance(mesh, relative=False)
+    return np.where(np.asarray(planar, dtype=bool), 0.5 * gap, 0.0)
+
+
+def check_panels(mesh: QuadMesh, planar_tolerance: float | str, fmt: str) -> None:
+    """The one check every geometry exporter makes before writing anything.
+
+    Refuses a degenerate panel (:func:`degenerate_panels`) and a flat panel whose
+    outline crosses itself (a bow-tie, :func:`quadnodes.flatness.folded_panels`:
+    neither a plane face nor a sound bilinear patch can be made from it).
+
+    Raises
+    ------
+    ExportError
+        Naming the first such panel (face index and label), why, and how many
+        there are; nothing has been written.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> check_panels(grid(3, 3), 1e-3, "step")
+    >>> v = np.array([[0., 0, 0], [2, 1, 0], [2, 0, 0], [0, 2, 0]])
+    >>> check_panels(QuadMesh(v, [[0, 1, 2, 3]]), 1e-3, "dxf")
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.ExportError: dxf: panel 0 (P_0) is folded: its edges cross (a bow-tie) while it is flat within planar_tolerance 0.001; reorder its corners or repair the mesh, nothing was written
+    """
+    from ..errors import ExportError
+    from ..flatness import folded_panels
+
+    labels = None
+    mask, reasons = degenerate_panels(mesh)
+    if mask.any():
+        bad = np.flatnonzero(mask)
+        k = int(bad[0])
+        labels = panel_labels(mesh)
+        more = f" ({bad.size - 1} more such panels)" if bad.size > 1 else ""
+        raise ExportError(
+            f"{fmt}: panel {k} ({labels[k]}) is degenerate: {reasons[0]}{more}; no CAD face can be built from it "
+            "(merge or remove such panels first), nothing was written"
+        )
+    folded = folded_panels(mesh, planar_tolerance)
+    if folded.any():
+        bad = np.flatnonzero(folded)
+        k = int(bad[0])
+        labels = panel_labels(mesh)
+        more = f" ({bad.size - 1} more such panels)" if bad.size > 1 else ""
+        raise ExportError(
+            f"{fmt}: panel {k} ({labels[k]}) is folded: its edges cross (a bow-tie) while it is flat within "
+            f"planar_tolerance {planar_tolerance!r}{more}; reorder its corners or repair the mesh, nothing was written"
+        )

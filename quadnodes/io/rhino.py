@@ -31,9 +31,9 @@ from ..flatness import diagonal_distance, planar_panels, resolve_planar_toleranc
 from ..mesh import QuadMesh
 from ..units import UNITS
 from ._atomic import write_atomic
-from ._degenerate import check_panel_areas
 from ._polygons import quads_from_blocks
-from .panels import DEFAULT_PLANAR_TOL, panel_labels, panel_rows_cols
+from ..flatness import DEFAULT_PLANAR_TOLERANCE as DEFAULT_PLANAR_TOL
+from .panels import bilinear_area, check_panels, edge_lengths, panel_labels, panel_rows_cols
 
 __all__ = ["RHINO_UNITS", "LAYERS", "model_3dm", "save_3dm", "load_3dm", "nurbs_face", "rhino_faces"]
 
@@ -105,7 +105,8 @@ def model_3dm(
     _validate.quad_mesh(mesh)
     resolve_planar_tolerance(planar_tolerance, mesh.unit)
     unit_system = _unit_system(mesh.unit, "3dm")
-    area, edges = check_panel_areas(mesh, "3dm")
+    check_panels(mesh, planar_tolerance, "3dm")
+    area, edges = bilinear_area(mesh), edge_lengths(mesh)
     planar = planar_panels(mesh, planar_tolerance)
 
     model = rhino3dm.File3dm()

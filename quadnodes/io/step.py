@@ -2,92 +2,109 @@
 
 Planar or bilinear
 ------------------
-A panel whose relative diagonal distance (:func:`quadnodes.flatness.diagonal_distance`)
-is at most ``planar_tol`` (default ``1e-6``) is written as a **plane** face
-bounded by its four straight edges; every other panel as the **bilinear patch**
-through its four corners, a degree-(1, 1) ``Geom_BezierSurface`` with poles
-``[[p0, p3], [p1, p2]]`` (``u`` runs from ``p0`` to ``p1``, ``v`` from ``p0`` to
-``p3``; the same surface as build123d's
-``Face.make_bezier_surface([[p0, p3], [p1, p2]])``), so ``S_u × S_v`` points
-along the quad's counter-clockwise normal and the patch's four boundary curves
-are exactly the quad's straight edges. Faces are built with OCP directly
-(``BRepBuilderAPI_MakePolygon`` / ``BRepBuilderAPI_MakeFace`` /
-``Geom_BezierSurface``), about 0.1 ms per panel.
+Which panels are planar is decided in one place for every exporter and the
+schedule, :func:`quadnodes.flatness.planar_panels`: a panel is planar when its
+diagonal distance is within ``planar_tolerance`` (a number: relative to the
+mean diagonal, default ``1e-3``; text such as ``"2 mm"``: a length, converted to
+the mesh's unit) and it is a simple polygon in its plane. A planar panel is
+written as a **plane** face: the mid-plane of its two diagonal lines (through
+the centroid, normal ``(p2 - p0) × (p3 - p1)``), bounded by its four corners
+**projected onto that plane**. Every corner of such a panel lies exactly half
+the diagonal distance from the plane, so each corner moves by that much (at most
+half the tolerance) and the face is exactly planar, with OCCT's default
+tolerances. :class:`StepReport` gives the largest move of the export
+(``max_corner_move``), the schedule gives every panel's (``corner_move_<unit>``).
 
-The plane is the mid-plane of the two diagonal lines: through the centroid,
-normal to ``(p2 - p0) × (p3 - p1)``; every corner lies at half the diagonal
-distance from it. OCCT's own route (``BRepBuilderAPI_MakeFace(wire,
-OnlyPlane=True)``, i.e. ``Face(Wire.make_polygon(..., close=True))`` in
-build123d) accepts a polygon only when its *absolute* diagonal distance is
-below about ``1e-6`` model units (measured with OCCT 8.0.1: between 6e-7 and
-1e-6, whatever the panel size), so a 1 m panel in millimetres that is planar to a
-relative ``1e-6`` (0.001 mm) would be refused. The exporter therefore builds the
-face on the fitted plane itself, keeps the corners exactly where the mesh puts
-them, and widens the edge and vertex tolerances to the corners' distance from the
-plane (``BRepLib.SameParameter``) so that the face is valid
-(``BRepCheck_Analyzer``). The panel schedule (:mod:`quadnodes.io.schedule`)
-uses the same test, so its ``kind`` column matches the STEP file.
+Every other panel is the **bilinear patch** through its four exact corners, a
+degree-(1, 1) ``Geom_BezierSurface`` with poles ``[[p0, p3], [p1, p2]]`` (``u``
+from ``p0`` to ``p1``, ``v`` from ``p0`` to ``p3``), so ``S_u × S_v`` points
+along the quad's counter-clockwise normal and its boundary curves are the quad's
+straight edges. A planar panel that OCCT still refuses as a plane face (never
+seen; the classification already excludes folded quads) falls back to its
+bilinear patch, and the report lists it in ``fallback``: one panel never aborts
+an export. Only a degenerate panel (an edge of zero length, or zero area) is an
+:class:`~quadnodes.errors.ExportError`, naming the panel, before anything is
+written.
+
+Why projected corners: the corners of an almost-planar quad are off its plane by
+half the diagonal distance. The previous exporter kept them there and widened
+the edge and vertex tolerances with ``BRepLib::SameParameter``; for deviations
+between about ``1.5e-7`` and ``1e-5`` model units OCCT widened only the edges
+whose pcurves it recomputed (two of the four for a one-corner lift), left the
+vertex they share at ``1e-7`` although it lies ``2.5e-7 … 2.5e-6`` off the
+plane, and ``BRepCheck_Analyzer`` rejected the face (a 1 m panel with one corner
+lifted 1e-6 … 1e-5 mm). A face on its plane with its corners on it has nothing
+to tolerate.
 
 Modes
 -----
 ``"compound"``
-    One compound of independent faces (fastest, neighbours share no edges).
-``"shell"``
-    Faces sewn along shared edges with ``BRepBuilderAPI_Sewing``: one shell per
-    connected piece of the mesh (a compound of shells when there are several).
+    One compound of independent faces (fastest; neighbours share no edges).
+``"shell"`` (the export node's default)
+    The faces sewn along their shared edges (``BRepBuilderAPI_Sewing``) into one
+    shell per connected piece of the mesh, every face **named** with its panel
+    label ``P_<row>_<col>`` (or ``P_<face index>``) through XCAF sub-shape names
+    (the STEP ``ADVANCED_FACE`` names, read by OCCT with
+    ``read.stepcaf.subshapes.name``); optionally coloured. Labelled and
+    connected: what a CAD user expects of a panelled surface.
 ``"assembly"``
-    An assembly whose children are the panels, each named ``P_<row>_<col>`` (row
-    and column of the face's grid cell, when the mesh has a ``grid_shape``) or
-    ``P_<face index>``, optionally coloured by planarity. Only this form keeps
-    the panel labels through STEP (they are written as product names).
+    An assembly whose children are the panels (one product per panel, named
+    with its label), optionally coloured; neighbours share no edges.
+
+The sewing tolerance absorbs the corner moves of planar panels (neighbouring
+projected corners are at most two moves apart), so panels on both sides of a
+shared edge stay connected.
 
 Units
 -----
-``mesh_unit`` declares the unit of the mesh coordinates (default ``"mm"``, like
-build123d's ``Unit.MM``). The coordinates are written **unchanged** and the file
-declares that unit (``SI_UNIT(.MILLI.,.METRE.)``, ``SI_UNIT($,.METRE.)``, …), so
-no value is rescaled and rounded; a unit-aware reader converts. For example a
-mesh in metres, read back with ``build123d.import_step`` (which works in
-millimetres), comes back 1000 times larger, as it should. OCCT writes real
-numbers with 12 significant digits, so coordinates round-trip to a relative
-``1e-12``, not bit for bit (use OBJ or JSON for exact coordinates).
+The file declares the mesh's own unit (:attr:`quadnodes.mesh.QuadMesh.unit`;
+``SI_UNIT(.MILLI.,.METRE.)``, ``SI_UNIT($,.METRE.)``, inch, foot, …) and holds
+the coordinates **unchanged**, so no value is rescaled and rounded; a unit-aware
+reader converts. OCCT writes real numbers with 12 significant digits, so
+coordinates round-trip to a relative ``1e-12``, not bit for bit (use OBJ or
+JSON for exact coordinates).
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from .. import _validate
-from ..progress import report_progress
 from ..errors import ExportError, InputError
+from ..flatness import DEFAULT_PLANAR_TOLERANCE, diagonal_distance, planar_panels
 from ..mesh import QuadMesh
-from ..flatness import diagonal_distance
+from ..progress import report_progress
 from ._atomic import write_atomic
-from .panels import DEFAULT_PLANAR_TOL, panel_labels
+from .panels import check_panels, corner_moves, panel_labels
 
 if TYPE_CHECKING:
     from build123d import Shape
 
-__all__ = ["STEP_MODES", "STEP_UNITS", "step_shape", "save_step"]
+__all__ = ["STEP_MODES", "STEP_UNITS", "StepReport", "step_panels", "step_shape", "write_step", "save_step"]
 
 STEP_MODES: tuple[str, ...] = ("compound", "shell", "assembly")
 """The values of ``mode``."""
 
-# mesh_unit -> (build123d Unit member name, OCCT "write.step.unit" value)
-_UNITS: dict[str, tuple[str, str]] = {
-    "um": ("MC", "UM"),
-    "mm": ("MM", "MM"),
-    "cm": ("CM", "CM"),
-    "m": ("M", "M"),
-    "in": ("IN", "INCH"),
-    "ft": ("FT", "FT"),
+# mesh unit -> (metres per unit, OCCT "write.step.unit" value)
+_UNITS: dict[str, tuple[float, str]] = {
+    "mm": (1e-3, "MM"),
+    "cm": (1e-2, "CM"),
+    "m": (1.0, "M"),
+    "in": (0.0254, "INCH"),
+    "ft": (0.3048, "FT"),
 }
 STEP_UNITS: tuple[str, ...] = tuple(_UNITS)
-"""The values of ``mesh_unit``."""
+"""The mesh units a STEP file can declare (every unit of :data:`quadnodes.units.UNITS`)."""
+
+_RENAMED = {
+    "planar_tol": "planar_tolerance",
+    "mesh_unit": "the mesh's own unit (QuadMesh.unit; use mesh.with_unit(...))",
+}
 
 _PLANAR_RGB = (0.62, 0.80, 0.95)  # light blue
 _BILINEAR_LOW_RGB = (1.00, 0.85, 0.20)  # yellow: just above the tolerance
@@ -96,188 +113,190 @@ _BILINEAR_HIGH_RGB = (0.85, 0.10, 0.10)  # red: the mesh's least planar panel
 _OCC_CONFUSION = 1e-7  # OCCT Precision::Confusion(), the default edge tolerance
 
 
+def _refuse_renamed(removed: dict[str, Any], where: str) -> None:
+    """Raise InputError for an old keyword (saying its new name) or an unknown one."""
+    for key in removed:
+        if key in _RENAMED:
+            raise InputError(f"{where}: {key!r} was renamed; use {_RENAMED[key]}")
+        raise InputError(f"{where}: unexpected keyword argument {key!r}")
+
+
+@dataclass(frozen=True)
+class StepReport:
+    """What a STEP export did.
+
+    Attributes
+    ----------
+    mode : str
+    unit : str
+        The unit the file declares (the mesh's).
+    planar_tolerance : float or str
+        As given (relative number, or a length such as ``"2 mm"``).
+    n_panels, n_planar, n_bilinear : int
+        Faces written, plane faces, bilinear patches (``n_planar + n_bilinear ==
+        n_panels``).
+    fallback : tuple of int
+        Planar panels OCCT refused as plane faces, written as bilinear patches.
+    max_corner_move : float
+        The largest distance any corner was moved (flattening planar panels), in
+        ``unit``; at most half the tolerance.
+    n_shared_edges : int
+        Edges shared by two faces in the built shape (0 unless ``mode="shell"``).
+    n_free_edges : int
+        Edges of one face only (in shell mode: the mesh's boundary edges).
+    """
+
+    mode: str
+    unit: str
+    planar_tolerance: float | str
+    n_panels: int
+    n_planar: int
+    n_bilinear: int
+    fallback: tuple[int, ...]
+    max_corner_move: float
+    n_shared_edges: int
+    n_free_edges: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (JSON-ready).
+
+        Examples
+        --------
+        >>> from quadnodes.mesh import grid
+        >>> step_panels(grid(2, 3))[1].to_dict()["n_planar"]
+        2
+        """
+        d = asdict(self)
+        d["fallback"] = list(self.fallback)
+        return d
+
+
 def _panel_error(k: int, label: str, kind: str, why: str) -> ExportError:
     return ExportError(f"panel {k} ({label}): cannot build the {kind} face: {why}")
 
 
-def _build_faces(
-    mesh: QuadMesh, planar: np.ndarray, labels: list[str], *, check: bool
-) -> list[Any]:
-    """One ``TopoDS_Face`` per quad, built with OCP directly (no build123d wrappers)."""
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
-    from OCP.BRepCheck import BRepCheck_Analyzer
-    from OCP.BRepLib import BRepLib
+def _bilinear_face(c: list[list[float]]) -> Any:
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
     from OCP.collections import HArray2_gp_Pnt
     from OCP.Geom import Geom_BezierSurface
+    from OCP.gp import gp_Pnt
+
+    poles = HArray2_gp_Pnt(1, 2, 1, 2)
+    poles.SetValue(1, 1, gp_Pnt(*c[0]))
+    poles.SetValue(2, 1, gp_Pnt(*c[1]))
+    poles.SetValue(2, 2, gp_Pnt(*c[2]))
+    poles.SetValue(1, 2, gp_Pnt(*c[3]))
+    maker = BRepBuilderAPI_MakeFace(Geom_BezierSurface(poles), _OCC_CONFUSION)
+    return maker.Face() if maker.IsDone() else None
+
+
+def _plane_face(c: list[list[float]], centroid: list[float], normal: list[float]) -> Any:
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
     from OCP.gp import gp_Dir, gp_Pln, gp_Pnt
+
+    poly = BRepBuilderAPI_MakePolygon(*(gp_Pnt(*q) for q in c), True)
+    if not poly.IsDone():
+        return None
+    # the corners turn counter-clockwise about the normal (a simple polygon, checked by planar_panels),
+    # so OCCT need not classify the wire (Inside=False)
+    maker = BRepBuilderAPI_MakeFace(gp_Pln(gp_Pnt(*centroid), gp_Dir(*normal)), poly.Wire(), False)
+    return maker.Face() if maker.IsDone() else None
+
+
+def _build_faces(
+    mesh: QuadMesh, planar: np.ndarray, labels: list[str], *, check: bool
+) -> tuple[list[Any], list[int]]:
+    """One ``TopoDS_Face`` per quad (OCP directly), and the planar panels that fell back to bilinear."""
+    from OCP.BRepCheck import BRepCheck_Analyzer
 
     p = mesh.vertices[mesh.faces]  # (m, 4, 3)
     normal = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
     nlen = np.linalg.norm(normal, axis=1)
+    unit_n = normal / np.where(nlen > 0, nlen, 1.0)[:, None]
     centroid = p.mean(axis=1)
-    half_gap = 0.5 * diagonal_distance(mesh, relative=False)
-    corners = p.tolist()
-    normal_l = normal.tolist()
-    centroid_l = centroid.tolist()
+    # planar panels: corners onto the mid-plane of the diagonals (each moves half the diagonal distance)
+    height = np.einsum("fkj,fj->fk", p - centroid[:, None, :], unit_n)
+    flat = p - height[:, :, None] * unit_n[:, None, :]
+    corners = np.where(planar[:, None, None], flat, p).tolist()
+    exact = p.tolist()
+    normal_l, centroid_l = unit_n.tolist(), centroid.tolist()
     faces: list[Any] = []
+    fallback: list[int] = []
     every = max(1, mesh.n_faces // 20)
     for k in range(mesh.n_faces):
         if k % every == 0:
-            report_progress(0.8 * k / mesh.n_faces, f"building panel {k}/{mesh.n_faces}")
-        c = corners[k]
-        is_planar = bool(planar[k])
-        kind = "planar" if is_planar else "bilinear"
-        try:
-            p0, p1, p2, p3 = (gp_Pnt(*q) for q in c)
-            if is_planar:
-                if not nlen[k] > 0.0:
-                    raise _panel_error(k, labels[k], kind, "its diagonals are parallel (degenerate quad)")
-                plane = gp_Pln(gp_Pnt(*centroid_l[k]), gp_Dir(*normal_l[k]))
-                poly = BRepBuilderAPI_MakePolygon(p0, p1, p2, p3, True)
-                if not poly.IsDone():
-                    raise _panel_error(k, labels[k], kind, f"polygon error {poly.Error()}")
-                maker = BRepBuilderAPI_MakeFace(plane, poly.Wire(), True)
-                if not maker.IsDone():
-                    raise _panel_error(k, labels[k], kind, f"face error {maker.Error()}")
-                face = maker.Face()
-                if half_gap[k] > _OCC_CONFUSION:
-                    # corners off the fitted plane by up to half_gap: widen tolerances
-                    BRepLib.SameParameter_s(face, _OCC_CONFUSION, True)
-            else:
-                poles = HArray2_gp_Pnt(1, 2, 1, 2)
-                poles.SetValue(1, 1, p0)
-                poles.SetValue(2, 1, p1)
-                poles.SetValue(2, 2, p2)
-                poles.SetValue(1, 2, p3)
-                maker = BRepBuilderAPI_MakeFace(Geom_BezierSurface(poles), _OCC_CONFUSION)
-                if not maker.IsDone():
-                    raise _panel_error(k, labels[k], kind, f"face error {maker.Error()}")
-                face = maker.Face()
+            report_progress(0.7 * k / mesh.n_faces, f"building panel {k}/{mesh.n_faces}")
+        face = None
+        if planar[k]:
+            try:
+                face = _plane_face(corners[k], centroid_l[k], normal_l[k])
+            except Exception:  # OCCT's Standard_Failure: fall back to the exact patch below
+                face = None
+            if face is not None and check and not BRepCheck_Analyzer(face).IsValid():
+                face = None
+            if face is None:
+                fallback.append(k)
+        if face is None:
+            try:
+                face = _bilinear_face(exact[k])
+            except Exception as exc:  # OCCT's Standard_Failure family arrives as Python exceptions
+                raise _panel_error(k, labels[k], "bilinear", f"{type(exc).__name__}: {exc}") from exc
+            if face is None:
+                raise _panel_error(k, labels[k], "bilinear", "OCCT could not make the face")
             if check and not BRepCheck_Analyzer(face).IsValid():
-                raise _panel_error(
-                    k, labels[k], kind,
-                    "OCCT reports the face invalid (self-intersecting or degenerate quad?)",
-                )
-        except ExportError:
-            raise
-        except Exception as exc:  # OCCT's Standard_Failure family arrives as Python exceptions
-            raise _panel_error(k, labels[k], kind, f"{type(exc).__name__}: {exc}") from exc
+                raise _panel_error(k, labels[k], "bilinear", "OCCT reports the face invalid")
         faces.append(face)
-    return faces
+    return faces, fallback
 
 
-def _colors(mesh: QuadMesh, planar: np.ndarray, planar_tol: float) -> list[tuple[float, float, float]]:
+def _colors(mesh: QuadMesh, planar: np.ndarray) -> list[tuple[float, float, float]]:
     """Planar panels light blue; bilinear ones from yellow to red by log diagonal distance."""
-    dev = diagonal_distance(mesh)
+    dev = np.maximum(diagonal_distance(mesh), 1e-300)
     out = np.tile(np.array(_PLANAR_RGB), (mesh.n_faces, 1))
     bil = ~planar
     if bil.any():
         d = dev[bil]
-        lo = np.log10(max(planar_tol, float(d.min())))
+        most_planar = dev[planar].max() if planar.any() else d.min()
+        lo = np.log10(max(float(most_planar), float(d.min())))
         hi = np.log10(float(d.max()))
         t = np.clip((np.log10(d) - lo) / (hi - lo), 0.0, 1.0) if hi > lo else np.ones(d.size)
         out[bil] = (1 - t)[:, None] * _BILINEAR_LOW_RGB + t[:, None] * np.array(_BILINEAR_HIGH_RGB)
     return [tuple(row) for row in out.tolist()]
 
 
-def step_shape(
-    mesh: QuadMesh,
-    *,
-    mode: Literal["compound", "shell", "assembly"] = "compound",
-    planar_tol: float = DEFAULT_PLANAR_TOL,
-    colors: bool = False,
-    name: str = "panels",
-    check: bool = True,
-) -> Shape:
-    """Build the panels of ``mesh`` as a build123d shape, ready for STEP.
+def _edge_counts(shape: Any) -> tuple[int, int]:
+    """(edges shared by two or more faces, edges of one face) of an OCP shape."""
+    from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as EdgeMap
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
+    from OCP.TopExp import TopExp
 
-    See the module documentation for the planar/bilinear rule, the modes and
-    the units.
+    emap = EdgeMap()
+    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, emap)
+    sizes = [emap.FindFromIndex(i).Size() for i in range(1, emap.Extent() + 1)]
+    return sum(1 for n in sizes if n >= 2), sum(1 for n in sizes if n == 1)
 
-    Parameters
-    ----------
-    mesh : QuadMesh
-        ``m`` quads; one face per quad, in face order.
-    mode : {"compound", "shell", "assembly"}
-        Compound of faces, sewn shell(s), or an assembly of labelled panels.
-    planar_tol : float
-        Largest relative diagonal distance of a panel written as a plane
-        (default ``1e-6``); see :func:`quadnodes.io.panels.planar_mask`.
-    colors : bool
-        Colour the panels by planarity (assembly mode only): planar light blue,
-        bilinear from yellow (just above ``planar_tol``) to red (the least
-        planar panel), on a log scale of the diagonal distance.
-    name : str
-        Label of the top-level shape (the STEP product / header name).
-    check : bool
-        Run ``BRepCheck_Analyzer`` on every face (about 0.2 ms per panel) and
-        fail on an invalid one, e.g. a self-intersecting planar quad.
 
-    Returns
-    -------
-    build123d.Compound or build123d.Shell
-        ``compound``: a Compound of ``m`` faces. ``shell``: a Shell, or a
-        Compound of Shells for a mesh in several pieces. ``assembly``: a Compound
-        labelled ``name`` whose ``children`` are ``m`` labelled Faces.
+@dataclass
+class _Built:
+    """What the writer needs: the top OCP shape, the faces in mesh order, labels, colours."""
 
-    Raises
-    ------
-    InputError
-        On an unknown ``mode``, a negative ``planar_tol``, or ``colors`` outside
-        assembly mode.
-    ExportError
-        When OCCT cannot build a panel (the message names its face index and
-        label) or sewing loses faces.
+    shape: Any  # build123d shape
+    faces: list[Any]  # TopoDS_Face per panel, as they appear in ``shape``
+    labels: list[str]
+    rgb: list[tuple[float, float, float]] | None
+    mode: str
+    name: str
 
-    Examples
-    --------
-    >>> from quadnodes.mesh import grid
-    >>> m = grid(2, 3, height=[[0, 0, 0], [0, 0, 1]])
-    >>> asm = step_shape(m, mode="assembly")
-    >>> [(f.label, f.geom_type.name) for f in asm.children]
-    [('P_0_0', 'PLANE'), ('P_0_1', 'BEZIER')]
-    """
-    _validate.quad_mesh(mesh)
-    mode = _validate.choice(mode, STEP_MODES, "mode")  # type: ignore[assignment]
-    tol = _validate.nonnegative_number(planar_tol, "planar_tol")
-    if colors and mode != "assembly":
-        raise InputError(f"colors: panel colours are written in mode='assembly' only, got mode={mode!r}")
-    from build123d import Color, Compound, Face, Shell
 
-    dev = diagonal_distance(mesh)
-    planar = dev <= tol
-    labels = panel_labels(mesh)
-    topo_faces = _build_faces(mesh, planar, labels, check=check)
-
-    if mode == "assembly":
-        rgb = _colors(mesh, planar, tol) if colors else None
-        children = [
-            Face(f, label=labels[k], color=Color(*rgb[k]) if rgb is not None else None)
-            for k, f in enumerate(topo_faces)
-        ]
-        return Compound(children=children, label=name)
-
-    from OCP.BRep import BRep_Builder
-    from OCP.TopoDS import TopoDS_Compound
-
-    if mode == "compound":
-        comp = TopoDS_Compound()
-        builder = BRep_Builder()
-        builder.MakeCompound(comp)
-        for f in topo_faces:
-            builder.Add(comp, f)
-        return Compound(comp, label=name)
-
-    # shell
+def _sew(mesh: QuadMesh, topo_faces: list[Any], max_move: float) -> tuple[Any, list[Any]]:
     from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
-    from OCP.TopAbs import TopAbs_FACE, TopAbs_SHELL
+    from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
-    # The corners of neighbouring panels are bit-identical, so a tolerance far
-    # below the panel size only has to absorb the widened tolerances of
-    # nearly-planar faces.
-    sew_tol = max(_OCC_CONFUSION, 1e-6 * mesh.mean_edge_length)
+    # Neighbouring corners are bit-identical except where planar panels were
+    # flattened: two such corners are at most 2 * max_move apart.
+    sew_tol = max(_OCC_CONFUSION, 1e-6 * mesh.mean_edge_length, 2.2 * max_move + _OCC_CONFUSION)
     sewing = BRepBuilderAPI_Sewing(sew_tol)
     for f in topo_faces:
         sewing.Add(f)
@@ -293,29 +312,269 @@ def step_shape(
             f"sewing {mesh.n_faces} panels gave {n_sewn} faces and "
             f"{sewing.NbMultipleEdges()} edges shared by more than two faces"
         )
-    if sewn.ShapeType() == TopAbs_SHELL:
-        return Shell(TopoDS.Shell(sewn), label=name)
-    if sewn.ShapeType() == TopAbs_FACE:  # a one-panel mesh
-        return Shell(Face(TopoDS.Face(sewn)), label=name)
-    return Compound(TopoDS.Compound(sewn), label=name)
+    faces = [TopoDS.Face(sewing.Modified(f)) if sewing.IsModified(f) else f for f in topo_faces]
+    return sewn, faces
 
 
-def _write_step(shape: Shape, path: str, mesh_unit: str) -> None:
-    """Write ``shape`` to ``path`` declaring ``mesh_unit``, coordinates unscaled."""
+def step_panels(
+    mesh: QuadMesh,
+    *,
+    mode: Literal["compound", "shell", "assembly"] = "compound",
+    planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
+    colors: bool = False,
+    name: str = "panels",
+    check: bool = False,
+    **renamed: Any,
+) -> tuple[Shape, StepReport]:
+    """Build the panels of ``mesh`` as a build123d shape, and report what was built.
+
+    See the module documentation for the planar/bilinear rule, the modes and
+    the units.
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+        ``m`` quads; one face per quad, in face order.
+    mode : {"compound", "shell", "assembly"}
+        Compound of faces, sewn shell(s) with named faces, or an assembly of
+        labelled panels.
+    planar_tolerance : float or str
+        A number: the largest relative diagonal distance of a panel written as a
+        plane (default ``1e-3``); text such as ``"2 mm"``: the largest diagonal
+        distance as a length. See :func:`quadnodes.flatness.planar_panels`.
+    colors : bool
+        Colour the panels by planarity (shell and assembly modes): planar light
+        blue, bilinear from yellow (the least twisted) to red (the most), on a
+        log scale of the diagonal distance.
+    name : str
+        Label of the top-level shape (the STEP product / header name).
+    check : bool
+        Also run ``BRepCheck_Analyzer`` on every face (about 0.3 ms per panel on
+        a quiet machine, 10 times the build) and fall back to the bilinear
+        patch for a plane face it rejects. Off by default: a plane face on
+        projected corners of a simple polygon and the bilinear patch of a
+        non-degenerate quad are valid by construction (the tests check every
+        face with ``BRepCheck``).
+
+    Returns
+    -------
+    shape : build123d.Compound or build123d.Shell
+        ``compound``: a Compound of ``m`` faces. ``shell``: a Shell, or a
+        Compound of Shells for a mesh in several pieces. ``assembly``: a Compound
+        labelled ``name`` whose ``children`` are ``m`` labelled Faces.
+    report : StepReport
+
+    Raises
+    ------
+    InputError
+        On an unknown ``mode``, a bad ``planar_tolerance``, ``colors`` in
+        compound mode, or an old keyword (``planar_tol``, ``mesh_unit``; the
+        message gives the new name).
+    ExportError
+        On a degenerate panel (zero-length edge or zero area; the message names
+        it), or when sewing loses faces.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> asm, report = step_panels(grid(2, 3, height=[[0, 0, 0], [0, 0, 1]]), mode="assembly")
+    >>> [(f.label, f.geom_type.name) for f in asm.children]
+    [('P_0_0', 'PLANE'), ('P_0_1', 'BEZIER')]
+    >>> report.n_planar, report.n_bilinear, report.max_corner_move
+    (1, 1, 0.0)
+    """
+    built, report = _build(mesh, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
+                           check=check, renamed=renamed, where="step_panels")
+    return built.shape, report
+
+
+def _build(
+    mesh: QuadMesh, *, mode: str, planar_tolerance: float | str, colors: bool, name: str, check: bool,
+    renamed: dict[str, Any], where: str,
+) -> tuple[_Built, StepReport]:
+    _refuse_renamed(renamed, where)
+    _validate.quad_mesh(mesh)
+    mode = _validate.choice(mode, STEP_MODES, "mode")
+    if mesh.unit not in _UNITS:
+        raise ExportError(f"unit: STEP cannot declare the mesh's unit {mesh.unit!r}; STEP units: {', '.join(_UNITS)}")
+    planar = planar_panels(mesh, planar_tolerance)  # checks planar_tolerance
+    if colors and mode == "compound":
+        raise InputError("colors: panel colours are written in mode='shell' or 'assembly', got mode='compound'")
+    if not isinstance(name, str) or not name:
+        raise InputError(f"name: expected a non-empty string, got {name!r}")
+    from build123d import Color, Compound, Face, Shell
+
+    labels = panel_labels(mesh)
+    check_panels(mesh, planar_tolerance, "step")
+    topo_faces, fallback = _build_faces(mesh, planar, labels, check=check)
+    is_plane = planar.copy()
+    is_plane[fallback] = False
+    moves = corner_moves(mesh, is_plane)
+    max_move = float(moves.max()) if moves.size else 0.0
+    rgb = _colors(mesh, is_plane) if colors else None
+
+    report_progress(0.7, f"assembling {mesh.n_faces} panels ({mode})")
+    shape: Any
+    if mode == "assembly":
+        children = [
+            Face(f, label=labels[k], color=Color(*rgb[k]) if rgb is not None else None)
+            for k, f in enumerate(topo_faces)
+        ]
+        shape = Compound(children=children, label=name)
+        top = shape.wrapped
+    elif mode == "compound":
+        from OCP.BRep import BRep_Builder
+        from OCP.TopoDS import TopoDS_Compound
+
+        comp = TopoDS_Compound()
+        builder = BRep_Builder()
+        builder.MakeCompound(comp)
+        for f in topo_faces:
+            builder.Add(comp, f)
+        shape = Compound(comp, label=name)
+        top = comp
+    else:
+        from OCP.TopAbs import TopAbs_FACE, TopAbs_SHELL
+        from OCP.TopoDS import TopoDS
+
+        top, topo_faces = _sew(mesh, topo_faces, max_move)
+        if top.ShapeType() == TopAbs_SHELL:
+            shape = Shell(TopoDS.Shell(top), label=name)
+        elif top.ShapeType() == TopAbs_FACE:  # a one-panel mesh
+            shape = Shell(Face(TopoDS.Face(top)), label=name)
+            top = shape.wrapped
+        else:
+            shape = Compound(TopoDS.Compound(top), label=name)
+    shared, free = _edge_counts(top)
+    report = StepReport(
+        mode=mode, unit=mesh.unit, planar_tolerance=planar_tolerance, n_panels=mesh.n_faces,
+        n_planar=int(is_plane.sum()), n_bilinear=int(mesh.n_faces - is_plane.sum()), fallback=tuple(fallback),
+        max_corner_move=max_move, n_shared_edges=shared, n_free_edges=free,
+    )
+    return _Built(shape, topo_faces, labels, rgb, mode, name), report
+
+
+def step_shape(
+    mesh: QuadMesh,
+    *,
+    mode: Literal["compound", "shell", "assembly"] = "compound",
+    planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
+    colors: bool = False,
+    name: str = "panels",
+    check: bool = False,
+    **renamed: Any,
+) -> Shape:
+    """The shape of :func:`step_panels` without its report.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> len(step_shape(grid(3, 3), mode="shell").faces())
+    4
+    """
+    built, _ = _build(mesh, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
+                      check=check, renamed=renamed, where="step_shape")
+    return built.shape
+
+
+def _write_named_shell(built: _Built, path: str, metres: float) -> None:
+    """Write a sewn shell with every face named (XCAF sub-shape labels) and optionally coloured."""
+    from OCP.IFSelect import IFSelect_ReturnStatus
+    from OCP.Interface import Interface_Static
+    from OCP.Quantity import Quantity_Color, Quantity_TypeOfColor
+    from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_StepModelType
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDataStd import TDataStd_Name
+    from OCP.TDocStd import TDocStd_Document
+    from OCP.XCAFApp import XCAFApp_Application
+    from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
+
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
+    app = XCAFApp_Application.GetApplication_s()
+    app.NewDocument(TCollection_ExtendedString("MDTV-XCAF"), doc)
+    app.InitDocument(doc)
+    XCAFDoc_DocumentTool.SetLengthUnit_s(doc, metres)
+    shapes = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    colours = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
+    top = shapes.AddShape(built.shape.wrapped, False, False)
+    TDataStd_Name.Set_s(top, TCollection_ExtendedString(built.name))
+    for k, face in enumerate(built.faces):
+        sub = shapes.AddSubShape(top, face)
+        if sub.IsNull():
+            raise ExportError(f"panel {k} ({built.labels[k]}): its face is not part of the sewn shell")
+        TDataStd_Name.Set_s(sub, TCollection_ExtendedString(built.labels[k]))
+        if built.rgb is not None:
+            colours.SetColor(sub, Quantity_Color(*built.rgb[k], Quantity_TypeOfColor.Quantity_TOC_sRGB),
+                             XCAFDoc_ColorType.XCAFDoc_ColorSurf)
+    STEPCAFControl_Controller.Init_s()
+    previous = Interface_Static.IVal_s("write.stepcaf.subshapes.name")
+    Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
+    try:
+        writer = STEPCAFControl_Writer()
+        writer.SetNameMode(True)
+        writer.SetColorMode(True)
+        if not writer.Transfer(doc, STEPControl_StepModelType.STEPControl_AsIs):
+            raise ExportError("OCCT could not transfer the shell to STEP")
+        if writer.Write(path) != IFSelect_ReturnStatus.IFSelect_RetDone:
+            raise ExportError("OCCT failed to write the STEP file")
+    finally:
+        Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", previous)
+
+
+def _write_step(built: _Built, path: str, unit: str) -> None:
+    """Write ``built`` to ``path`` declaring ``unit``, coordinates unscaled."""
     from build123d import Unit, export_step
     from OCP.Interface import Interface_Static
+    from OCP.Message import Message, Message_Gravity
     from OCP.STEPControl import STEPControl_Controller
 
-    unit_name, step_unit = _UNITS[mesh_unit]
+    metres, step_unit = _UNITS[unit]
     STEPControl_Controller.Init_s()  # registers the "write.step.*" parameters
+    for printer in Message.DefaultMessenger_s().Printers():  # no transfer statistics on the console
+        printer.SetTraceLevel(Message_Gravity.Message_Fail)
     # build123d scales from the document unit to OCCT's (process-global) write
     # unit; making both the mesh unit writes the numbers as they are.
     previous = Interface_Static.CVal_s("write.step.unit")
     Interface_Static.SetCVal_s("write.step.unit", step_unit)
     try:
-        export_step(shape, path, unit=Unit[unit_name])
+        if built.mode == "shell":
+            _write_named_shell(built, path, metres)
+        else:
+            b123d_unit = {"mm": "MM", "cm": "CM", "m": "M", "in": "IN", "ft": "FT"}[unit]
+            export_step(built.shape, path, unit=Unit[b123d_unit])
     finally:
         Interface_Static.SetCVal_s("write.step.unit", previous or "MM")
+
+
+def write_step(
+    mesh: QuadMesh,
+    path: str | os.PathLike[str],
+    *,
+    mode: Literal["compound", "shell", "assembly"] = "compound",
+    planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
+    colors: bool = False,
+    name: str = "panels",
+    check: bool = False,
+    **renamed: Any,
+) -> tuple[Path, StepReport]:
+    """:func:`save_step`, also returning the :class:`StepReport`.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from quadnodes.mesh import grid
+    >>> m = grid(2, 2, spacing=1000.0, height=[[0, 0], [0, 0.4]])  # 0.4 mm out of plane
+    >>> path, report = write_step(m, pathlib.Path(tempfile.mkdtemp()) / "p.step", planar_tolerance="1 mm")
+    >>> report.n_planar, round(report.max_corner_move, 6)
+    (1, 0.1)
+    """
+    built, report = _build(mesh, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
+                           check=check, renamed=renamed, where="save_step")
+    report_progress(0.8, f"writing {mesh.n_faces} panels to STEP")
+    out = write_atomic(path, lambda tmp: _write_step(built, tmp, mesh.unit))
+    report_progress(1.0, f"wrote {out.name}")
+    return out, report
 
 
 def save_step(
@@ -323,26 +582,25 @@ def save_step(
     path: str | os.PathLike[str],
     *,
     mode: Literal["compound", "shell", "assembly"] = "compound",
-    planar_tol: float = DEFAULT_PLANAR_TOL,
-    mesh_unit: str = "mm",
+    planar_tolerance: float | str = DEFAULT_PLANAR_TOLERANCE,
     colors: bool = False,
     name: str = "panels",
-    check: bool = True,
+    check: bool = False,
+    **renamed: Any,
 ) -> Path:
     """Write the panels of ``mesh`` to a STEP file, atomically.
 
-    Builds the shape with :func:`step_shape` (same ``mode``, ``planar_tol``,
-    ``colors``, ``name``, ``check``), then writes it to a temporary file in the
-    target folder and renames it over ``path``.
+    Builds the shape as :func:`step_panels` (same ``mode``,
+    ``planar_tolerance``, ``colors``, ``name``, ``check``), then writes it to a
+    temporary file in the target folder and renames it over ``path``. The file
+    declares the mesh's unit (``mesh.unit``) and holds the coordinates unscaled.
+    :func:`write_step` does the same and also returns the :class:`StepReport`.
 
     Parameters
     ----------
     mesh : QuadMesh
     path : str or path-like
         Target file, usually ``*.step`` or ``*.stp``.
-    mesh_unit : {"um", "mm", "cm", "m", "in", "ft"}
-        Unit of the mesh coordinates (default ``"mm"``). The file declares this
-        unit and holds the coordinates unscaled.
 
     Returns
     -------
@@ -352,11 +610,13 @@ def save_step(
     Raises
     ------
     InputError
-        On an unknown ``mode`` or ``mesh_unit`` (before anything is built).
+        On an unknown ``mode``, a bad ``planar_tolerance`` or an old keyword
+        (``planar_tol``, ``mesh_unit``), before anything is built.
     ExportError
-        When a panel cannot be built (naming its face index and label), OCCT
-        fails to write, or the path is not writable; no partial or temporary
-        file is left, and an existing file at ``path`` is unchanged.
+        On a degenerate panel (naming its face index and label), a unit STEP
+        cannot declare, an OCCT failure while writing, or an unwritable path;
+        no partial or temporary file is left, and an existing file at ``path``
+        is unchanged.
 
     Examples
     --------
@@ -366,9 +626,5 @@ def save_step(
     >>> out.read_text().startswith("ISO-10303-21;")
     True
     """
-    unit = _validate.choice(mesh_unit, STEP_UNITS, "mesh_unit")
-    shape = step_shape(mesh, mode=mode, planar_tol=planar_tol, colors=colors, name=name, check=check)
-    report_progress(0.8, f"writing {mesh.n_faces} panels to STEP")
-    out = write_atomic(path, lambda tmp: _write_step(shape, tmp, unit))
-    report_progress(1.0, f"wrote {out.name}")
-    return out
+    return write_step(mesh, path, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
+                      check=check, **renamed)[0]

@@ -3,7 +3,9 @@ import pytest
 from hypothesis import given, strategies as st
 
 from quadnodes.errors import InputError
-from quadnodes.io.panels import bilinear_area, edge_lengths, panel_labels, panel_rows_cols, planar_mask
+from quadnodes.io.panels import (
+    bilinear_area, corner_moves, degenerate_panels, edge_lengths, panel_labels, panel_rows_cols,
+)
 from quadnodes.mesh import QuadMesh, cylinder, grid
 from strategies import grids
 
@@ -14,14 +16,31 @@ def test_labels_on_a_grid_and_without():
     assert panel_rows_cols(cylinder(2, 3)) is None
 
 
-def test_planar_mask_tolerance():
-    m = grid(2, 3, height=[[0, 0, 0], [0, 0, 1e-3]])
-    assert planar_mask(m).tolist() == [True, False]
-    assert planar_mask(m, planar_tol=1.0).tolist() == [True, True]
-    with pytest.raises(InputError, match="planar_tol"):
-        planar_mask(m, planar_tol=-1e-9)
-    with pytest.raises(InputError, match="QuadMesh"):
-        planar_mask(m.vertices)
+def test_degenerate_panels_name_the_reason():
+    v = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1.5, 0, 0], [2, 1, 0], [2, 0, 0]])
+    m = QuadMesh(v, [[0, 1, 2, 3], [1, 4, 5, 2]])
+    v[[2, 5]] = [[1.2, 0, 0], [3, 0, 0]]  # processing put face 1's corners on one line (QuadMesh() refuses that)
+    mask, why = degenerate_panels(m.with_vertices(v))
+    assert mask.tolist() == [False, True] and why == ["zero area (all four corners on one line)"]
+    v[4] = [1 + 1e-13, 0, 0]  # and an edge collapsed: refused already when the mesh is made
+    with pytest.raises(InputError, match="near-duplicate vertices 1 and 4"):
+        m.with_vertices(v)
+
+
+@given(grids(), st.floats(0.1, 10.0))
+def test_corner_moves_are_half_the_gap_and_scale(m, s):
+    planar = np.ones(m.n_faces, bool)
+    moves = corner_moves(m, planar)
+    p = m.vertices[m.faces]
+    # the moved corners lie on the mid-plane: distance of each corner to the plane == the move
+    n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+    ok = np.linalg.norm(n, axis=1) > 1e-9
+    n = n[ok] / np.linalg.norm(n[ok], axis=1)[:, None]
+    h = np.abs(np.einsum("fkj,fj->fk", p[ok] - p[ok].mean(axis=1)[:, None], n))
+    np.testing.assert_allclose(h, np.repeat(moves[ok][:, None], 4, axis=1), atol=1e-9 * (1 + np.abs(p).max()))
+    np.testing.assert_allclose(corner_moves(m.with_vertices(m.vertices * s), planar), moves * s, rtol=1e-9,
+                               atol=1e-12)
+    assert (corner_moves(m, ~planar) == 0).all()
 
 
 @given(grids(), st.floats(0.1, 10.0))

@@ -184,7 +184,7 @@ def test_bad_input_leaves_nothing(tmp_path, monkeypatch):
     v[[3, 4, 5], 0] += 1.0
     v[3:, 2] = 0.0
     flat = grid(2, 3).with_vertices(v)  # a processed mesh can collapse a panel; QuadMesh() refuses one
-    with pytest.raises(ExportError, match=r"panel P_0_0 \(face 0\) is degenerate"):
+    with pytest.raises(ExportError, match=r"panel 0 \(P_0_0\) is degenerate"):
         save_3dm(flat, tmp_path / "d.3dm")
     # an unwritable place: the folder is a file
     (tmp_path / "file").write_text("x")

@@ -8,7 +8,8 @@ from build123d import Face, GeomType, import_step
 
 from quadnodes.errors import ExportError, InputError
 from quadnodes.io import step as step_mod
-from quadnodes.io.panels import panel_labels, planar_mask
+from quadnodes.flatness import planar_panels as planar_mask
+from quadnodes.io.panels import panel_labels
 from quadnodes.io.step import STEP_MODES, save_step, step_shape
 from quadnodes.mesh import QuadMesh, cylinder, grid
 from meshes import extraordinary_mesh
@@ -140,11 +141,14 @@ def test_nearly_planar_panels_beyond_occt_tolerance_are_valid_planes(tmp_path):
     back = import_step(save_step(m, tmp_path / "p.step", mode="shell"))
     assert {f.geom_type for f in back.faces()} == {GeomType.PLANE}
     assert len(back.faces()) == 4
-    # corners stay where the mesh puts them
-    got = sorted(tuple(np.round(tuple(v), 6)) for v in back.vertices())
-    assert got == sorted(tuple(np.round(v, 6)) for v in m.vertices)
-    # with a zero tolerance the same panels are bilinear
-    assert {f.geom_type for f in step_shape(m, planar_tol=0.0).faces()} == {GeomType.BEZIER}
+    # corners move onto each panel's plane by half its diagonal distance, no more
+    _, report = step_mod.step_panels(m, mode="shell")
+    assert report.max_corner_move == pytest.approx(0.5 * absolute.max(), rel=1e-9)
+    got = np.array([tuple(v) for v in back.vertices()])
+    nearest = np.linalg.norm(got[:, None, :] - m.vertices[None], axis=2).min(axis=1)
+    assert nearest.max() <= 2 * report.max_corner_move
+    # with a zero tolerance the same panels are bilinear, through the exact corners
+    assert {f.geom_type for f in step_shape(m, planar_tolerance=0.0).faces()} == {GeomType.BEZIER}
 
 
 def test_shell_mode_sews_one_shell(tmp_path):
@@ -164,10 +168,12 @@ def test_two_pieces_give_a_compound_of_shells():
     assert len(shape.shells()) == 2 and len(shape.faces()) == 4
 
 
-def test_mesh_unit_is_declared_and_coordinates_are_unscaled(tmp_path):
+@pytest.mark.parametrize("mode", MODES)
+def test_mesh_unit_is_declared_and_coordinates_are_unscaled(tmp_path, mode):
     m = grid(2, 2, spacing=1.25, height=[[0, 0], [0, 0.5]])
-    mm = save_step(m, tmp_path / "mm.step")
-    metres = save_step(m, tmp_path / "m.step", mesh_unit="m")
+    mm = save_step(m, tmp_path / "mm.step", mode=mode)
+    in_metres = QuadMesh(m.vertices, m.faces, grid_shape=m.grid_shape, unit="m")  # same numbers, in m
+    metres = save_step(in_metres, tmp_path / "m.step", mode=mode)
     assert "SI_UNIT(.MILLI.,.METRE.)" in mm.read_text()
     text = metres.read_text()
     assert "SI_UNIT($,.METRE.)" in text and ".MILLI." not in text
@@ -190,7 +196,7 @@ def test_assembly_colours_by_planarity(tmp_path):
     rgb = np.array([tuple(c.color)[:3] for c in back.children])
     np.testing.assert_allclose(rgb[planar], np.tile(step_mod._PLANAR_RGB, (planar.sum(), 1)), atol=1e-3)
     assert (rgb[~planar][:, 2] < 0.3).all()  # yellow to red
-    with pytest.raises(InputError, match="assembly"):
+    with pytest.raises(InputError, match="colors"):
         step_shape(m, mode="compound", colors=True)
 
 
@@ -198,10 +204,16 @@ def test_option_errors():
     m = grid(2, 2)
     with pytest.raises(InputError, match="mode"):
         step_shape(m, mode="solid")
-    with pytest.raises(InputError, match="mesh_unit"):
-        save_step(m, "never-written.step", mesh_unit="furlong")
-    with pytest.raises(InputError, match="planar_tol"):
-        step_shape(m, planar_tol=-1.0)
+    with pytest.raises(InputError, match="mesh_unit.*renamed.*QuadMesh.unit"):
+        save_step(m, "never-written.step", mesh_unit="m")
+    with pytest.raises(InputError, match="'planar_tol' was renamed; use planar_tolerance"):
+        step_shape(m, planar_tol=1e-3)
+    with pytest.raises(InputError, match="planar_tolerance"):
+        step_shape(m, planar_tolerance=-1.0)
+    with pytest.raises(InputError, match="planar_tolerance"):
+        save_step(m, "never-written.step", planar_tolerance="2 furlongs")
+    with pytest.raises(InputError, match="unexpected keyword argument 'colour'"):
+        save_step(m, "never-written.step", colour=True)
     with pytest.raises(InputError, match="QuadMesh"):
         step_shape(m.vertices)
     assert not os.path.exists("never-written.step")
@@ -214,21 +226,29 @@ def test_failed_occt_build_names_the_panel_and_leaves_nothing(tmp_path, mode):
     v = np.vstack([good.vertices, [[10, 0, 0], [11, 0, 0], [12, 0, 0], [13, 0, 0]]])
     with pytest.raises(InputError, match=r"face 1 \[6, 7, 8, 9\] has no area"):
         QuadMesh(v, np.vstack([good.faces[:1], [[6, 7, 8, 9]], good.faces[1:]]))
-    # a panel OCCT cannot build (a crossed flat quad) still names the panel and writes nothing
+    # a flat panel whose edges cross (a bow-tie) is neither a plane face nor a sound patch: refused, named
     v = np.vstack([good.vertices, [[10, 0, 0], [12, 0, 0], [10.5, 1, 0], [11.5, 1.2, 0]]])
     m = QuadMesh(v, np.vstack([good.faces[:1], [[6, 7, 8, 9]], good.faces[1:]]))
     target = tmp_path / "out.step"
     target.write_text("old content")
-    with pytest.raises(ExportError, match=r"panel 1 \(P_1\)"):
+    with pytest.raises(ExportError, match=r"panel 1 \(P_1\) is folded: its edges cross"):
         save_step(m, target, mode=mode)
     assert target.read_text() == "old content"
     only_file(tmp_path, "out.step")
 
 
-def test_self_intersecting_planar_quad_is_caught_by_the_check():
+def test_self_intersecting_flat_quad_is_refused_not_written_folded(tmp_path):
+    # a flat bow-tie cannot be a plane face, and its bilinear patch folds over itself: no output takes it
     m = QuadMesh([[0, 0, 0], [2, 0, 0], [0.5, 1, 0], [1.5, 1.2, 0]], [[0, 1, 2, 3]])
-    with pytest.raises(ExportError, match=r"panel 0 \(P_0\).*invalid"):
-        step_shape(m)
+    assert not planar_mask(m)[0]
+    with pytest.raises(ExportError, match=r"panel 0 \(P_0\) is folded"):
+        save_step(m, tmp_path / "bowtie.step")
+    assert os.listdir(tmp_path) == []
+    # the same outline lifted well out of plane is a sound twisted patch
+    lifted = m.with_vertices(m.vertices + [[0, 0, 0], [0, 0, 0], [0, 0, 2.0], [0, 0, 0]])
+    shape, report = step_mod.step_panels(lifted)
+    assert shape.faces()[0].geom_type == GeomType.BEZIER
+    assert (report.n_planar, report.n_bilinear, report.fallback) == (0, 1, ())
 
 
 def test_failure_while_writing_keeps_the_old_file(tmp_path, monkeypatch):
