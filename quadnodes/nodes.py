@@ -332,4 +332,66 @@ def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh |
                             vmin=vmin, vmax=vmax)
 
 
+# --- the thesis's chapter 2-3 methods (issue 17) ------------------------------------
+
+
+@node("fair_web", outputs=("mesh", "report"))
+def fair_web(mesh: QuadMesh, fixed: np.ndarray | None = None, *,
+             energy: Literal["E1", "E2", "tension"] = "E2", tension: float = 1.0, closeness: float = 0.0,
+             cylinder_radius: float | str | None = None, cylinder_height: float | str | None = None,
+             fix: FixMode = "boundary", solver: Literal["admm", "projected_gradient"] = "admm",
+             max_iterations: int = 5000, tolerance: float = 1e-7) -> tuple[QuadMesh, Any]:
+    """Fair web (thesis 3.1.1): minimize E1, E2 or E2 + τE1 of the structure-line network, optionally inside
+    tolerance cylinders (radius across, half-height along the normal; mesh unit or text such as '20 mm')."""
+    from .webs import fair_web as _fair_web
+
+    return _fair_web(mesh, energy=energy, tension=tension, closeness=closeness, cylinder_radius=cylinder_radius,
+                     cylinder_height=cylinder_height, fix=fix, fixed=fixed, solver=solver,
+                     max_iterations=max_iterations, tolerance=tolerance)
+
+
+@node("spring", outputs=("mesh", "report"))
+def spring(mesh: QuadMesh, fixed: np.ndarray | None = None, *, fix: FixMode = "boundary",
+           max_iterations: int = 500, tolerance: float = 1e-4, step: float = 0.5,
+           tangential: bool = True) -> tuple[QuadMesh, Any]:
+    """Spring model of Yamada et al. (thesis 3.3): equal spring lengths along neighbouring normals, a
+    tangential regularizing move; stops when the largest move is below tolerance (in edge lengths)."""
+    from .spring_model import spring as _spring
+
+    return _spring(mesh, fix=fix, fixed=fixed, max_iterations=max_iterations, tolerance=tolerance, step=step,
+                   tangential=tangential)
+
+
+@node("schneider_kobbelt", outputs=("mesh", "report"))
+def schneider_kobbelt(mesh: QuadMesh, fixed: np.ndarray | None = None, *, fix: FixMode = "boundary",
+                      ring: int = 1, max_iterations: int = 200, tolerance: float = 1e-4,
+                      step: float = 0.5) -> tuple[QuadMesh, Any]:
+    """Schneider–Kobbelt (thesis 3.4): Δ_B H = 0 with the cotangent Laplace–Beltrami operator and
+    Moreton–Séquin mean curvature; the fixed vertices and a ring around them hold the G1 boundary."""
+    from .pde_fairing import schneider_kobbelt as _sk
+
+    return _sk(mesh, fix=fix, fixed=fixed, ring=ring, max_iterations=max_iterations, tolerance=tolerance,
+               step=step)
+
+
+@node("curvature", outputs=("curvature", "mean", "gaussian"))
+def curvature(mesh: QuadMesh) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Discrete curvatures (thesis 2.2.3): all fields as a dict (mean, gaussian, gaussian_1..3, k1, k2,
+    principal directions, structure-line curvature), and the mean and Gaussian curvature per vertex."""
+    from .discrete_curvature import curvature as _curvature
+
+    c = _curvature(mesh)
+    return c, c["mean"], c["gaussian"]
+
+
+@node("fourier", outputs=("mesh", "report"))
+def fourier(mesh: QuadMesh, fixed: np.ndarray | None = None, *, keep: int = 3,
+            fix: FixMode = "none") -> tuple[QuadMesh, Any]:
+    """Fourier descriptors (thesis 3.2.1): low-pass every closed structure line, keeping harmonics
+    0..keep; open lines are left alone (the report says how many)."""
+    from .fourier_descriptors import fourier as _fourier
+
+    return _fourier(mesh, keep=keep, fix=fix, fixed=fixed)
+
+
 __all__: list[str] = []  # import for the side effect of registering the nodes

@@ -144,7 +144,8 @@ def project_to_cylinders(points: np.ndarray, centres: np.ndarray, axes: np.ndarr
     tl = np.sqrt(np.einsum("ij,ij->i", t, t))
     s = np.divide(radius, tl, out=np.ones_like(tl), where=tl > radius)
     ac = np.clip(a, -height, height)
-    return centres + ac[:, None] * axes + s[:, None] * t
+    inside = (tl <= radius) & (np.abs(a) <= height)  # returned exactly as given
+    return np.where(inside[:, None], points, centres + ac[:, None] * axes + s[:, None] * t)
 
 
 def _lengths(value: Any, n: int, unit: str, name: str) -> np.ndarray:
@@ -319,10 +320,12 @@ def fair_web(
     iterations = 0
     converged = True
     if unique:
-        lu = splu(P, permc_spec="MMD_AT_PLUS_A")
-        x_unc = lu.solve(b)
-        res = np.abs(P @ x_unc - b).max() / max(np.abs(b).max(), np.abs(P).max() * hlen, 1e-300)
-        if not np.isfinite(x_unc).all() or res > 1e-6:
+        try:
+            x_unc = splu(P, permc_spec="MMD_AT_PLUS_A").solve(b)
+            res = np.abs(P @ x_unc - b).max() / max(np.abs(b).max(), np.abs(P).max() * hlen, 1e-300)
+        except RuntimeError:  # "Factor is exactly singular"
+            x_unc, res = None, np.inf
+        if x_unc is None or not np.isfinite(x_unc).all() or res > 1e-6:
             raise InputError("fix: the energy has no unique minimum with these fixed vertices (e.g. E2 with a "
                              "single fixed vertex per line); fix more vertices or give closeness > 0")
     cen, ax = x0[free], vertex_normals(x0, mesh.faces)[free]
