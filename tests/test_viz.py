@@ -165,3 +165,21 @@ def test_render_node_with_reference_and_zigzag(tmp_path):
           titles=["noisy", "faired"], notes=["in", "out"], planarity=True, ncols=2, size_px=500)
     g.run(cache=Cache())
     _check_image(tmp_path / "v.png", 500)
+
+
+def test_color_by_curvature_and_arrays(tmp_path):
+    from quadnodes import surfaces
+
+    m = surfaces.sample(surfaces.saddle(), 9, 9)
+    render_png = viz.render_png
+    a = render_png([m, m], tmp_path / "a.png", color_by="mean", size_px=400)
+    b = render_png([m, m], tmp_path / "b.png", color_by=["gaussian", np.arange(m.n_faces, dtype=float)],
+                   size_px=400)
+    c = render_png(m, tmp_path / "c.png", size_px=400)
+    assert a.read_bytes() != c.read_bytes() and b.read_bytes() != a.read_bytes()
+    render_png(m, tmp_path / "d.png", color_by=np.linspace(0, 1, m.n_vertices), size_px=400)
+    with pytest.raises(InputError, match="color_by: expected one of"):
+        render_png(m, tmp_path / "e.png", color_by="Mean")
+    with pytest.raises(InputError, match=r"color_by: expected a curvature name, 81 vertex values or 64 panel"):
+        render_png(m, tmp_path / "e.png", color_by=np.ones(5))
+    assert not (tmp_path / "e.png").exists()
