@@ -340,7 +340,7 @@ def fair_web(mesh: QuadMesh, fixed: np.ndarray | None = None, *,
              energy: Literal["E1", "E2", "tension"] = "E2", tension: float = 1.0, closeness: float = 0.0,
              cylinder_radius: float | str | None = None, cylinder_height: float | str | None = None,
              fix: FixMode = "boundary", solver: Literal["admm", "projected_gradient"] = "admm",
-             max_iterations: int = 5000, tolerance: float = 1e-7) -> tuple[QuadMesh, Any]:
+             max_iterations: int = 5000, tolerance: float = 1e-5) -> tuple[QuadMesh, Any]:
     """Fair web (thesis 3.1.1): minimize E1, E2 or E2 + τE1 of the structure-line network, optionally inside
     tolerance cylinders (radius across, half-height along the normal; mesh unit or text such as '20 mm')."""
     from .webs import fair_web as _fair_web

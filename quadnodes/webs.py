@@ -45,6 +45,8 @@ __all__ = ["line_differences", "web_energy", "project_to_cylinders", "WebReport"
 #: Energies of :func:`fair_web`.
 ENERGIES: tuple[str, ...] = ("E1", "E2", "tension")
 _SOLVERS = ("admm", "projected_gradient")
+#: ADMM over-relaxation factor α (1 = plain ADMM; 1.5-1.8 usually converges faster).
+_RELAX = 1.6
 
 
 def line_differences(mesh: QuadMesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -219,7 +221,7 @@ def fair_web(
     fixed: ArrayLike | None = None,
     solver: Literal["admm", "projected_gradient"] = "admm",
     max_iterations: int = 5000,
-    tolerance: float = 1e-7,
+    tolerance: float = 1e-5,
     rho: float | None = None,
 ) -> tuple[QuadMesh, WebReport]:
     """Minimize E1, E2 or Eτ of the structure-line network (thesis 3.1.1), optionally inside tolerance cylinders.
@@ -251,7 +253,8 @@ def fair_web(
         Cap on ADMM / projected-gradient iterations.
     tolerance : float
         Stop when the iterates change by less than ``tolerance`` mean edge lengths
-        (ADMM: primal and dual residuals).
+        (ADMM: primal and dual residuals). The default 1e-5 h is 0.01 mm on a
+        1 m panel edge; the energy is then within about 1e-5 of its minimum.
     rho : float, optional
         A fixed ADMM penalty (default: adaptive, see ``_admm``).
 
@@ -398,8 +401,9 @@ def _admm(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, a
     for it in range(1, max_it + 1):
         x = lu.solve(b + rho_ * (z - u))
         z_old = z
-        z = project_to_cylinders(x + u, cen, ax, r, h)
-        u += x - z
+        xr = _RELAX * x + (1.0 - _RELAX) * z  # over-relaxation (Boyd et al. §3.4.3)
+        z = project_to_cylinders(xr + u, cen, ax, r, h)
+        u += xr - z
         primal = np.abs(x - z).max()
         change = np.abs(z - z_old).max()
         if primal < tol and change < tol:
