@@ -12,6 +12,15 @@ Every iteration factorizes the fourth-order equation into two second-order steps
    curvatures of eq. 28 (neighbours along edges and quad diagonals), linearized
    in ``t`` (eq. 29).
 
+Inner fairness (the distribution of the vertices within the surface, which
+Schneider and Kobbelt keep separate from the outer fairness ``Δ_B H = 0`` and
+leave free to choose): by default the tangential part of the umbrella vector
+``mean(q_j) − q_i`` — as in the spring model — so that tangential zigzag, which
+normal moves cannot touch, is evened out too (``inner=False`` moves along the
+normals only, as eq. 29 alone). A normal move is clamped to ``max_move`` local
+edge lengths per iteration (a trust region against a wild linearization on
+very noisy input; the report counts the clamped moves).
+
 The G1 boundary condition: the fixed vertices (the boundary by default) and the
 ``ring`` layers of vertices sharing a face with them stay in place, so positions
 and tangent planes at the border are kept.
@@ -73,6 +82,8 @@ class SchneiderKobbeltReport:
     converged: bool
     tolerance: float
     step: float
+    inner: bool
+    clamped: int
     energy_input: float
     energy: float
     max_displacement: float
@@ -93,6 +104,8 @@ def schneider_kobbelt(
     max_iterations: int = 200,
     tolerance: float = 1e-4,
     step: float = 0.5,
+    inner: bool = True,
+    max_move: float = 0.25,
 ) -> tuple[QuadMesh, SchneiderKobbeltReport]:
     """Fair a quad mesh towards ``Δ_B H = 0`` (Schneider–Kobbelt, thesis 3.4).
 
@@ -112,6 +125,10 @@ def schneider_kobbelt(
         Stop when the largest move is below this many local edge lengths.
     step : float
         Damping ``0 < step <= 1`` of the simultaneous normal moves.
+    inner : bool
+        Also even out the vertices within the surface (tangential umbrella step).
+    max_move : float
+        Largest normal move per iteration, in local edge lengths (> 0).
 
     Returns
     -------
@@ -141,6 +158,7 @@ def schneider_kobbelt(
     step = _validate.positive_number(step, "step")
     if step > 1:
         raise InputError(f"step: must be in (0, 1], got {step!r}")
+    max_move = _validate.positive_number(max_move, "max_move")
     hold0 = fixed_vertices(mesh, fix, fixed)
     if not hold0.any():
         raise InputError("fix: no vertex is held; Δ_B H = 0 needs boundary values (fix='boundary' or fixed=...)")
@@ -155,6 +173,9 @@ def schneider_kobbelt(
     history: list[float] = []
     e_in = e_now = 0.0
     converged = False
+    clamped = 0
+    indptr, nbr, _ = mesh.topology.ring
+    rows = np.repeat(np.arange(mesh.n_vertices), np.diff(indptr))
     it = 0
     for it in range(1, max_iterations + 1):
         L = cotangent_laplacian(mesh, vertices=x)
@@ -174,10 +195,18 @@ def schneider_kobbelt(
         slope = fit["dH_dt"][free]
         ok = np.abs(slope) > 1e-12 * np.abs(slope).max() if slope.size else slope.astype(bool)
         t = np.where(ok, -r / np.where(ok, slope, 1.0), 0.0) * step
-        move = t[:, None] * fit["normals"][free]
         length = np.linalg.norm(x[e[:, 1]] - x[e[:, 0]], axis=1)
         local = (np.bincount(e.reshape(-1), np.repeat(length, 2), minlength=mesh.n_vertices) / val)[free]
-        worst = float((np.abs(t) / local).max())
+        limit = max_move * local
+        clamped += int((np.abs(t) > limit).sum())
+        t = np.clip(t, -limit, limit)
+        nf = fit["normals"][free]
+        move = t[:, None] * nf
+        if inner:
+            mean = np.stack([np.bincount(rows, x[nbr, k], minlength=mesh.n_vertices) for k in range(3)], axis=1)
+            u0 = (mean / val[:, None])[free] - x[free]
+            move += step * (u0 - np.einsum("ij,ij->i", u0, nf)[:, None] * nf)
+        worst = float((np.linalg.norm(move, axis=1) / local).max())
         history.append(worst)
         x[free] += move
         if it % 5 == 0:
@@ -187,5 +216,5 @@ def schneider_kobbelt(
             break
     report_progress(1.0, f"Schneider–Kobbelt: {it} iterations")
     return mesh.with_vertices(x), SchneiderKobbeltReport(fix, ring, int(hold.sum()), it, converged, tol, step,
-                                                         e_in, e_now, history[-1], time.perf_counter() - t0,
+                                                         bool(inner), clamped, e_in, e_now, history[-1], time.perf_counter() - t0,
                                                          history)
