@@ -165,6 +165,8 @@ def _lengths(value: Any, n: int, unit: str, name: str) -> np.ndarray:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise InputError(f"{name}: expected a number, a length such as '2 mm' or {n} numbers, got {value!r}") from None
+    if a.shape == ():
+        a = np.full(n, float(a))  # a NumPy scalar
     if a.shape != (n,):
         raise InputError(f"{name}: expected one number or an array of shape ({n},), got shape {a.shape}")
     bad = np.flatnonzero(np.isnan(a) | (a < 0))

@@ -176,7 +176,9 @@ def test_lengths_as_text_and_errors():
     m = perturb(grid(6, 6, spacing=100.0), normal=0.3, seed=1)
     a, _ = fair_web(m, cylinder_height="0.01 m")
     b, _ = fair_web(m, cylinder_height=10.0)
+    c, _ = fair_web(m, cylinder_height=np.float32(10.0))
     np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(c.vertices, b.vertices)
     with pytest.raises(InputError, match="no unique minimum"):
         fair_web(m, fix="none")
     with pytest.raises(InputError, match="energy"):
