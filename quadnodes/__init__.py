@@ -34,6 +34,11 @@ from .planarization import planarize
 from .smoothing import laplacian, taubin
 from .topology import structure_lines, windows
 from .zigzag import detect
+from .discrete_curvature import curvature
+from .fourier_descriptors import fourier
+from .pde_fairing import schneider_kobbelt
+from .spring_model import spring
+from .webs import fair_web
 
 __all__ = [
     "__version__",
@@ -50,6 +55,11 @@ __all__ = [
     "planarity",
     "compare",
     "planarize",
+    "fair_web",
+    "spring",
+    "schneider_kobbelt",
+    "curvature",
+    "fourier",
     "QuadnodesError",
     "InputError",
     "GraphError",

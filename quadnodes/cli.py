@@ -348,10 +348,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     with reporting(line.show):
         res = thesis_comparison(out, examples=args.examples, seed=args.seed, spread_seeds=extra,
                                 interior_noise=not args.no_interior_noise, size_px=args.size,
-                                variants_figure=not args.no_variants, log=log)
+                                variants_figure=not args.no_variants, log=log,
+                                chapter3=not args.no_chapter3)
     line.clear()
     print(f"done in {res.seconds:.1f} s", flush=True)
     files = [*res.figures.values(), *res.variant_figures.values(), res.markdown, res.csv, res.seeds_csv]
+    files += [*res.chapter3_figures.values(), res.chapter3_markdown, res.chapter3_csv]
     for p in files:
         if p is not None:
             print(f"  wrote {_shown(p)}")
@@ -408,6 +410,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip the second figure per example (boundary-fixed baselines, default weight)")
     p.add_argument("--no-interior-noise", action="store_true",
                    help="skip the runs with noise on interior vertices only (clean boundary)")
+    p.add_argument("--no-chapter3", action="store_true",
+                   help="skip the thesis's chapter-3 methods (fair webs, spring model, Schneider-Kobbelt, "
+                        "Fourier descriptors on a closed example)")
     p.set_defaults(func=cmd_compare)
     return ap
 

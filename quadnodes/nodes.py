@@ -791,4 +791,130 @@ def advise(metrics: dict, baseline: dict | None = None, *, key: str, above: floa
     return Advice((f"{key} = {value:.4g} ({limit})" + (f": {message}" if message else ""),))
 
 
+# --- the thesis's chapter 2-3 methods (issue 17) ------------------------------------
+
+
+@node("fair_web", outputs=("mesh", "report"),
+      ranges={"tension": Range(min=0), "closeness": Range(min=0), "max_iterations": Range(min=1, max=100_000),
+              "tolerance": Range(min=0, min_open=True)})
+def fair_web(mesh: QuadMesh, fixed: np.ndarray | None = None, *,
+             energy: Literal["E1", "E2", "tension"] = "E2", tension: float = 1.0, closeness: float = 0.0,
+             cylinder_radius: float | str | None = None, cylinder_height: float | str | None = None,
+             fix: FixMode = "boundary", solver: Literal["admm", "projected_gradient"] = "admm",
+             max_iterations: int = 5000, tolerance: float = 1e-5) -> tuple[QuadMesh, Any]:
+    """Fair web (thesis 3.1.1): minimize E1, E2 or E2 + τE1 of the structure-line network, optionally inside
+    tolerance cylinders (radius across, half-height along the normal; mesh unit or text such as '20 mm').
+
+    Parameters
+    ----------
+    energy : str
+        E1 (edge vectors), E2 (second differences along the lines) or tension (E2 + tension · E1).
+    tension : float
+        The weight τ of E1 in the tension energy.
+    closeness : float
+        Weight of a pull to the input positions (0, as in the thesis's eq. 11).
+    cylinder_radius : float or str
+        Tolerance cylinder radius across the surface, in the mesh's unit or text such as "20 mm" (none: unbounded).
+    cylinder_height : float or str
+        Half-height of the tolerance cylinder along the input's normal, as cylinder_radius.
+    fix : str
+        Vertices held in place: none, corners or boundary (the thesis holds the boundary).
+    solver : str
+        admm or projected_gradient, for the cylinder constraints.
+    max_iterations : int
+        Cap on constrained solver iterations.
+    tolerance : float
+        Stop when the iterates move less than this many mean edge lengths.
+    """
+    from .webs import fair_web as _fair_web
+
+    return _fair_web(mesh, energy=energy, tension=tension, closeness=closeness, cylinder_radius=cylinder_radius,
+                     cylinder_height=cylinder_height, fix=fix, fixed=fixed, solver=solver,
+                     max_iterations=max_iterations, tolerance=tolerance)
+
+
+@node("spring", outputs=("mesh", "report"),
+      ranges={"max_iterations": Range(min=1, max=100_000), "tolerance": Range(min=0, min_open=True),
+              "step": Range(min=0, max=1, min_open=True)})
+def spring(mesh: QuadMesh, fixed: np.ndarray | None = None, *, fix: FixMode = "boundary",
+           max_iterations: int = 500, tolerance: float = 1e-4, step: float = 0.5,
+           tangential: bool = True) -> tuple[QuadMesh, Any]:
+    """Spring model of Yamada et al. (thesis 3.3): equal spring lengths along neighbouring normals, a
+    tangential regularizing move; stops when the largest move is below tolerance (in edge lengths).
+
+    Parameters
+    ----------
+    fix : str
+        Vertices held in place: none, corners or boundary (the thesis holds the boundary).
+    max_iterations : int
+        Cap on iterations.
+    tolerance : float
+        Stop when the largest move is below this many mean edge lengths.
+    step : float
+        Damping of each move (0 < step <= 1).
+    tangential : bool
+        Add the tangential regularizing component.
+    """
+    from .spring_model import spring as _spring
+
+    return _spring(mesh, fix=fix, fixed=fixed, max_iterations=max_iterations, tolerance=tolerance, step=step,
+                   tangential=tangential)
+
+
+@node("schneider_kobbelt", outputs=("mesh", "report"),
+      ranges={"ring": Range(min=0), "max_iterations": Range(min=1, max=100_000),
+              "tolerance": Range(min=0, min_open=True), "step": Range(min=0, max=1, min_open=True)})
+def schneider_kobbelt(mesh: QuadMesh, fixed: np.ndarray | None = None, *, fix: FixMode = "boundary",
+                      ring: int = 1, max_iterations: int = 200, tolerance: float = 1e-4,
+                      step: float = 0.5) -> tuple[QuadMesh, Any]:
+    """Schneider–Kobbelt (thesis 3.4): Δ_B H = 0 with the cotangent Laplace–Beltrami operator and
+    Moreton–Séquin mean curvature; the fixed vertices and a ring around them hold the G1 boundary.
+
+    Parameters
+    ----------
+    fix : str
+        Vertices held in place: none, corners or boundary (the thesis holds the boundary).
+    ring : int
+        Rings of neighbours of the held vertices also held (the G1 boundary condition).
+    max_iterations : int
+        Cap on iterations.
+    tolerance : float
+        Stop when the largest move is below this many mean edge lengths.
+    step : float
+        Damping of each move (0 < step <= 1).
+    """
+    from .pde_fairing import schneider_kobbelt as _sk
+
+    return _sk(mesh, fix=fix, fixed=fixed, ring=ring, max_iterations=max_iterations, tolerance=tolerance,
+               step=step)
+
+
+@node("curvature", outputs=("curvature", "mean", "gaussian"))
+def curvature(mesh: QuadMesh) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Discrete curvatures (thesis 2.2.3): all fields as a dict (mean, gaussian, gaussian_1..3, k1, k2,
+    principal directions, structure-line curvature), and the mean and Gaussian curvature per vertex."""
+    from .discrete_curvature import curvature as _curvature
+
+    c = _curvature(mesh)
+    return c, c["mean"], c["gaussian"]
+
+
+@node("fourier", outputs=("mesh", "report"), ranges={"keep": Range(min=0)})
+def fourier(mesh: QuadMesh, fixed: np.ndarray | None = None, *, keep: int = 3,
+            fix: FixMode = "none") -> tuple[QuadMesh, Any]:
+    """Fourier descriptors (thesis 3.2.1): low-pass every closed structure line, keeping harmonics
+    0..keep; open lines are left alone (the report says how many).
+
+    Parameters
+    ----------
+    keep : int
+        The highest harmonic kept (1 keeps a circle).
+    fix : str
+        Vertices held in place: none, corners or boundary.
+    """
+    from .fourier_descriptors import fourier as _fourier
+
+    return _fourier(mesh, keep=keep, fix=fix, fixed=fixed)
+
+
 __all__: list[str] = []  # import for the side effect of registering the nodes

@@ -49,7 +49,9 @@ from .zigzag import detect
 
 __all__ = ["ThesisExample", "THESIS_EXAMPLES", "COLUMNS", "METHODS", "SPREAD_COLUMNS", "KEY_COLUMNS",
            "ExampleResult", "ComparisonResult", "measure", "run_example", "format_markdown", "format_csv",
-           "thesis_comparison"]
+           "thesis_comparison",
+           "CHAPTER3_METHODS", "CLOSED_METHODS", "CHAPTER3_COLUMNS", "run_chapter3", "run_closed_example",
+           "format_chapter3_markdown", "chapter3_figure"]
 
 #: Refinement of the clean surface sample used for the distance to the clean *surface*.
 _SURFACE_REFINE = 4
@@ -342,7 +344,7 @@ def run_example(name: str, *, seed: int = 7, fix: Literal["corners", "boundary"]
     seed : int
         Seed of the noise (7 as in the example graphs).
     fix : {"corners", "boundary"}
-        Vertices the noise leaves alone (``perturb(fix=...)``): the corners (as in the example graphs,
+        Vertices the noise leaves alone (``perturb(fix=...)[0]``): the corners (as in the example graphs,
         so the boundary lines zigzag too) or the whole boundary (noise inside only).
 
     Returns
@@ -542,6 +544,10 @@ class ComparisonResult:
     csv: Path
     seeds_csv: Path | None
     seconds: float
+    chapter3: dict[str, ExampleResult] = field(default_factory=dict)
+    chapter3_figures: dict[str, Path] = field(default_factory=dict)
+    chapter3_markdown: Path | None = None
+    chapter3_csv: Path | None = None
 
 
 def _note(row: Mapping[str, Any]) -> str:
@@ -575,6 +581,7 @@ def thesis_comparison(
     palette: int | None = 256,
     variants_figure: bool = True,
     log: Callable[[str], None] | None = None,
+    chapter3: bool = True,
 ) -> ComparisonResult:
     """Run the thesis comparison and write its figures and tables into ``out_dir``.
 
@@ -610,6 +617,11 @@ def thesis_comparison(
         Also draw the variants figure per example.
     log : callable, optional
         Called with one line of progress per example.
+    chapter3 : bool
+        Also run the thesis's chapter-3 methods (:func:`run_chapter3`, with and
+        without boundary noise, and :func:`run_closed_example`): figures
+        ``<name>_chapter3.png`` and ``C1_chapter3.png``, tables ``chapter3.md``
+        and ``chapter3.csv``.
 
     Returns
     -------
@@ -626,7 +638,7 @@ def thesis_comparison(
     --------
     >>> import tempfile
     >>> r = thesis_comparison(tempfile.mkdtemp(), examples=["E1"], spread_seeds=(), interior_noise=False,
-    ...                       size_px=600, variants_figure=False)
+    ...                       size_px=600, variants_figure=False, chapter3=False)
     >>> sorted(p.name for p in (r.figures["E1"], r.markdown, r.csv))
     ['E1.png', 'comparison.csv', 'comparison.md']
     """
@@ -649,6 +661,7 @@ def thesis_comparison(
     figures: dict[str, Path] = {}
     variants: dict[str, Path] = {}
     steps = 2 + bool(variants_figure) + len(extra) + bool(interior_noise)  # per example, for progress
+    span = 0.75 if chapter3 else 1.0  # the chapter-3 methods take the last quarter of the progress
     for i, name in enumerate(names):
         t = time.perf_counter()
 
@@ -659,7 +672,7 @@ def thesis_comparison(
             (each reporting 0..1 of its own) keeps the step's start, so the
             fraction never goes back.
             """
-            lo, hi = (i + k / steps) / len(names), (i + (k + 1) / steps) / len(names)
+            lo, hi = (span * (i + k / steps) / len(names), span * (i + (k + 1) / steps) / len(names))
             label = f"{name} ({i + 1}/{len(names)}): {what}"
             report_progress(lo, label)
             return part(lo, hi if "figure" in what else lo, f"{label}: ")
@@ -688,5 +701,276 @@ def thesis_comparison(
     if extra:
         seeds_csv = write_text_atomic(out / "comparison_seeds.csv",
                                       format_csv([r for runs in spread.values() for r in runs]))
-    return ComparisonResult(results, spread, interior, figures, variants, md, cs, seeds_csv,
-                            time.perf_counter() - t0)
+    result = ComparisonResult(results, spread, interior, figures, variants, md, cs, seeds_csv,
+                              time.perf_counter() - t0)
+    if chapter3:
+        _chapter3(result, out, names, seed, size_px, palette, say, start=span)
+        result.seconds = time.perf_counter() - t0
+    return result
+
+
+def _chapter3(result: ComparisonResult, out: Path, names: Sequence[str], seed: int, size_px: int,
+              palette: int | None, say: Callable[[str], None], start: float = 0.0) -> None:
+    """Run the chapter-3 methods and write their figures and tables into ``out`` (part of :func:`thesis_comparison`).
+
+    Progress goes from ``start`` to 1: one share per example and one for the closed example.
+    """
+    keys = ("original", "new", "fair_web_cylinders", "spring", "schneider_kobbelt", "fair_web")
+    inner: dict[str, ExampleResult] = {}
+    share = (1.0 - start) / (len(names) + 1)
+    for i, name in enumerate(names):
+        t = time.perf_counter()
+        lo = start + i * share
+        label = f"{name}: chapter-3 methods"
+        report_progress(lo, label)
+        with part(lo, lo, f"{label}: "):  # the methods' own 0..1 keeps the step's start
+            res = run_chapter3(name, seed=seed)
+            result.chapter3[name] = res
+            inner[name] = run_chapter3(name, seed=seed, fix="boundary")
+        with part(lo + 0.5 * share, lo + share, f"{name}: chapter-3 figure: "):
+            result.chapter3_figures[name] = chapter3_figure(res, keys, out / f"{name}_chapter3.png",
+                                                            size_px=size_px, palette=palette)
+        say(f"{name}: chapter-3 methods, {time.perf_counter() - t:.2f} s")
+    t = time.perf_counter()
+    lo = start + len(names) * share
+    report_progress(lo, "C1 (closed lines): every method")
+    with part(lo, lo, "C1: "):
+        closed = run_closed_example(seed=seed)
+    result.chapter3["C1"] = closed
+    with part(lo + 0.5 * share, 1.0, "C1: figure: "):
+        result.chapter3_figures["C1"] = chapter3_figure(
+            closed, ("original", "fourier", "new", "fair_web", "spring", "schneider_kobbelt"), out / "C1_chapter3.png",
+            size_px=size_px, palette=palette)
+    say(f"C1 (closed lines): every method, {time.perf_counter() - t:.2f} s")
+    figs = {k: v.name for k, v in result.chapter3_figures.items()}
+    result.chapter3_markdown = write_text_atomic(out / "chapter3.md", format_chapter3_markdown(
+        [result.chapter3[n] for n in names], interior=inner, closed=closed, figures=figs))
+    buf = io.StringIO()
+    keys_csv = ["example", "seed", "fix", "method", "label", "edge_length_mm", "seconds", "iterations",
+                *(c[0] for c in COLUMNS)]
+    wr = csv.DictWriter(buf, fieldnames=keys_csv, lineterminator="\n")
+    wr.writeheader()
+    for res in [*result.chapter3.values(), *inner.values()]:
+        for row in res.rows:
+            wr.writerow({k: (repr(float(row[k])) if isinstance(row[k], float) else row[k]) for k in keys_csv})
+    result.chapter3_csv = write_text_atomic(out / "chapter3.csv", buf.getvalue())
+
+
+# --- the thesis's chapter-3 methods on the same examples (issue 17) ----------------------------------------
+
+#: Method keys of :func:`run_chapter3`, in table order.
+CHAPTER3_METHODS: tuple[str, ...] = ("original", "new", "fair_web", "fair_web_cylinders", "spring",
+                                     "schneider_kobbelt", "laplacian_fixed_boundary", "taubin_fixed_boundary")
+#: Method keys of :func:`run_closed_example` (a noisy cylinder: closed structure lines).
+CLOSED_METHODS: tuple[str, ...] = ("original", "fourier", "new", "fair_web", "spring", "schneider_kobbelt",
+                                   "laplacian", "taubin")
+#: Columns of the chapter-3 tables (plus seconds and iterations of each method).
+CHAPTER3_COLUMNS: tuple[str, ...] = ("zigzag_max", "vertices_above_0.1", "boundary_displacement_max_h",
+                                     "surface_distance_mean_h", "vertex_distance_mean_h", "relief_change_pct",
+                                     "bbox_change_pct", "normal_offset_mean_h")
+#: Tolerance cylinders of ``fair_web_cylinders``: radius and half-height as multiples of the noise's
+#: tangential and normal amplitude (in local edge lengths, times the clean mesh's mean edge length).
+CYLINDER_FACTOR = 2.0
+#: The closed example: a cylinder (rows along the axis, vertices around), millimetres.
+CLOSED_EXAMPLE = MappingProxyType(dict(rows=9, cols=32, radius=3000.0, height=4000.0, noise=(0.25, 0.1),
+                                       keep=3, laplace=3, taubin=40, fair_iterations=3))
+
+
+def _mesh_of(result: Any) -> QuadMesh:
+    """The mesh of a method's result: ``(mesh, report)`` or (older smoothing) a mesh alone."""
+    return result[0] if isinstance(result, tuple) else result
+
+
+def _timed(fn: Callable[[], Any]) -> tuple[QuadMesh, Any, float]:
+    t = time.perf_counter()
+    out = fn()
+    sec = time.perf_counter() - t
+    rep = out[1] if isinstance(out, tuple) else None
+    return _mesh_of(out), rep, sec
+
+
+def _iterations(rep: Any) -> int:
+    if rep is None:
+        return 0
+    it = getattr(rep, "iterations", 0)
+    return len(it) if isinstance(it, list) else int(it)
+
+
+@_validate.renamed(noise_fix="fix")
+def run_chapter3(name: str, *, seed: int = 7, fix: Literal["corners", "boundary"] = "corners") -> ExampleResult:
+    """Run the chapter-3 methods beside the thesis's method on one noisy example (same noise as :func:`run_example`).
+
+    Methods (keys of :data:`CHAPTER3_METHODS`): ``new`` (the thesis's method with
+    its parameters); ``fair_web`` (E2 of the structure-line network, eq. 11,
+    boundary fixed); ``fair_web_cylinders`` (E2, corners fixed, every vertex
+    inside a tolerance cylinder around its noisy position, radius and half-height
+    :data:`CYLINDER_FACTOR` times the noise amplitudes); ``spring`` (Yamada et al.,
+    boundary fixed); ``schneider_kobbelt`` (boundary and one ring fixed);
+    Laplacian and Taubin with the boundary fixed. Rows carry ``seconds`` and
+    ``iterations`` too.
+
+    Raises
+    ------
+    InputError
+        On an unknown example name, a bad seed or ``fix``.
+
+    Examples
+    --------
+    >>> r = run_chapter3("E1")
+    >>> [row["method"] for row in r.rows][:4]
+    ['original', 'new', 'fair_web', 'fair_web_cylinders']
+    """
+    from .pde_fairing import schneider_kobbelt
+    from .spring_model import spring
+    from .webs import fair_web
+
+    name = _check_names([name])[0]
+    seed = _check_seed(seed)
+    fix = _validate.choice(fix, ("corners", "boundary"), "fix")  # type: ignore[assignment]
+    ex = THESIS_EXAMPLES[name]
+    clean, fine = _geometry(name)
+    noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=seed, fix=fix)
+    h = clean.mean_edge_length
+    fp = dict(ex.fair)
+    r, hc = CYLINDER_FACTOR * ex.noise[0] * h, CYLINDER_FACTOR * ex.noise[1] * h
+    runs: dict[str, tuple[str, Callable[[], Any]]] = {
+        "new": (f"New method, {_plural(fp['iterations'], 'iteration')}, ω = {fp['weight']:g}",
+                lambda: _fair(noisy, **fp)),
+        "fair_web": ("Fair web E2, boundary fixed", lambda: fair_web(noisy, energy="E2", fix="boundary")),
+        "fair_web_cylinders": (f"Fair web E2 in cylinders r = {r / h:.2g} h, ±{hc / h:.2g} h",
+                               lambda: fair_web(noisy, energy="E2", fix="corners", cylinder_radius=r,
+                                                cylinder_height=hc)),
+        "spring": ("Spring model, boundary fixed", lambda: spring(noisy)),
+        "schneider_kobbelt": ("Schneider–Kobbelt, boundary + ring fixed", lambda: schneider_kobbelt(noisy)),
+        "laplacian_fixed_boundary": (f"Laplacian, {_plural(ex.laplace, 'step')}, boundary fixed",
+                                     lambda: laplacian(noisy, iterations=ex.laplace, fix="boundary")),
+        "taubin_fixed_boundary": (f"Taubin, {_plural(ex.taubin, 'iteration')}, boundary fixed",
+                                  lambda: taubin(noisy, iterations=ex.taubin, fix="boundary")),
+    }
+    return _run_methods(ex, clean, fine, noisy, runs, seed, fix)
+
+
+def _run_methods(ex: ThesisExample, clean: QuadMesh, fine: QuadMesh, noisy: QuadMesh,
+                 runs: Mapping[str, tuple[str, Callable[[], Any]]], seed: int, fix: str) -> ExampleResult:
+    t0 = time.perf_counter()
+    res = ExampleResult(ex, clean)
+    topo = noisy.topology
+    res.meshes["original"], res.labels["original"] = noisy, "Original (noisy input)"
+    res.free["original"] = np.zeros(noisy.n_vertices, dtype=bool)
+    res.fixed["original"] = np.zeros(noisy.n_vertices, dtype=bool)
+    extra: dict[str, tuple[float, int]] = {"original": (0.0, 0)}
+    for key, (label, fn) in runs.items():
+        mesh, rep, sec = _timed(fn)
+        res.meshes[key], res.labels[key] = mesh, label
+        moved = np.linalg.norm(mesh.vertices - noisy.vertices, axis=1) > 0
+        res.free[key] = moved
+        res.fixed[key] = ~moved & (topo.boundary_vertices if "boundary" in label or key in (
+            "fair_web", "spring", "schneider_kobbelt") else topo.corner_vertices)
+        extra[key] = (sec, _iterations(rep))
+    frame = _boundary_frame(clean)
+    h = clean.mean_edge_length
+    for key in res.meshes:
+        row: dict[str, Any] = {"example": ex.name, "seed": seed, "fix": fix, "method": key,
+                               "label": res.labels[key], "edge_length_mm": h,
+                               "seconds": extra[key][0], "iterations": extra[key][1]}
+        row.update(measure(noisy, res.meshes[key], clean, fine, boundary_frame=frame))
+        res.rows.append(row)
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+def run_closed_example(*, seed: int = 7) -> ExampleResult:
+    """Every method on a noisy open cylinder, whose rings are closed structure lines (for Fourier descriptors).
+
+    The cylinder of :data:`CLOSED_EXAMPLE` (millimetres) gets the zigzag noise of
+    the examples on its interior vertices (the two end rings stay clean); the
+    methods: Fourier descriptors (keep harmonics 0…3), the thesis's method (3
+    iterations, default settings), fair web (E2, end rings fixed), spring model,
+    Schneider–Kobbelt, Laplacian (3 steps) and Taubin (40 iterations) with the end
+    rings fixed.
+
+    Examples
+    --------
+    >>> r = run_closed_example()
+    >>> r.rows[1]["method"], r.rows[1]["zigzag_max"] < r.rows[0]["zigzag_max"]
+    ('fourier', True)
+    """
+    from .fourier_descriptors import fourier
+    from .mesh import cylinder
+    from .pde_fairing import schneider_kobbelt
+    from .spring_model import spring
+    from .webs import fair_web
+
+    seed = _check_seed(seed)
+    c = CLOSED_EXAMPLE
+    clean = cylinder(c["rows"], c["cols"], radius=c["radius"], height=c["height"])
+    fine = cylinder(_SURFACE_REFINE * (c["rows"] - 1) + 1, _SURFACE_REFINE * c["cols"], radius=c["radius"],
+                    height=c["height"])
+    ex = ThesisExample("C1", "cylinder", c["rows"], c["cols"], c["laplace"], c["taubin"],
+                       MappingProxyType(dict(iterations=c["fair_iterations"])), c["noise"], elev=25.0, azim=-60.0)
+    noisy, _ = perturb(clean, tangential=c["noise"][0], normal=c["noise"][1], seed=seed, fix="boundary")
+    runs: dict[str, tuple[str, Callable[[], Any]]] = {
+        "fourier": (f"Fourier descriptors, harmonics 0–{c['keep']}", lambda: fourier(noisy, keep=c["keep"])),
+        "new": (f"New method, {_plural(c['fair_iterations'], 'iteration')} (defaults)",
+                lambda: _fair(noisy, iterations=c["fair_iterations"])),
+        "fair_web": ("Fair web E2, boundary fixed", lambda: fair_web(noisy, energy="E2", fix="boundary")),
+        "spring": ("Spring model, boundary fixed", lambda: spring(noisy)),
+        "schneider_kobbelt": ("Schneider–Kobbelt, boundary + ring fixed", lambda: schneider_kobbelt(noisy)),
+        "laplacian": (f"Laplacian, {_plural(c['laplace'], 'step')}, boundary fixed",
+                      lambda: laplacian(noisy, iterations=c["laplace"], fix="boundary")),
+        "taubin": (f"Taubin, {_plural(c['taubin'], 'iteration')}, boundary fixed",
+                   lambda: taubin(noisy, iterations=c["taubin"], fix="boundary")),
+    }
+    return _run_methods(ex, clean, fine, noisy, runs, seed, "boundary")
+
+
+def format_chapter3_markdown(results: Sequence[ExampleResult], *, interior: Mapping[str, ExampleResult] | None = None,
+                             closed: ExampleResult | None = None, figures: Mapping[str, str] | None = None) -> str:
+    """The chapter-3 tables as Markdown: per example the :data:`CHAPTER3_COLUMNS`, seconds and iterations."""
+    heads = {k: hdr for k, hdr, _ in COLUMNS}
+    fmts = {k: f for k, _, f in COLUMNS}
+    cols = list(CHAPTER3_COLUMNS)
+
+    def table(res: ExampleResult) -> list[str]:
+        out = ["| method | " + " | ".join(heads[k] for k in cols) + " | seconds | iterations |",
+               "|---|" + "---:|" * (len(cols) + 2)]
+        for row in res.rows:
+            out.append(f"| {row['label']} | " + " | ".join(_cell(row[k], fmts[k]) for k in cols)
+                       + f" | {row['seconds']:.3f} | {row['iterations']} |")
+        return out + [""]
+
+    lines = ["# The thesis's chapter-3 methods on its examples", "",
+             "Written by `quadnodes compare`. Same noise, measures and units (mean edge lengths h of the clean "
+             "mesh) as `comparison.md`; seconds: wall time of the method alone.", ""]
+    for res in results:
+        ex = res.example
+        lines += [f"## {ex.name}: {ex.surface} {ex.rows}×{ex.cols}", ""]
+        if figures and ex.name in figures:
+            lines += [f"![{ex.name}]({figures[ex.name]})", ""]
+        lines += [f"Noise tangential {ex.noise[0]:g} h, normal {ex.noise[1]:g} h, seed {res.rows[0]['seed']}, "
+                  "corners fixed:", ""] + table(res)
+        inner = interior.get(ex.name) if interior else None
+        if inner is not None:
+            lines += ["The same with the noise on interior vertices only (clean boundary):", ""] + table(inner)
+    if closed is not None:
+        lines += [f"## Closed lines: a cylinder {closed.example.rows}×{closed.example.cols} (rings closed)", ""]
+        if figures and "C1" in figures:
+            lines += [f"![C1]({figures['C1']})", ""]
+        lines += [f"Noise tangential {closed.example.noise[0]:g} h, normal {closed.example.noise[1]:g} h, seed "
+                  f"{closed.rows[0]['seed']}, end rings clean:", ""] + table(closed)
+    return "\n".join(lines)
+
+
+def chapter3_figure(res: ExampleResult, keys: Sequence[str], path: Path, *, size_px: int = 1200,
+                    palette: int | None = 256) -> Path:
+    """Panels of the given methods in a grid of three columns, with the example's camera and clean reference."""
+    from . import viz
+
+    rows = {r["method"]: r for r in res.rows}
+    ex = res.example
+    return viz.render_png(
+        [res.meshes[k] for k in keys], path,
+        titles=[res.labels[k] for k in keys], notes=[_note(rows[k]) for k in keys],
+        free=[res.free[k] for k in keys], fixed=[res.fixed[k] for k in keys],
+        reference=res.clean, elev=ex.elev, azim=ex.azim, size_px=size_px, palette=palette, ncols=3,
+    )

@@ -150,6 +150,7 @@ def render_png(
     ncols: int | None = None,
     size_px: int = 1200,
     palette: int | None = None,
+    color_by: Any = None,
 ) -> Path:
     """Render meshes side by side to a PNG, written atomically.
 
@@ -201,6 +202,14 @@ def render_png(
     palette : int, optional
         Save an indexed PNG with at most this many colours (2..256): a file about
         a third the size, for documentation. Default: full colour.
+    color_by : str, array or a list with one per mesh, optional
+        Colour the faces by a scalar instead of shading them: the name of a
+        field of :func:`quadnodes.discrete_curvature.curvature` (``"mean"``,
+        ``"gaussian"``, ``"gaussian_1"`` … ``"gaussian_3"``, ``"k1"``, ``"k2"``,
+        ``"line_max"``; per panel the mean over its corners that have a value), a per-vertex
+        ``(n,)`` or per-panel ``(m,)`` array. One colour scale for all panels
+        (diverging around 0 for signed values); NaN (e.g. curvature on the
+        boundary) in grey. Takes precedence over ``planarity``.
 
     Returns
     -------
@@ -264,6 +273,9 @@ def render_png(
         if palette > 256:
             raise InputError(f"palette: at most 256 colours, got {palette}")
     cols = (3 if k == 3 else min(k, 2)) if ncols is None else min(_validate.positive_int(ncols, "ncols"), k)
+    cb_values, cb_label = _color_values(color_by, ms)
+    if cb_values is not None:
+        plan = [False] * k
     pl_values = [_planarity_values(m, p == "relative") if p else None for m, p in zip(ms, plan)]
     pl_norm = _planarity_norm(pl_values, planarity_range) if any(plan) else None
 
@@ -307,7 +319,7 @@ def render_png(
     one_row = sum(len(t) * char_px + 50 for t in labels) <= size - 2 * margin
     legend_rows = (1 if one_row else len(labels)) if labels else 0
     legend_h = 6 + legend_rows * 2.0 * fs_foot * _DPI / 72 if labels else 0
-    n_bars = 2 if pl_norm is not None else 1
+    n_bars = 2 if (pl_norm is not None or cb_values is not None) else 1
     side = n_bars == 1 or size >= 1000
     bar_rows = 1 if side else n_bars
     bar_block = 14 + 4.2 * fs_foot * _DPI / 72
@@ -331,6 +343,8 @@ def render_png(
     pl_cmap = _planarity_cmap()
     thinned: list[int] = []
     unit = ms[0].unit
+    if cb_values is not None:
+        cb_norm, cb_cmap = _color_norm(cb_values)
     for i, m in enumerate(ms):
         report_progress(0.8 * i / len(ms), f"drawing mesh {i + 1}/{len(ms)} ({m.n_faces} panels)")
         r, c = divmod(i, cols)
@@ -353,7 +367,12 @@ def render_png(
         fv = m.vertices[m.faces]
         proj = fv @ cam[:2].T
         depth = (fv @ cam[2]).mean(axis=1)
-        if pl_values[i] is not None:
+        if cb_values is not None:
+            val = cb_values[i]
+            rgb = cb_cmap(cb_norm(np.nan_to_num(val)))[:, :3]
+            rgb[np.isnan(val)] = 0.6
+            rgb = rgb * (0.80 + 0.20 * _shade(m, cam))[:, None]
+        elif pl_values[i] is not None:
             rgb = pl_cmap(pl_norm(np.maximum(pl_values[i], pl_norm.vmin)))[:, :3]
             rgb = rgb * (0.80 + 0.20 * _shade(m, cam))[:, None]
         else:
@@ -411,6 +430,8 @@ def render_png(
         what = ("face planarity: diagonal gap / mean diagonal (log scale)" if "relative" in kinds
                 else f"face planarity: diagonal gap in {unit} (log scale)")
         bars.append((pl_norm, pl_cmap, what))
+    if cb_values is not None:
+        bars.append((cb_norm, cb_cmap, cb_label))
     for j, (nm, cm, label) in enumerate(bars):
         row = 0 if side else j  # rows counted from the top of the footer
         y = legend_h + (bar_rows - 1 - row) * bar_block + bar_block - 14
@@ -549,3 +570,56 @@ def _planarity_cmap() -> Any:
     from matplotlib.colors import LinearSegmentedColormap
 
     return LinearSegmentedColormap.from_list("planarity", ["#ffffff", "#f2dcc0", "#c9925a", "#6b4a2e"])
+
+
+def _color_values(color_by: Any, meshes: list[QuadMesh]) -> tuple[list[np.ndarray] | None, str]:
+    """Per-panel face values for ``color_by`` and the colour bar's label (None: not requested)."""
+    if color_by is None:
+        return None, ""
+    k = len(meshes)
+    per = list(color_by) if isinstance(color_by, (list, tuple)) else [color_by] * k
+    if len(per) != k:
+        raise InputError(f"color_by: {len(per)} values for {k} meshes")
+    out: list[np.ndarray] = []
+    names = set()
+    for i, (m, c) in enumerate(zip(meshes, per)):
+        where = "color_by" if len(per) == 1 or not isinstance(color_by, (list, tuple)) else f"color_by[{i}]"
+        if isinstance(c, str):
+            from .discrete_curvature import CURVATURE_KEYS, curvature
+
+            key = _validate.choice(c, CURVATURE_KEYS, where)
+            names.add(key)
+            vals = curvature(m)[key]
+        else:
+            vals = np.asarray(c, dtype=np.float64)
+            names.add("value")
+            if vals.shape not in ((m.n_vertices,), (m.n_faces,)):
+                raise InputError(f"{where}: expected a curvature name, {m.n_vertices} vertex values or "
+                                 f"{m.n_faces} panel values, got shape {vals.shape}")
+        if vals.shape == (m.n_vertices,) and m.n_vertices != m.n_faces:
+            fv = vals[m.faces]
+            cnt = np.isfinite(fv).sum(axis=1)
+            vals = np.divide(np.where(np.isfinite(fv), fv, 0.0).sum(axis=1), cnt,
+                             out=np.full(m.n_faces, np.nan), where=cnt > 0)  # over the corners that have one
+        out.append(vals)
+    label = (names.pop() if len(names) == 1 else "value")
+    label = {"mean": "mean curvature H", "gaussian": "Gaussian curvature G(4)", "k1": "principal curvature k1",
+             "k2": "principal curvature k2", "line_max": "structure-line curvature (Def. 2.33)"}.get(label, label)
+    return out, f"{label} (panel mean of its vertices)"
+
+
+def _color_norm(values: list[np.ndarray]) -> tuple[Any, Any]:
+    """A shared colour scale: diverging around 0 for signed data, sequential otherwise."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import Normalize, TwoSlopeNorm
+
+    v = np.concatenate([x[np.isfinite(x)] for x in values]) if values else np.zeros(0)
+    if v.size == 0:
+        return Normalize(0.0, 1.0), plt.get_cmap("viridis")
+    lo, hi = float(np.percentile(v, 1)), float(np.percentile(v, 99))
+    if lo < 0 < hi:
+        m = max(-lo, hi)
+        return TwoSlopeNorm(0.0, -m, m), plt.get_cmap("coolwarm")
+    if lo == hi:
+        lo, hi = lo - 1.0 if lo == 0 else lo - abs(lo) * 0.5, hi + 1.0 if hi == 0 else hi + abs(hi) * 0.5
+    return Normalize(lo, hi, clip=True), plt.get_cmap("viridis")

@@ -134,3 +134,32 @@ def test_rhino_and_dxf_nodes(tmp_path):
     g.add("read_surface", id="reader", path="design.3dm", face="floor")
     with pytest.raises(NodeError, match="reader.*no face named 'floor'"):
         g.run()
+
+
+def test_thesis_chapter3_nodes_run_in_a_graph():
+    from quadnodes.mesh import cylinder
+
+    g = Graph()
+    m = g.add("grid", id="m", rows=7, cols=8)
+    noisy = g.add("perturb", m.mesh, id="noisy", normal=0.2, seed=1, fix="boundary")
+    pick = g.add("select_fixed", noisy.mesh, id="pick", indices=[9])
+    web = g.add("fair_web", noisy.mesh, pick.fixed, id="web", cylinder_height=0.05, cylinder_radius="0.1 mm")
+    g.add("spring", noisy.mesh, pick.fixed, id="spring", max_iterations=20)
+    g.add("schneider_kobbelt", noisy.mesh, id="sk", max_iterations=5, fix="boundary")
+    g.add("curvature", web.mesh, id="curv")
+    r = g.run()
+    base = r["noisy.mesh"].vertices
+    for key in ("web", "spring", "sk"):
+        out, rep = r[f"{key}.mesh"], r[f"{key}.report"]
+        b = out.topology.boundary_vertices
+        assert np.array_equal(out.vertices[b], base[b]), key
+        assert isinstance(rep.to_dict(), dict)
+    assert np.array_equal(r["web.mesh"].vertices[9], base[9]) and np.array_equal(r["spring.mesh"].vertices[9], base[9])
+    assert r["web.report"].max_outside < 1e-9
+    assert r["curv.mean"].shape == (56,) and set(r["curv.curvature"]) >= {"mean", "gaussian", "k1", "k2"}
+    for op in ("fair_web", "spring", "schneider_kobbelt", "curvature", "fourier"):
+        assert describe(op)["summary"]
+    c = cylinder(3, 12)
+    v = c.vertices + 0.01 * np.cos(5 * np.arange(36))[:, None]
+    out, rep = REGISTRY.get("fourier@1").func(c.with_vertices(v), keep=2)
+    assert rep.closed_lines == 3 and rep.open_lines_untouched == 12

@@ -137,10 +137,31 @@ def test_run_example_errors():
 def test_cli_compare(tmp_path, capsys):
     out = tmp_path / "cmp"
     rc = main(["compare", "--out", str(out), "--examples", "E1", "--spread-seeds", "0", "--no-variants",
-               "--no-interior-noise", "--size", "400"])
+               "--no-interior-noise", "--size", "400", "--no-chapter3"])
     assert rc == 0
     text = capsys.readouterr().out
     assert "E1" in text and "wrote" in text
     assert sorted(p.name for p in out.iterdir()) == ["E1.png", "comparison.csv", "comparison.md"]
     assert main(["compare", "--out", str(tmp_path / "bad"), "--examples", "E7"]) == 1
     assert "unknown example 'E7'" in capsys.readouterr().err
+
+
+def test_chapter3_methods_in_the_comparison(e1):
+    assert set(e1.chapter3) == {"E1", "C1"} and e1.chapter3_figures["E1"].name == "E1_chapter3.png"
+    px = imread(e1.chapter3_figures["C1"])[..., :3]
+    assert px.shape[1] == 500 and px.std() > 0.05
+    md = e1.chapter3_markdown.read_text()
+    assert "## E1: saddle 10×10" in md and "![E1](E1_chapter3.png)" in md and "## Closed lines" in md
+    rows = {r["method"]: r for r in e1.chapter3["E1"].rows}
+    assert list(rows) == list(report.CHAPTER3_METHODS)
+    assert rows["fair_web_cylinders"]["zigzag_max"] < 0.1  # the cylinders let it remove the zigzag
+    for key in ("fair_web", "spring", "schneider_kobbelt", "laplacian_fixed_boundary"):
+        assert rows[key]["boundary_displacement_max_h"] == 0.0, key
+    assert rows["new"]["seconds"] > 0 and rows["fair_web_cylinders"]["iterations"] > 0
+    closed = {r["method"]: r for r in e1.chapter3["C1"].rows}
+    assert list(closed) == list(report.CLOSED_METHODS)
+    # Fourier descriptors remove the normal noise of the rings: much closer to the clean cylinder
+    assert closed["fourier"]["surface_distance_mean_h"] < 0.2 * closed["original"]["surface_distance_mean_h"]
+    table = list(csv.DictReader(e1.chapter3_csv.read_text().splitlines()))
+    assert {r["fix"] for r in table} == {"corners", "boundary"}
+    assert all(np.isfinite(float(r["zigzag_max"])) for r in table)

@@ -183,3 +183,21 @@ def test_dense_meshes_show_every_kth_line_and_a_scale_bar(tmp_path):
         viz.render_png([m, m], tmp_path / "x.png", planarity=["relative", "length"])
     with pytest.raises(InputError, match="planarity"):
         viz.render_png(m, tmp_path / "x.png", planarity="mm")
+
+
+def test_color_by_curvature_and_arrays(tmp_path):
+    from quadnodes import surfaces
+
+    m = surfaces.sample(surfaces.saddle(), 9, 9)
+    render_png = viz.render_png
+    a = render_png([m, m], tmp_path / "a.png", color_by="mean", size_px=400)
+    b = render_png([m, m], tmp_path / "b.png", color_by=["gaussian", np.arange(m.n_faces, dtype=float)],
+                   size_px=400)
+    c = render_png(m, tmp_path / "c.png", size_px=400)
+    assert a.read_bytes() != c.read_bytes() and b.read_bytes() != a.read_bytes()
+    render_png(m, tmp_path / "d.png", color_by=np.linspace(0, 1, m.n_vertices), size_px=400)
+    with pytest.raises(InputError, match="color_by: expected one of"):
+        render_png(m, tmp_path / "e.png", color_by="Mean")
+    with pytest.raises(InputError, match=r"color_by: expected a curvature name, 81 vertex values or 64 panel"):
+        render_png(m, tmp_path / "e.png", color_by=np.ones(5))
+    assert not (tmp_path / "e.png").exists()

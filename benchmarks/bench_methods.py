@@ -1,0 +1,121 @@
+"""Speed of the thesis's chapter-2/3 methods beside the thesis's own method (issue 17).
+
+Input (every row but Fourier): the noisy height field of ``bench_core.py`` — an
+n × n grid over the unit square, z = 0.3 sin(3x) cos(2y), with seeded zigzag
+noise (``perturb(tangential=0.2, normal=0.05, seed=0)[0]``: every vertex, the
+boundary too). Fourier descriptors need closed lines, so their row runs on an
+open cylinder of n rings × n vertices (radius 1, height 1) with the same noise.
+
+Rows (settings as named; each in a fresh process, modules imported before the clock):
+
+- ``fair``: the thesis's method, ``fair(iterations=3)`` (defaults), the reference;
+- ``fair_web``: E2 of the structure-line network, boundary fixed, no cylinders (one sparse solve);
+- ``fair_web_admm`` / ``fair_web_pg``: the same with tolerance cylinders (radius 0.5 h, half-height
+  0.2 h, corners fixed), by ADMM or accelerated projected gradient, to 1e-5 h (the default);
+- ``spring``: Yamada's spring model, boundary fixed, to tolerance 1e-4 or ``--cap`` iterations;
+- ``schneider_kobbelt``: boundary + one ring fixed, to tolerance 1e-4 or ``--cap`` iterations;
+- ``curvature``: every field of ``quadnodes.curvature`` once;
+- ``fourier``: Fourier descriptors on the cylinder, harmonics 0–3.
+
+"per iteration" is the wall time over the iterations the method reports (ADMM /
+gradient steps, spring or Schneider–Kobbelt iterations; ``fair``: its 3 outer
+iterations). "peak MB": the process's peak resident memory minus its resident
+memory after the mesh was built (as in ``bench_core.py``).
+
+Run:  python benchmarks/bench_methods.py [--sizes 100 300] [--only spring fair ...] [--cap 200]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+ROWS = ("fair", "fair_web", "fair_web_admm", "fair_web_pg", "spring", "schneider_kobbelt", "curvature", "fourier")
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
+
+
+def _mesh(kind: str, n: int):
+    from quadnodes.mesh import QuadMesh, cylinder, grid
+    from quadnodes.noise import perturb
+
+    if kind == "fourier":
+        base = cylinder(n, n)
+    else:
+        y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
+        base = grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y))
+    noisy, _ = perturb(base, tangential=0.2, normal=0.05, seed=0)
+    return QuadMesh(noisy.vertices, noisy.faces)  # fresh: no cached topology
+
+
+def run_row(kind: str, n: int, cap: int) -> dict:
+    import quadnodes as qn
+
+    m = _mesh(kind, n)
+    h = m.mean_edge_length
+    base = _rss_mb()
+    t = time.perf_counter()
+    if kind == "fair":
+        _, rep = qn.fair(m, iterations=3)
+        its, note = 3, f"{max(r.n_free for r in rep.iterations)} free"
+    elif kind == "fair_web":
+        _, rep = qn.fair_web(m)
+        its, note = 1, "one sparse solve"
+    elif kind in ("fair_web_admm", "fair_web_pg"):
+        solver = "admm" if kind == "fair_web_admm" else "projected_gradient"
+        _, rep = qn.fair_web(m, fix="corners", cylinder_radius=0.5 * h, cylinder_height=0.2 * h, solver=solver,
+                             max_iterations=cap * 25)
+        its, note = rep.iterations, f"{'converged' if rep.converged else 'NOT converged'}, {rep.n_on_cylinder} on cylinder"
+    elif kind == "spring":
+        _, rep = qn.spring(m, max_iterations=cap)
+        its, note = rep.iterations, "converged" if rep.converged else f"cap {cap}, last move {rep.max_displacement:.1e} h"
+    elif kind == "schneider_kobbelt":
+        _, rep = qn.schneider_kobbelt(m, max_iterations=cap)
+        its, note = rep.iterations, "converged" if rep.converged else f"cap {cap}, last move {rep.max_displacement:.1e} h"
+    elif kind == "curvature":
+        qn.curvature(m)
+        its, note = 1, ""
+    elif kind == "fourier":
+        _, rep = qn.fourier(m, keep=3)
+        its, note = 1, f"{rep.closed_lines} closed lines"
+    else:
+        raise SystemExit(f"unknown row {kind!r}")
+    wall = time.perf_counter() - t
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base
+    return {"row": kind, "n": n, "wall_s": wall, "iterations": int(its), "per_iteration_s": wall / max(its, 1),
+            "peak_mb": peak, "note": note}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", nargs="+", type=int, default=[100, 300])
+    ap.add_argument("--only", nargs="+", choices=ROWS, default=list(ROWS))
+    ap.add_argument("--cap", type=int, default=200,
+                    help="iteration cap of spring and Schneider-Kobbelt (x25 for the cylinder solvers)")
+    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        print(json.dumps(run_row(args.child[0], int(args.child[1]), int(args.child[2]))))
+        return
+    print(f"{'method':<20} {'n':>5} {'to convergence':>15} {'iterations':>10} {'per iteration':>14} "
+          f"{'peak MB':>8}  note")
+    for n in args.sizes:
+        for kind in args.only:
+            out = subprocess.run([sys.executable, __file__, "--child", kind, str(n), str(args.cap)],
+                                 capture_output=True, text=True, check=True)
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            print(f"{kind:<20} {f'{n}²':>5} {r['wall_s']:>13.3f} s {r['iterations']:>10} "
+                  f"{1000 * r['per_iteration_s']:>11.2f} ms {r['peak_mb']:>8.0f}  {r['note']}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

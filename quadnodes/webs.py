@@ -1,0 +1,444 @@
+"""Fair webs (thesis 3.1.1, eq. 5–11): energy-minimizing polygon networks with tolerance cylinders.
+
+The polygon network is the mesh's structure lines (the same lines, closed ones
+wrapping, that the thesis method's windows are built from). With ``Δ`` the
+forward difference along a line (eq. 1)::
+
+    E1 = Σ_lines Σ_k ||p_{k+1} − p_k||²                 (eq. 5, every line edge once)
+    E2 = Σ_lines Σ_k ||p_{k−1} − 2 p_k + p_{k+1}||²     (eq. 6/11, every interior line vertex once)
+    Eτ = E2 + τ E1                                       (eq. 7)
+
+plus an optional closeness term ``c Σ ||p − p⁰||²`` (``c = 0`` as in eq. 11).
+All are quadratic with the same matrix for x, y and z. Fixed vertices move to
+the right-hand side. Optional **tolerance cylinders** (Fig. 3.1, option 1) keep
+every free vertex inside a cylinder centred on its input position, axis along
+the input's vertex normal, radius ``r`` (tangential) and half-height ``h``
+(normal): a convex set, so the constrained problem is a convex QP with a unique
+minimizer. It is solved as one — by ADMM (the matrix ``Q + ρI`` factorized once;
+the z-step is the exact projection onto each cylinder) or by accelerated
+projected gradient (FISTA, step ``1/L`` from a Gershgorin bound). When the
+unconstrained minimizer already lies inside every cylinder it is the answer
+(and is returned as is).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike
+from scipy.sparse.csgraph import connected_components
+from scipy.sparse.linalg import splu
+
+from . import _validate
+from .discrete_curvature import vertex_normals
+from .errors import InputError
+from .mesh import QuadMesh
+from .progress import report_progress
+from .topology import FIX_MODES, fixed_vertices
+
+__all__ = ["line_differences", "web_energy", "project_to_cylinders", "WebReport", "fair_web", "ENERGIES"]
+
+#: Energies of :func:`fair_web`.
+ENERGIES: tuple[str, ...] = ("E1", "E2", "tension")
+_SOLVERS = ("admm", "projected_gradient")
+#: ADMM over-relaxation factor α (1 = plain ADMM; 1.5-1.8 usually converges faster).
+_RELAX = 1.6
+
+
+def line_differences(mesh: QuadMesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """First and second difference matrices of all structure lines.
+
+    Returns
+    -------
+    D1 : (e, n) csr_matrix
+        One row ``p_{k+1} − p_k`` per line edge (closed lines wrap).
+    D2 : (t, n) csr_matrix
+        One row ``p_{k−1} − 2 p_k + p_{k+1}`` per interior line vertex (every
+        vertex of a closed line).
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> D1, D2 = line_differences(grid(3, 4))
+    >>> D1.shape, D2.shape
+    ((17, 12), (10, 12))
+    """
+    lines = mesh.topology.structure_lines
+    idx, off = lines.indices, lines.offsets
+    length = np.diff(off)
+    line = np.repeat(np.arange(len(length)), length)
+    q = np.arange(idx.size) - off[line]
+    L = length[line]
+    closed = lines.closed[line]
+    nxt = off[line] + np.where(closed, (q + 1) % L, np.minimum(q + 1, L - 1))
+    prv = off[line] + np.where(closed, (q - 1) % L, np.maximum(q - 1, 0))
+    n = mesh.n_vertices
+    e = np.flatnonzero(closed | (q < L - 1))
+    D1 = sp.csr_matrix(
+        (np.tile([-1.0, 1.0], e.size), (np.repeat(np.arange(e.size), 2), np.column_stack([idx[e], idx[nxt[e]]]).ravel())),
+        shape=(e.size, n),
+    )
+    t = np.flatnonzero((closed & (L >= 3)) | ((q > 0) & (q < L - 1)))
+    D2 = sp.csr_matrix(
+        (np.tile([1.0, -2.0, 1.0], t.size),
+         (np.repeat(np.arange(t.size), 3), np.column_stack([idx[prv[t]], idx[t], idx[nxt[t]]]).ravel())),
+        shape=(t.size, n),
+    )
+    return D1, D2
+
+
+def _quadratic(D1: sp.csr_matrix, D2: sp.csr_matrix, energy: str, tension: float) -> sp.csr_matrix:
+    if energy == "E1":
+        return (D1.T @ D1).tocsr()
+    Q = D2.T @ D2
+    if energy == "tension" and tension > 0:
+        Q = Q + tension * (D1.T @ D1)
+    return Q.tocsr()
+
+
+def web_energy(mesh: QuadMesh, *, vertices: np.ndarray | None = None) -> dict[str, float]:
+    """``E1`` and ``E2`` of the structure-line network (eq. 5, 6) at ``vertices`` (default: the mesh's).
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> web_energy(grid(3, 3))
+    {'E1': 12.0, 'E2': 0.0}
+    """
+    x = mesh.vertices if vertices is None else vertices
+    D1, D2 = line_differences(mesh)
+    a, b = D1 @ x, D2 @ x
+    return {"E1": float(np.einsum("ij,ij->", a, a)), "E2": float(np.einsum("ij,ij->", b, b))}
+
+
+def project_to_cylinders(points: np.ndarray, centres: np.ndarray, axes: np.ndarray, radius: np.ndarray,
+                         height: np.ndarray) -> np.ndarray:
+    """Exact Euclidean projection of every point onto its tolerance cylinder.
+
+    The cylinder of point ``i`` is ``{c + a n + t : |a| <= h, t ⊥ n, |t| <= r}``;
+    its projection clips the axial part to ``[−h, h]`` and the radial part to
+    ``r`` independently (the set is a product in orthogonal coordinates).
+
+    Parameters
+    ----------
+    points, centres, axes : (k, 3) float64
+        ``axes`` are unit vectors.
+    radius, height : (k,) float64
+        Radius and half-height (``inf`` for no bound).
+
+    Returns
+    -------
+    (k, 3) float64
+
+    Examples
+    --------
+    >>> project_to_cylinders(np.array([[3.0, 0, 5]]), np.zeros((1, 3)), np.array([[0, 0, 1.0]]),
+    ...                      np.array([1.0]), np.array([2.0])).tolist()
+    [[1.0, 0.0, 2.0]]
+    """
+    d = points - centres
+    a = np.einsum("ij,ij->i", d, axes)
+    t = d - a[:, None] * axes
+    tl = np.sqrt(np.einsum("ij,ij->i", t, t))
+    s = np.divide(radius, tl, out=np.ones_like(tl), where=tl > radius)
+    ac = np.clip(a, -height, height)
+    inside = (tl <= radius) & (np.abs(a) <= height)  # returned exactly as given
+    return np.where(inside[:, None], points, centres + ac[:, None] * axes + s[:, None] * t)
+
+
+def _lengths(value: Any, n: int, unit: str, name: str) -> np.ndarray:
+    """A cylinder size: None (unbounded), a number or a length text (one for all), or an (n,) array."""
+    if value is None:
+        return np.full(n, np.inf)
+    if isinstance(value, (str, int, float)) and not isinstance(value, bool):
+        from .units import parse_length
+
+        v = parse_length(value, unit, name)
+        if v < 0:
+            raise InputError(f"{name}: must be >= 0, got {value!r}")
+        return np.full(n, v)
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, a length such as '2 mm' or {n} numbers, got {value!r}") from None
+    if a.shape == ():
+        a = np.full(n, float(a))  # a NumPy scalar
+    if a.shape != (n,):
+        raise InputError(f"{name}: expected one number or an array of shape ({n},), got shape {a.shape}")
+    bad = np.flatnonzero(np.isnan(a) | (a < 0))
+    if bad.size:
+        raise InputError(f"{name}: must be >= 0 (inf for no bound), got {a[bad[0]]!r} at vertex {int(bad[0])}")
+    return a
+
+
+@dataclass(frozen=True)
+class WebReport:
+    """What :func:`fair_web` did.
+
+    Energies are ``E2 + τ E1 + c Σ||p − p⁰||²`` as minimized (``energy_input`` at
+    the input, ``energy_unconstrained`` at the unconstrained minimizer — None
+    when that is not unique — and ``energy`` at the result), plus ``E1``/``E2`` of
+    the result. ``n_on_cylinder``: free vertices on their cylinder's surface
+    (active constraints); ``max_outside``: the largest distance of a vertex
+    outside its cylinder (0 up to rounding).
+    """
+
+    energy_kind: str
+    tension: float
+    closeness: float
+    solver: str
+    fix: str
+    n_fixed: int
+    n_free: int
+    iterations: int
+    converged: bool
+    energy_input: float
+    energy_unconstrained: float | None
+    energy: float
+    E1: float
+    E2: float
+    cylinders: bool
+    n_on_cylinder: int
+    max_outside: float
+    seconds: float
+
+    def to_dict(self) -> dict:
+        """Plain-Python form (JSON-ready)."""
+        return asdict(self)
+
+
+def fair_web(
+    mesh: QuadMesh,
+    *,
+    energy: Literal["E1", "E2", "tension"] = "E2",
+    tension: float = 1.0,
+    closeness: float = 0.0,
+    cylinder_radius: Any = None,
+    cylinder_height: Any = None,
+    fix: Literal["none", "corners", "boundary"] = "boundary",
+    fixed: ArrayLike | None = None,
+    solver: Literal["admm", "projected_gradient"] = "admm",
+    max_iterations: int = 5000,
+    tolerance: float = 1e-5,
+    rho: float | None = None,
+) -> tuple[QuadMesh, WebReport]:
+    """Minimize E1, E2 or Eτ of the structure-line network (thesis 3.1.1), optionally inside tolerance cylinders.
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+    energy : {"E1", "E2", "tension"}
+        ``E1`` (eq. 5, membrane), ``E2`` (eq. 6/11, the linearized bending energy
+        the thesis's network energy eq. 11 uses) or ``Eτ = E2 + τ E1`` (eq. 7).
+    tension : float
+        ``τ >= 0`` for ``energy="tension"``.
+    closeness : float
+        ``c >= 0``: adds ``c Σ ||p − p⁰||²`` (0 as in eq. 11). Dimensionless like
+        ``τ`` (both multiply squared lengths), so the result scales with the mesh.
+    cylinder_radius, cylinder_height : number, length text, (n,) array or None
+        Tolerance cylinders (hard constraints): radius across and half-height
+        along the input's vertex normal (mean of the adjoining faces' normals),
+        in the mesh's unit (text such as ``"20 mm"`` is converted). ``None`` (the
+        default) leaves that direction unbounded; both None: no cylinders.
+    fix : {"none", "corners", "boundary"}
+        Vertices held in place (:func:`quadnodes.topology.fixed_vertices`); the
+        default keeps the boundary, as fair webs constrained by their border.
+    fixed : (n,) bool or int indices, optional
+        More vertices to hold.
+    solver : {"admm", "projected_gradient"}
+        For the constrained problem (see the module docstring).
+    max_iterations : int
+        Cap on ADMM / projected-gradient iterations.
+    tolerance : float
+        Stop when the iterates change by less than ``tolerance`` mean edge lengths
+        (ADMM: primal and dual residuals). The default 1e-5 h is 0.01 mm on a
+        1 m panel edge; the energy is then within about 1e-5 of its minimum.
+    rho : float, optional
+        A fixed ADMM penalty (default: adaptive, see ``_admm``).
+
+    Returns
+    -------
+    mesh : QuadMesh
+    report : WebReport
+
+    Raises
+    ------
+    InputError
+        On a bad option; when the minimizer is not unique (no vertex of some part
+        of the network is fixed, ``closeness`` is 0 and there are no cylinders).
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> z = np.zeros((5, 5)); z[2, 2] = 1.0
+    >>> out, rep = fair_web(grid(5, 5, height=z), cylinder_height=0.5)
+    >>> round(float(out.vertices[12, 2]), 3), rep.n_on_cylinder
+    (0.5, 1)
+    """
+    t0 = time.perf_counter()
+    _validate.quad_mesh(mesh)
+    energy = _validate.choice(energy, ENERGIES, "energy")  # type: ignore[assignment]
+    solver = _validate.choice(solver, _SOLVERS, "solver")  # type: ignore[assignment]
+    fix = _validate.choice(fix, FIX_MODES, "fix")  # type: ignore[assignment]
+    tau = _validate.nonnegative_number(tension, "tension")
+    c = _validate.nonnegative_number(closeness, "closeness")
+    max_iterations = _validate.positive_int(max_iterations, "max_iterations")
+    tol = _validate.positive_number(tolerance, "tolerance")
+    n = mesh.n_vertices
+    hold = fixed_vertices(mesh, fix, fixed)
+    radius = _lengths(cylinder_radius, n, mesh.unit, "cylinder_radius")
+    height = _lengths(cylinder_height, n, mesh.unit, "cylinder_height")
+    has_cyl = bool(np.isfinite(radius[~hold]).any() or np.isfinite(height[~hold]).any())
+    x0 = mesh.vertices
+    hlen = mesh.mean_edge_length
+    D1, D2 = line_differences(mesh)
+    Q = _quadratic(D1, D2, energy, tau)
+    if c > 0:
+        Q = (Q + c * sp.identity(n, format="csr")).tocsr()
+    free = np.flatnonzero(~hold)
+
+    def total(x: np.ndarray) -> float:
+        # xᵀQx holds c·|x|²; completing the square gives c·|x − x⁰|²
+        value = np.einsum("ij,ij->", x, Q @ x)
+        if c > 0:
+            value += c * (np.einsum("ij,ij->", x0, x0) - 2 * np.einsum("ij,ij->", x0, x))
+        return float(value)
+
+    e_in = total(x0)
+    if free.size == 0:
+        raise InputError(f"fix: every vertex is fixed (fix={fix!r}); nothing can move")
+    P = Q[free][:, free].tocsc()
+    b = c * x0[free] - Q[free][:, hold] @ x0[hold]
+    # unique minimizer without cylinders? every part of the network needs an anchor
+    unique = c > 0 or _anchored(Q, hold)
+    if not unique and not has_cyl:
+        raise InputError(
+            "fix: some part of the structure-line network has no fixed vertex, so its energy has no unique "
+            "minimum; fix vertices (fix='boundary' or 'corners', or fixed=...), give closeness > 0 or "
+            "tolerance cylinders"
+        )
+    x_unc = None
+    iterations = 0
+    converged = True
+    if unique:
+        try:
+            x_unc = splu(P, permc_spec="MMD_AT_PLUS_A").solve(b)
+            res = np.abs(P @ x_unc - b).max() / max(np.abs(b).max(), np.abs(P).max() * hlen, 1e-300)
+        except RuntimeError:  # "Factor is exactly singular"
+            x_unc, res = None, np.inf
+        if x_unc is None or not np.isfinite(x_unc).all() or res > 1e-6:
+            raise InputError("fix: the energy has no unique minimum with these fixed vertices (e.g. E2 with a "
+                             "single fixed vertex per line); fix more vertices or give closeness > 0")
+    cen, ax = x0[free], vertex_normals(x0, mesh.faces)[free]
+    r_f, h_f = radius[free], height[free]
+    x_free = x_unc
+    if has_cyl:
+        inside = x_unc is not None and np.array_equal(project_to_cylinders(x_unc, cen, ax, r_f, h_f), x_unc)
+        if not inside:
+            start = cen if x_unc is None else project_to_cylinders(x_unc, cen, ax, r_f, h_f)
+            if solver == "admm":
+                x_free, iterations, converged = _admm(P, b, start, cen, ax, r_f, h_f, tol * hlen, max_iterations,
+                                                      rho)
+            else:
+                x_free, iterations, converged = _fista(P, b, start, cen, ax, r_f, h_f, tol * hlen, max_iterations)
+    x = x0.copy()
+    x[free] = x_free
+    out = mesh.with_vertices(x)
+    e_unc = None
+    if x_unc is not None:
+        xu = x0.copy()
+        xu[free] = x_unc
+        e_unc = total(xu)
+    we = web_energy(mesh, vertices=x)
+    on = 0
+    outside = 0.0
+    if has_cyl:
+        proj = project_to_cylinders(x_free, cen, ax, r_f, h_f)
+        outside = float(np.linalg.norm(x_free - proj, axis=1).max())
+        d = x_free - cen
+        a = np.abs(np.einsum("ij,ij->i", d, ax))
+        rad = np.linalg.norm(d - np.einsum("ij,ij->i", d, ax)[:, None] * ax, axis=1)
+        eps = 1e-9 * hlen
+        on = int(((a >= h_f - eps) | (rad >= r_f - eps)).sum())
+    report_progress(1.0, f"fair web: {iterations} iterations")
+    rep = WebReport(energy, tau, c, solver if has_cyl and iterations else "direct", fix, int(hold.sum()),
+                    int(free.size), iterations, bool(converged), e_in, e_unc, total(x), we["E1"], we["E2"],
+                    has_cyl, on, outside, time.perf_counter() - t0)
+    return out, rep
+
+
+def _anchored(Q: sp.csr_matrix, hold: np.ndarray) -> bool:
+    """Whether every connected part of the network holds at least one fixed vertex."""
+    ncomp, label = connected_components(Q, directed=False)
+    has = np.zeros(ncomp, dtype=bool)
+    has[label[hold]] = True
+    return bool(has.all())
+
+
+def _admm(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, ax: np.ndarray, r: np.ndarray,
+          h: np.ndarray, tol: float, max_it: int, rho: float | None) -> tuple[np.ndarray, int, bool]:
+    """min xᵀPx − 2bᵀx s.t. x in the cylinders: x-step (P + ρI)x = b + ρ(z − u), z-step a projection.
+
+    Without a given ``rho`` it starts at 1/60 of the mean diagonal of ``P`` and is
+    rebalanced (Boyd et al. §3.4.1: doubled or halved when the primal and dual
+    residuals differ tenfold, checked every 100 iterations, at most 12 times; each
+    change refactorizes ``P + ρI``).
+    """
+    k = P.shape[0]
+    adaptive = rho is None
+    rho_ = float(P.diagonal().mean()) / 60.0 if adaptive else _validate.positive_number(rho, "rho")
+    eye = sp.identity(k, format="csc")
+
+    def factor(value: float) -> Any:
+        return splu((P + value * eye).tocsc(), permc_spec="MMD_AT_PLUS_A")
+
+    lu = factor(rho_)
+    changes = 0
+    z = start.copy()
+    u = np.zeros_like(z)
+    for it in range(1, max_it + 1):
+        x = lu.solve(b + rho_ * (z - u))
+        z_old = z
+        xr = _RELAX * x + (1.0 - _RELAX) * z  # over-relaxation (Boyd et al. §3.4.3)
+        z = project_to_cylinders(xr + u, cen, ax, r, h)
+        u += xr - z
+        primal = np.abs(x - z).max()
+        change = np.abs(z - z_old).max()
+        if primal < tol and change < tol:
+            return z, it, True
+        if adaptive and it % 100 == 0 and changes < 12:
+            dual = rho_ * change
+            scale = 2.0 if primal > 10 * dual else (0.5 if dual > 10 * primal else 1.0)
+            if scale != 1.0:
+                rho_ *= scale
+                u /= scale  # the scaled dual variable follows ρ
+                lu = factor(rho_)
+                changes += 1
+        if it % 50 == 0:
+            report_progress(it / max_it, f"ADMM iteration {it}: residuals {primal:.2e}, {change:.2e}")
+    return z, max_it, False
+
+
+def _fista(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, ax: np.ndarray, r: np.ndarray,
+           h: np.ndarray, tol: float, max_it: int) -> tuple[np.ndarray, int, bool]:
+    """Accelerated projected gradient on xᵀPx − 2bᵀx (gradient 2(Px − b)), step 1/L, L >= 2 λmax(P)."""
+    P = P.tocsr()
+    lip = 2.0 * float(np.abs(P).sum(axis=1).max())  # Gershgorin bound on 2 λmax
+    x = start.copy()
+    y = x.copy()
+    t = 1.0
+    for it in range(1, max_it + 1):
+        x_new = project_to_cylinders(y - (2.0 / lip) * (P @ y - b), cen, ax, r, h)
+        step = np.abs(x_new - x).max()
+        t_new = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
+        y = x_new + ((t - 1) / t_new) * (x_new - x)
+        x, t = x_new, t_new
+        if step < tol:
+            return x, it, True
+        if it % 200 == 0:
+            report_progress(it / max_it, f"projected gradient iteration {it}: step {step:.2e}")
+    return x, max_it, False

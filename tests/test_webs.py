@@ -1,0 +1,193 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from quadnodes.errors import InputError
+from quadnodes.mesh import cylinder, grid
+from quadnodes.noise import perturb
+from quadnodes.topology import fixed_vertices
+from quadnodes.webs import fair_web, line_differences, project_to_cylinders, web_energy
+from meshes import extraordinary_mesh, l_shape_with_hole
+from strategies import grids, irregular
+
+
+def dense_energy_matrix(mesh, energy, tension, closeness):
+    """Q built line by line in plain Python (independent of line_differences)."""
+    n = mesh.n_vertices
+    Q = np.zeros((n, n))
+    for line, closed in zip(mesh.topology.structure_lines, mesh.topology.structure_lines.closed):
+        line = list(line)
+        L = len(line)
+        pairs = [(line[k], line[(k + 1) % L]) for k in range(L if closed else L - 1)]
+        triples = [(line[k - 1], line[k], line[(k + 1) % L]) for k in (range(L) if closed else range(1, L - 1))]
+        w1 = 1.0 if energy == "E1" else (tension if energy == "tension" else 0.0)
+        for a, b in pairs:
+            row = np.zeros(n)
+            row[a] -= 1
+            row[b] += 1
+            Q += w1 * np.outer(row, row)
+        if energy != "E1":
+            for a, b, c in triples:
+                row = np.zeros(n)
+                row[a] += 1
+                row[b] -= 2
+                row[c] += 1
+                Q += np.outer(row, row)
+    return Q + closeness * np.eye(n)
+
+
+def direct(mesh, Q, hold, closeness):
+    x0 = mesh.vertices
+    f = np.flatnonzero(~hold)
+    b = closeness * x0[f] - Q[np.ix_(f, np.flatnonzero(hold))] @ x0[hold]
+    x = x0.copy()
+    x[f] = np.linalg.solve(Q[np.ix_(f, f)], b)
+    return x
+
+
+@pytest.mark.parametrize("energy,tension,closeness", [("E1", 0.0, 0.0), ("E2", 0.0, 0.0), ("tension", 0.5, 0.0),
+                                                      ("E2", 0.0, 0.3)])
+@pytest.mark.parametrize("make", [lambda: perturb(grid(6, 7), tangential=0.2, normal=0.2, seed=1)[0],
+                                  lambda: perturb(extraordinary_mesh(), normal=0.1, seed=2)[0],
+                                  lambda: perturb(l_shape_with_hole(), normal=0.1, seed=3)[0]])
+def test_without_cylinders_equals_direct_solve_of_normal_equations(make, energy, tension, closeness):
+    m = make()
+    out, rep = fair_web(m, energy=energy, tension=tension, closeness=closeness, fix="boundary")
+    hold = fixed_vertices(m, "boundary")
+    ref = direct(m, dense_energy_matrix(m, energy, tension, closeness), hold, closeness)
+    np.testing.assert_allclose(out.vertices, ref, atol=1e-9 * m.mean_edge_length)
+    assert rep.iterations == 0 and rep.energy <= rep.energy_input + 1e-9
+    assert rep.n_fixed == int(hold.sum()) and rep.to_dict()["energy_kind"] == energy
+
+
+def test_closed_lines_wrap():
+    c = cylinder(4, 10)
+    D1, D2 = line_differences(c)
+    assert D1.shape[0] == len(c.topology.edges)
+    assert D2.shape[0] == 4 * 10 + 10 * 2  # every ring vertex, plus the middle two of every axial line
+    v = c.vertices.copy()
+    v[:, :2] *= 1 + 0.05 * (-1) ** np.arange(40)[:, None]
+    noisy = c.with_vertices(v)
+    out, rep = fair_web(noisy, fix="none", closeness=0.05)
+    ref = direct(noisy, dense_energy_matrix(noisy, "E2", 0, 0.05), np.zeros(40, bool), 0.05)
+    np.testing.assert_allclose(out.vertices, ref, atol=1e-10)
+    assert web_energy(out)["E2"] < web_energy(noisy)["E2"]
+
+
+def test_huge_cylinders_give_the_unconstrained_minimizer():
+    m, _ = perturb(grid(8, 8), tangential=0.2, normal=0.3, seed=4)
+    free, _ = fair_web(m)
+    big, rep = fair_web(m, cylinder_radius=1e9, cylinder_height=1e9)
+    np.testing.assert_array_equal(big.vertices, free.vertices)
+    assert rep.cylinders and rep.n_on_cylinder == 0
+
+
+@pytest.mark.parametrize("solver", ["admm", "projected_gradient"])
+@pytest.mark.parametrize("energy", ["E1", "E2", "tension"])
+def test_small_cylinders_hold_every_vertex_and_beat_clipping(solver, energy):
+    m, _ = perturb(grid(9, 10, height=np.outer(np.linspace(0, 1, 9), np.linspace(0, 2, 10)) ** 2),
+                tangential=0.25, normal=0.2, seed=5)
+    h = m.mean_edge_length
+    r = np.full(m.n_vertices, 0.15 * h)
+    r[::3] = 0.05 * h  # per-vertex sizes
+    out, rep = fair_web(m, energy=energy, cylinder_radius=r, cylinder_height=0.1 * h, solver=solver,
+                        tolerance=1e-9, max_iterations=20000)
+    assert rep.converged
+    from quadnodes.discrete_curvature import vertex_normals
+
+    axes = vertex_normals(m.vertices, m.faces)
+    inside = project_to_cylinders(out.vertices, m.vertices, axes, r, np.full(m.n_vertices, 0.1 * h))
+    assert np.abs(inside - out.vertices).max() <= 1e-12 * h * 100
+    assert rep.max_outside <= 1e-9 * h and rep.n_on_cylinder > 0
+    # the clipped unconstrained solution is feasible too, and worse
+    unc, _ = fair_web(m, energy=energy)
+    clipped = project_to_cylinders(unc.vertices, m.vertices, axes, r, np.full(m.n_vertices, 0.1 * h))
+
+    def energy_at(x):
+        e = web_energy(m, vertices=x)
+        return e["E1"] if energy == "E1" else e["E2"] + (rep.tension * e["E1"] if energy == "tension" else 0)
+    assert energy_at(out.vertices) < energy_at(clipped)
+    assert abs(energy_at(out.vertices) - rep.energy) <= 1e-9 * max(rep.energy, 1.0)
+    assert rep.energy_unconstrained <= rep.energy <= rep.energy_input
+
+
+def test_solvers_agree():
+    m, _ = perturb(grid(8, 9), tangential=0.25, normal=0.25, seed=8)
+    a, ra = fair_web(m, cylinder_height=0.05, cylinder_radius=0.1, solver="admm", tolerance=1e-10,
+                     max_iterations=50000)
+    b, rb = fair_web(m, cylinder_height=0.05, cylinder_radius=0.1, solver="projected_gradient", tolerance=1e-10,
+                     max_iterations=50000)
+    assert abs(ra.energy - rb.energy) <= 1e-6 * ra.energy
+    np.testing.assert_allclose(a.vertices, b.vertices, atol=1e-4)
+
+
+def test_flat_grid_stays_flat():
+    m, _ = perturb(grid(7, 9), tangential=0.3, seed=2)
+    assert np.all(m.vertices[:, 2] == 0)
+    for kw in ({}, {"energy": "E1"}, {"cylinder_radius": 0.1, "cylinder_height": 0.1}):
+        out, _ = fair_web(m, **kw)
+        assert np.abs(out.vertices[:, 2]).max() < 1e-12
+
+
+@settings(max_examples=20)
+@given(st.integers(5, 12), st.integers(0, 2**31 - 1))
+def test_straight_lines_stay_straight(n, seed):
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=3)
+    d /= np.linalg.norm(d)
+    s = np.sort(rng.uniform(0, n, n))
+    s[0], s[-1] = 0.0, float(n)
+    s = np.sort(s + np.arange(n))  # distinct, uneven stations along the line
+    side = np.cross(d, [0.3, 0.5, 0.8])
+    side /= np.linalg.norm(side)
+    v = np.vstack([s[:, None] * d, s[:, None] * d + side])
+    m = grid(2, n).with_vertices(v)
+    out, _ = fair_web(m, fix="corners")
+    for row in (out.vertices[:n], out.vertices[n:]):
+        rel = row - row[0]
+        off = rel - np.outer(rel @ d, d)
+        assert np.abs(off).max() < 1e-9 * n
+
+
+@given(grids(), st.floats(0.2, 50.0), st.lists(st.floats(-100, 100), min_size=3, max_size=3))
+def test_translation_and_scale_equivariance(m, s, t):
+    h = m.mean_edge_length
+    kw = dict(energy="tension", tension=0.3, cylinder_radius=0.2 * h, cylinder_height=0.1 * h, tolerance=1e-10,
+              max_iterations=20000)
+    out, _ = fair_web(m, **kw)
+    moved, _ = fair_web(m.with_vertices(m.vertices + np.array(t)), **kw)
+    np.testing.assert_allclose(moved.vertices - np.array(t), out.vertices, atol=1e-6 * (1 + np.abs(t).max()))
+    kw_s = {**kw, "cylinder_radius": 0.2 * h * s, "cylinder_height": 0.1 * h * s}
+    scaled, _ = fair_web(m.with_vertices(m.vertices * s), **kw_s)
+    np.testing.assert_allclose(scaled.vertices / s, out.vertices, atol=1e-6)
+
+
+@given(irregular())
+@settings(max_examples=8)
+def test_any_mesh_fixed_vertices_stay(m):
+    out, rep = fair_web(m, fix="boundary", cylinder_height=0.05)
+    b = m.topology.boundary_vertices
+    assert np.array_equal(out.vertices[b], m.vertices[b])
+    assert np.isfinite(out.vertices).all() and rep.max_outside < 1e-9
+
+
+def test_lengths_as_text_and_errors():
+    m, _ = perturb(grid(6, 6, spacing=100.0), normal=0.3, seed=1)
+    a, _ = fair_web(m, cylinder_height="0.01 m")
+    b, _ = fair_web(m, cylinder_height=10.0)
+    c, _ = fair_web(m, cylinder_height=np.float32(10.0))
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(c.vertices, b.vertices)
+    with pytest.raises(InputError, match="no unique minimum"):
+        fair_web(m, fix="none")
+    with pytest.raises(InputError, match="energy"):
+        fair_web(m, energy="e2")
+    with pytest.raises(InputError, match=r"cylinder_radius: expected one number or an array of shape \(36,\)"):
+        fair_web(m, cylinder_radius=np.ones(5))
+    with pytest.raises(InputError, match="cylinder_height: must be >= 0"):
+        fair_web(m, cylinder_height=-1.0)
+    with pytest.raises(InputError, match="no unique minimum"):  # lines of the valence-5 star with one fixed end
+        fair_web(extraordinary_mesh(1))
+    with pytest.raises(InputError, match="every vertex is fixed"):
+        fair_web(m, fixed=np.ones(36, bool))
