@@ -35,6 +35,7 @@ from .planarization import planarize as _planarize
 from .flatness import summary as _summary
 from .zigzag import ZigzagReport
 from .zigzag import detect as _detect
+from .topology import corner_vertices as _corner_vertices
 
 Face = Any  # a build123d Face; build123d is imported lazily by quadnodes.surfaces
 FixMode = Literal["none", "corners", "boundary"]
@@ -112,11 +113,13 @@ def grid(*, rows: int = 10, cols: int = 10, spacing: float = 1.0) -> QuadMesh:
 
 
 @node("read_mesh", outputs=("mesh",), reads=("path",))
-def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "error") -> QuadMesh:
-    """Read a quad mesh from OBJ (quads kept) or quadnodes JSON, by extension."""
+def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "error",
+              renumber_grid: bool = True) -> QuadMesh:
+    """Read a quad mesh from OBJ (quads kept) or quadnodes JSON, by extension; a grid whose faces
+    come in any order is renumbered row by row (``renumber_grid``, see topology.as_grid)."""
     if Path(path).suffix.lower() == ".obj":
-        return _io.load_obj(path, non_quads=non_quads)
-    return _io.load(path)
+        return _io.load(path, file_type="obj", renumber_grid=renumber_grid, non_quads=non_quads)
+    return _io.load(path, renumber_grid=renumber_grid)
 
 
 # --- processing --------------------------------------------------------------------
@@ -153,7 +156,7 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
     n = mesh.n_vertices
     mask = np.zeros(n, dtype=bool)
     if corners:
-        mask |= mesh.topology.corner_vertices
+        mask |= _corner_vertices(mesh)
     if boundary:
         mask |= mesh.topology.boundary_vertices
     if indices:
