@@ -139,9 +139,11 @@ def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray 
 @node("detect", outputs=("report", "free"))
 @_validate.renamed(fix_boundary="fix = \"boundary\"")
 def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float = 0.1,
-           fix: FixMode = "corners") -> tuple[ZigzagReport, np.ndarray]:
-    """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask."""
-    rep = _detect(mesh, threshold, fix=fix, fixed=fixed)
+           fix: FixMode = "corners",
+           detection: Literal["alternating", "thesis"] = "alternating") -> tuple[ZigzagReport, np.ndarray]:
+    """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask;
+    ``detection`` "thesis" is eq. 30, "alternating" leaves steady bends alone."""
+    rep = _detect(mesh, threshold, fix=fix, fixed=fixed, detection=detection)
     return rep, rep.free
 
 
@@ -186,12 +188,16 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          weight_scale: Literal["normalized", "raw"] = "normalized",
          anchor: Literal["current", "input"] = "current",
          fix: FixMode = "corners",
-         solver: Literal["auto", "direct", "cg"] = "auto") -> tuple[QuadMesh, FairingReport]:
+         solver: Literal["auto", "direct", "cg"] = "auto",
+         extraordinary: Literal["fair", "hold"] = "fair",
+         detection: Literal["alternating", "thesis"] = "alternating") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
-    with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it."""
+    with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it;
+    ``extraordinary="hold"`` and ``detection="thesis"`` give the thesis's method exactly."""
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
-                 fix=fix, fixed=fixed, solver=solver, reference=reference)
+                 fix=fix, fixed=fixed, solver=solver, reference=reference, extraordinary=extraordinary,
+                 detection=detection)
 
 
 @node("planarize", outputs=("mesh", "report"))
