@@ -1235,7 +1235,7 @@ def fair(
             ring_free[xv[free[xn]]] = True
             free = free | (ring_free & ~held)
             x_geom = _window_geometry(x, xw)
-            e_before += float(x_geom[0].sum())
+            e_before += EXTRAORDINARY_SCALE**2 * float(x_geom[0].sum())  # the rows are scaled by s
         if not free.any():
             reports.append(
                 IterationReport(it, float(thresholds[it]), float(weights[it]), float(weights[it] * scale),
@@ -1249,7 +1249,7 @@ def fair(
         if xw.size:
             system = FairingSystem(x, np.concatenate([w, xw]), free, w_eff, solver=solver,
                                    _inverse_lengths=np.concatenate([geometry[1], EXTRAORDINARY_SCALE * x_geom[1]]))
-            all_dev = np.concatenate([zz.window_deviation, x_geom[0]])
+            all_dev = np.concatenate([zz.window_deviation, EXTRAORDINARY_SCALE**2 * x_geom[0]])
         else:
             system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=geometry[1],
                                    _topology=topo)

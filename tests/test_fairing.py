@@ -83,6 +83,13 @@ def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight):
     # against the input's own (exact, eq. 30) energy with lengths frozen at the input
     w = mesh.topology.windows
     e_in = fairing_energy(mesh.vertices, w)
+    if mesh.topology.extraordinary.any():  # the energy also holds the pseudo-windows' rows (scaled by s)
+        from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
+
+        xw = extraordinary_windows(mesh.vertices, mesh.topology)
+        assert rep.iterations[0].energy_before == pytest.approx(
+            e_in + EXTRAORDINARY_SCALE**2 * fairing_energy(mesh.vertices, xw))
+        out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, extraordinary="hold")
     assert rep.iterations[0].energy_before == pytest.approx(e_in)
     assert fairing_energy(out.vertices, w, lengths_from=mesh.vertices) <= e_in * (1 + 1e-9) + 1e-15 or len(rep.iterations) > 1
 
@@ -235,8 +242,14 @@ def test_reported_energies_equal_direct_evaluation(mesh):
     out, rep = fair(mesh, iterations=1, threshold=0.0)
     r = rep.iterations[0]
     w = mesh.topology.windows
-    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w), rel=1e-9, abs=1e-12)
-    assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices),
+    from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
+
+    xw = extraordinary_windows(mesh.vertices, mesh.topology)  # empty without extraordinary vertices
+    s2 = EXTRAORDINARY_SCALE**2
+    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w) + s2 * fairing_energy(mesh.vertices, xw),
+                                            rel=1e-9, abs=1e-12)
+    assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices)
+                                           + s2 * fairing_energy(out.vertices, xw, lengths_from=mesh.vertices),
                                            rel=1e-8, abs=1e-10)
 
 
