@@ -203,11 +203,12 @@ class ZigzagReport:
         Vertices held in place: on no window's middle, user-fixed, or boundary
         when asked.
     free : (n,) bool
-        ``(vertex_deviation > threshold) & ~fixed`` — the zigzag vertices to fair.
+        The measure of ``detection`` above ``threshold``, and not ``fixed`` — the zigzag vertices to fair.
     detection : {"alternating", "thesis"}
-        The measure compared with ``threshold``: ``vertex_deviation`` is the
-        per-vertex maximum of eq. 30 (``"thesis"``) or of
-        :func:`window_alternation` (``"alternating"``).
+        The measure compared with ``threshold``: eq. 30 (``vertex_deviation``,
+        ``"thesis"``) or the alternating turning (``vertex_alternation``).
+    vertex_alternation : (n,) float64 or None
+        Per-vertex maximum of :func:`window_alternation` (``"alternating"`` only).
     """
 
     threshold: float
@@ -218,6 +219,7 @@ class ZigzagReport:
     free: np.ndarray
     fix: str = "corners"
     detection: str = "thesis"
+    vertex_alternation: np.ndarray | None = None
 
     @property
     def n_free(self) -> int:
@@ -309,10 +311,11 @@ def _detect(mesh: QuadMesh, threshold: float, held: np.ndarray, wd: np.ndarray, 
     n = mesh.n_vertices
     topo = mesh.topology
     w = topo.windows
-    vd = vertex_deviation(wd if alternation is None else alternation, w, n)
+    vd = vertex_deviation(wd, w, n)
+    va = None if alternation is None else vertex_deviation(alternation, w, n)
     fixed = held | ~topo.window_middle
-    free = (vd > threshold) & ~fixed
-    for a in (wd, vd, fixed, free):
+    free = ((vd if va is None else va) > threshold) & ~fixed
+    for a in (wd, vd, fixed, free) + (() if va is None else (va,)):
         a.setflags(write=False)
     return ZigzagReport(float(threshold), w, wd, vd, fixed, free, fix,
-                        "thesis" if alternation is None else "alternating")
+                        "thesis" if alternation is None else "alternating", va)

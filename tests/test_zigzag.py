@@ -104,6 +104,9 @@ def test_thesis_detection_is_eq30_and_alternating_leaves_a_bend_alone():
     th = detect(m, 0.1, detection="thesis")
     assert th.n_free > 0 and th.detection == "thesis"
     np.testing.assert_array_equal(th.vertex_deviation, vertex_deviation(window_deviation(m.vertices, th.windows), th.windows, m.n_vertices))
-    assert detect(m, 0.1).n_free == 0 and detect(m, 0.1).to_dict()["detection"] == "alternating"
+    alt = detect(m, 0.1)
+    assert alt.n_free == 0 and alt.to_dict()["detection"] == "alternating"
+    np.testing.assert_array_equal(alt.vertex_deviation, th.vertex_deviation)  # eq. 30 either way
+    assert alt.vertex_alternation.max() <= 0.1 and th.vertex_alternation is None
     noisy, _ = perturb(m, tangential=0.2, seed=2)
     assert detect(noisy, 0.1).n_free > 0.5 * noisy.n_vertices - 2 * (7 + 5)
