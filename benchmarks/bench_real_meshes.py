@@ -21,7 +21,11 @@ best of its settings on that mesh and noise is shown (the setting beside it):
 
 The last columns say whether fair is the best (``zigzag``) or within 20 % of the best peer.
 
-Run:  python benchmarks/bench_real_meshes.py [--seeds 3] [--markdown]
+``--studies`` prints instead the measurements behind the defaults (``docs/fairing.md``): detection on the
+clean meshes and on E1–E4 (``quadnodes.report``'s noise and parameters, seed 7), and the pseudo-window
+scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``.
+
+Run:  python benchmarks/bench_real_meshes.py [--seeds 3] [--markdown] [--studies]
 """
 
 from __future__ import annotations
@@ -67,11 +71,72 @@ METHODS = {
 }
 
 
+def studies() -> None:
+    import sys
+
+    import quadnodes.fairing as F
+    from quadnodes.report import THESIS_EXAMPLES, _geometry
+    from quadnodes.zigzag import detect
+
+    print("clean meshes: vertices freed by detect(threshold=0.1) / largest move of fair(iterations=3) in h")
+    for name in MESHES:
+        m = load(DATA / name)
+        h = m.mean_edge_length
+        cells = []
+        for det in ("thesis", "alternating"):
+            out, _ = fair(m, iterations=3, detection=det)
+            cells.append(f"{det} {detect(m, 0.1, detection=det).n_free} / "
+                         f"{np.linalg.norm(out.vertices - m.vertices, axis=1).max() / h:.3f}")
+        print(f"  {name:22s} " + " | ".join(cells))
+    print("E1-E4 (seed 7): clean vertices freed, and mean vertex error / h after fair on the noisy model")
+    for name in ("E1", "E2", "E3", "E4"):
+        ex = THESIS_EXAMPLES[name]
+        clean, _ = _geometry(name)
+        h = clean.mean_edge_length
+        noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=7, fix="corners")
+        cells = []
+        for det in ("thesis", "alternating"):
+            out, _ = fair(noisy, **ex.fair, detection=det)
+            _, crep = fair(clean, **ex.fair, detection=det)
+            cells.append(f"{det} {sum(r.n_free for r in crep.iterations)} / "
+                         f"{np.linalg.norm(out.vertices - clean.vertices, axis=1).mean() / h:.3f}")
+        print(f"  {name} " + " | ".join(cells))
+    sys.path.insert(0, str(DATA.parent))
+    from meshes import extraordinary_mesh
+
+    m = extraordinary_mesh(3)
+    e = m.topology.extraordinary
+    h = m.mean_edge_length
+    print("pseudo-window scale s on extraordinary_mesh(3), 4 seeds, boundary held: mean error / largest at "
+          "extraordinary vertices, in h")
+    for s in (None, 1.0, 0.5, 0.25, 0.1):
+        cells = []
+        for kind, amp in (("tangential", 0.25), ("normal", 0.2), ("jitter", 0.2)):
+            res = []
+            for seed in range(4):
+                noisy, _ = perturb(m, seed=seed, fix="boundary", **{kind: amp})
+                old = F.EXTRAORDINARY_SCALE
+                F.EXTRAORDINARY_SCALE = 1.0 if s is None else s
+                try:
+                    out, _ = fair(noisy, iterations=5, extraordinary="hold" if s is None else "fair")
+                finally:
+                    F.EXTRAORDINARY_SCALE = old
+                err = np.linalg.norm(out.vertices - m.vertices, axis=1) / h
+                res.append((err.mean(), err[e].max()))
+            r = np.mean(res, axis=0)
+            cells.append(f"{kind} {r[0]:.4f} / {r[1]:.3f}")
+        print(f"  {'hold' if s is None else s!s:5s} " + " | ".join(cells))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    ap.add_argument("--studies", action="store_true", help="the measurements behind the defaults instead")
     args = ap.parse_args()
+    if args.studies:
+        studies()
+        return
     head = ["mesh", "noise", "noisy"] + list(METHODS) + ["fair vs best peer"]
     rows = []
     for name in MESHES:
