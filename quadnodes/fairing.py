@@ -44,11 +44,13 @@ from .errors import InputError
 from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
-from .zigzag import _detect, _window_geometry, window_edges
+from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _walk_alternation, _window_geometry, window_edges
 
 __all__ = [
     "DEFAULT_WEIGHT",
     "window_coefficients",
+    "extraordinary_windows",
+    "EXTRAORDINARY_MODES",
     "fairing_matrix",
     "fairing_energy",
     "FairingSystem",
@@ -111,6 +113,84 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
     """
     i0, i1, i2 = (1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows))
     return _coefficients(i0, i1, i2)
+
+
+#: Scale of the pseudo-windows' rows (:func:`extraordinary_windows`) relative to a window's (energy: its square);
+#: 0.25 measured best of 1, 0.5, 0.25, 0.1 on seeded noise (docs/fairing.md).
+EXTRAORDINARY_SCALE = 0.25
+#: The values of ``extraordinary`` in :func:`fair`.
+EXTRAORDINARY_MODES: tuple[str, ...] = ("fair", "hold")
+
+
+def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
+    """Pseudo-windows through the vertices where structure lines end inside the mesh.
+
+    At an interior vertex ``v`` of valence ``k ≠ 4`` (an extraordinary vertex) ``k``
+    lines end; no window has ``v`` as a middle point, so the thesis never moves it.
+    Each line ending at ``v`` (its last vertices ``… a2, a1, v``) is paired with the
+    line leaving ``v`` that is *most opposite* to it — the arm ``v → b1`` whose unit
+    direction has the smallest dot product with ``v → a1`` — as if the line went on
+    through ``v``: the pair gives the windows ``(a2, a1, v, b1)`` and
+    ``(a1, v, b1, b2)`` (those whose four vertices exist). Each unordered pair counts
+    once. The eq. 32 term of these windows is the structure-line energy of the
+    continued line; on a valence-6 vertex the pairs are the three straight lines.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        Positions that decide the pairing (the input of :func:`fair`).
+    topology : quadnodes.topology.Topology
+
+    Returns
+    -------
+    (w, 4) int64
+        Empty ``(0, 4)`` when the mesh has no extraordinary vertex.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> extraordinary_windows(grid(4, 4).vertices, grid(4, 4).topology).shape
+    (0, 4)
+    """
+    ext = topology.extraordinary
+    if not ext.any():
+        return np.empty((0, 4), dtype=np.int64)
+    lines = topology.structure_lines
+    ln = lines.lengths
+    first = lines.offsets[:-1]
+    last = lines.offsets[1:] - 1
+    idx = lines.indices
+    open_ = ~lines.closed & (ln >= 2)
+    arms = []  # (v, a1, a2) with a2 = -1 when the line has two vertices
+    for at_end, step in ((first, 1), (last, -1)):
+        sel = open_ & ext[idx[at_end]]
+        e = at_end[sel]
+        a2 = np.where(ln[sel] >= 3, idx[np.clip(e + 2 * step, 0, idx.size - 1)], -1)
+        arms.append(np.stack([idx[e], idx[e + step], a2], axis=1))
+    arm = np.concatenate(arms)
+    arm = arm[np.lexsort((arm[:, 1], arm[:, 0]))]
+    v = arm[:, 0]
+    d = vertices[arm[:, 1]] - vertices[v]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    # every arm against every other arm of the same vertex (valence is small)
+    starts = np.flatnonzero(np.r_[True, v[1:] != v[:-1]])
+    group = np.repeat(np.arange(starts.size), np.diff(np.r_[starts, v.size]))
+    kmax = int(np.diff(np.r_[starts, v.size]).max())
+    cand = starts[group][:, None] + np.arange(kmax)
+    valid = (cand < v.size)
+    cand = np.minimum(cand, v.size - 1)
+    valid &= (v[cand] == v[:, None]) & (cand != np.arange(v.size)[:, None])
+    dots = np.where(valid, np.einsum("ij,ikj->ik", d, d[cand]), np.inf)
+    has = valid.any(axis=1)
+    partner = cand[np.arange(v.size), np.argmin(dots, axis=1)]
+    i = np.flatnonzero(has)
+    j = partner[i]
+    pairs = np.unique(np.sort(np.stack([i, j], axis=1), axis=1), axis=0)
+    i, j = pairs[:, 0], pairs[:, 1]
+    w1 = np.stack([arm[i, 2], arm[i, 1], arm[i, 0], arm[j, 1]], axis=1)
+    w2 = np.stack([arm[i, 1], arm[i, 0], arm[j, 1], arm[j, 2]], axis=1)
+    out = np.concatenate([w1[arm[i, 2] >= 0], w2[arm[j, 2] >= 0]])
+    return out.astype(np.int64)
 
 
 def _coefficients(i0: np.ndarray, i1: np.ndarray, i2: np.ndarray) -> np.ndarray:
@@ -1019,6 +1099,8 @@ def fair(
     fix: Literal["none", "corners", "boundary"] = "corners",
     fixed: ArrayLike | None = None,
     solver: Literal["auto", "direct", "cg"] = "auto",
+    extraordinary: Literal["fair", "hold"] = "fair",
+    detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -1061,6 +1143,16 @@ def fair(
         More vertices that never move.
     solver : {"auto", "direct", "cg"}
         Linear solver, see :class:`FairingSystem`; results agree to about 1e-10.
+    extraordinary : {"fair", "hold"}
+        ``"hold"``: the thesis exactly — vertices where lines end inside the mesh
+        (extraordinary vertices) are no window's middle and never move.
+        ``"fair"`` (default): they get the pseudo-windows of
+        :func:`extraordinary_windows` in the energy, and one is freed when a
+        vertex next to it is free (see ``docs/fairing.md``). Meshes without
+        extraordinary vertices give the same result either way.
+    detection : {"alternating", "thesis"}
+        How zigzag vertices are found each iteration (:func:`quadnodes.zigzag.detect`):
+        ``"thesis"`` is eq. 30; ``"alternating"`` (default) leaves steady bends alone.
 
     Returns
     -------
@@ -1081,7 +1173,9 @@ def fair(
     >>> z = np.zeros((5, 7)); z[2, 3] = 0.5
     >>> out, rep = fair(grid(5, 7, height=z), iterations=3, threshold=0.01)
     >>> [r.n_free for r in rep.iterations], round(float(out.vertices[17, 2]), 3)
-    ([7, 0], 0.032)
+    ([5, 0], 0.032)
+    >>> [r.n_free for r in fair(grid(5, 7, height=z), iterations=3, threshold=0.01, detection="thesis")[1].iterations]
+    [7, 0]
     >>> rep.notes()
     ['iteration 2 freed no vertex', 'stopped after iteration 2 of 3: no vertex above the threshold, and no later threshold is lower']
     """
@@ -1092,8 +1186,17 @@ def fair(
     weight_scale = _validate.choice(weight_scale, ("normalized", "raw"), "weight_scale")  # type: ignore[assignment]
     anchor = _validate.choice(anchor, ("current", "input"), "anchor")  # type: ignore[assignment]
     solver = _validate.choice(solver, ("auto", "direct", "cg"), "solver")  # type: ignore[assignment]
+    extraordinary = _validate.choice(extraordinary, EXTRAORDINARY_MODES, "extraordinary")  # type: ignore[assignment]
+    detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
     held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
+    xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "fair" else np.empty((0, 4), np.int64)
+    if xw.size:
+        # an extraordinary vertex may move when a vertex of its ring is free: arms' first vertices
+        xv = xw[:, 1:3].reshape(-1)
+        mids = xw[:, 1:3][:, ::-1].reshape(-1)
+        ext_mask = topo.extraordinary[xv]
+        xv, xn = xv[ext_mask], mids[ext_mask]
     movable = topo.window_middle & ~held
     if topo.window_middle.any() and not movable.any():
         raise InputError(
@@ -1123,10 +1226,19 @@ def fair(
         current = mesh if x is x0 else mesh.with_vertices(x)
         if geometry is None:
             geometry = _window_geometry(x, w, walk)
-        zz = _detect(current, float(thresholds[it]), held, geometry[0], fix)
+        alt = _walk_alternation(x, walk) if detection == "alternating" else None
+        zz = _detect(current, float(thresholds[it]), held, geometry[0], fix, alt)
         dev_before = float(zz.window_deviation.sum())
         e_before = dev_before  # lengths frozen at x: each window's term is its eq. 30 deviation
-        if zz.n_free == 0:
+        free = zz.free
+        if xw.size:
+            # the ring of an extraordinary vertex: the middle vertices of its pseudo-windows
+            ring_free = np.zeros(x.shape[0], dtype=bool)
+            ring_free[xv[free[xn]]] = True
+            free = free | (ring_free & ~held)
+            x_geom = _window_geometry(x, xw)
+            e_before += EXTRAORDINARY_SCALE**2 * float(x_geom[0].sum())  # the rows are scaled by s
+        if not free.any():
             reports.append(
                 IterationReport(it, float(thresholds[it]), float(weights[it]), float(weights[it] * scale),
                                 0, e_before, e_before, dev_before, dev_before, 0.0)
@@ -1136,8 +1248,14 @@ def fair(
                 break
             continue
         w_eff = float(weights[it] * scale)
-        system = FairingSystem(x, w, zz.free, w_eff, solver=solver, _inverse_lengths=geometry[1],
-                               _topology=topo)
+        if xw.size:
+            system = FairingSystem(x, np.concatenate([w, xw]), free, w_eff, solver=solver,
+                                   _inverse_lengths=np.concatenate([geometry[1], EXTRAORDINARY_SCALE * x_geom[1]]))
+            all_dev = np.concatenate([zz.window_deviation, EXTRAORDINARY_SCALE**2 * x_geom[0]])
+        else:
+            system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=geometry[1],
+                                   _topology=topo)
+            all_dev = zz.window_deviation
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
         else:
@@ -1156,7 +1274,7 @@ def fair(
                 weight_effective=w_eff,
                 n_free=system.n_free,
                 energy_before=e_before,
-                energy_after=system.energy_after(new_free, e_before, zz.window_deviation),
+                energy_after=system.energy_after(new_free, e_before, all_dev),
                 deviation_before=dev_before,
                 deviation_after=float(geometry[0].sum()),
                 max_displacement=float(disp.max()),

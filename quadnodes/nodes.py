@@ -38,6 +38,7 @@ from .planarization import planarize as _planarize
 from .flatness import summary as _summary
 from .zigzag import ZigzagReport
 from .zigzag import detect as _detect
+from .topology import corner_vertices as _corner_vertices
 
 Face = Any  # a build123d Face; build123d is imported lazily by quadnodes.surfaces
 FixMode = Literal["none", "corners", "boundary"]
@@ -215,19 +216,22 @@ def grid(*, rows: int = 10, cols: int = 10, spacing: float = 1.0) -> QuadMesh:
 
 
 @node("read_mesh", outputs=("mesh",), reads=("path",))
-def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "error") -> QuadMesh:
-    """Read a quad mesh from OBJ (quads kept) or quadnodes JSON, by extension.
+def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "error",
+              renumber_grid: bool = True) -> QuadMesh:
+    """Read a quad mesh from OBJ, OFF, PLY, Rhino .3dm (quads kept) or quadnodes JSON, by extension.
 
     Parameters
     ----------
     path : str
-        The .obj or .json file, relative to the graph file's folder.
+        The mesh file, relative to the graph file's folder.
     non_quads : str
         What to do with faces that are not quads: refuse the file, drop them, or split them.
+    renumber_grid : bool
+        Renumber a grid whose faces and vertices come in any order row by row (topology.as_grid).
     """
-    if Path(path).suffix.lower() == ".obj":
-        return _io.load_obj(path, non_quads=non_quads)
-    return _io.load(path)
+    if Path(path).suffix.lower() == ".json":  # quadnodes JSON holds quads only
+        return _io.load(path, renumber_grid=renumber_grid)
+    return _io.load(path, renumber_grid=renumber_grid, non_quads=non_quads)
 
 
 # --- processing --------------------------------------------------------------------
@@ -263,7 +267,8 @@ def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray 
       ranges={"threshold": Range(min=0)})
 @_validate.renamed(fix_boundary="fix = \"boundary\"")
 def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float = 0.1,
-           fix: FixMode = "corners") -> tuple[ZigzagReport, np.ndarray]:
+           fix: FixMode = "corners",
+           detection: Literal["alternating", "thesis"] = "alternating") -> tuple[ZigzagReport, np.ndarray]:
     """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask.
 
     Parameters
@@ -272,8 +277,10 @@ def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float 
         Zigzag cut-off: a vertex whose deviation is strictly above it is freed.
     fix : str
         Vertices never freed: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
+    detection : str
+        alternating (default: lines that turn left-right-left; steady bends are left alone) or thesis (eq. 30).
     """
-    rep = _detect(mesh, threshold, fix=fix, fixed=fixed)
+    rep = _detect(mesh, threshold, fix=fix, fixed=fixed, detection=detection)
     return rep, rep.free
 
 
@@ -305,7 +312,7 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
     n = mesh.n_vertices
     mask = np.zeros(n, dtype=bool)
     if corners:
-        mask |= mesh.topology.corner_vertices
+        mask |= _corner_vertices(mesh)
     if boundary:
         mask |= mesh.topology.boundary_vertices
     if indices:
@@ -338,7 +345,9 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          weight_scale: Literal["normalized", "raw"] = "normalized",
          anchor: Literal["current", "input"] = "current",
          fix: FixMode = "corners",
-         solver: Literal["auto", "direct", "cg"] = "auto") -> tuple[QuadMesh, FairingReport]:
+         solver: Literal["auto", "direct", "cg"] = "auto",
+         extraordinary: Literal["fair", "hold"] = "fair",
+         detection: Literal["alternating", "thesis"] = "alternating") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
     with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
 
@@ -362,10 +371,15 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
         Vertices held in place: none, the corners (the default), or the whole boundary (plus a ``fixed`` mask).
     solver : str
         Linear solver: direct factorization, conjugate gradients, or auto by size.
+    extraordinary : str
+        fair (default: vertices where lines end get a fairness term of their own) or hold (the thesis).
+    detection : str
+        alternating (default: steady bends are no zigzag) or thesis (eq. 30 exactly).
     """
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
-                 fix=fix, fixed=fixed, solver=solver, reference=reference)
+                 fix=fix, fixed=fixed, solver=solver, reference=reference, extraordinary=extraordinary,
+                 detection=detection)
 
 
 @node("planarize", outputs=("mesh", "report"),

@@ -35,7 +35,7 @@ Fixed vertices never move.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -64,6 +64,8 @@ DEFAULT_INPUT_WEIGHT = 0.01
 NEWTON_LIMIT = 20000
 #: The adaptive planarity weight grows at most this much over its start value.
 MAX_WEIGHT_GROWTH = 1e6
+#: An edge shorter than this share of its input length counts as collapsed: the result is not converged.
+COLLAPSED_EDGE_RATIO = 0.2
 
 Fix = Literal["none", "corners", "boundary"]
 
@@ -112,6 +114,14 @@ class PlanarizeReport:
     ``tolerance`` is the tolerance in that measure. ``regularized``: the closeness
     weights were 0, so a damping far below the energy's scale kept the systems
     definite.
+
+    ``converged`` means every quad meets the tolerance **and** the mesh is not
+    wrecked: no edge shorter than :data:`COLLAPSED_EDGE_RATIO` of its input length
+    and no quad non-convex (a dart or a bow-tie) that was convex in the input;
+    otherwise ``failure`` says why, naming the quads (``nonconvex``) or edges.
+    Quality figures: ``edge_length_ratio_min``/``_max`` (output over input length,
+    over all edges), ``nonconvex`` (quad ids), ``moved_max``. ``methods_tried``
+    lists every method run, in order (``method`` is the one whose result is returned).
     """
 
     converged: bool
@@ -139,6 +149,12 @@ class PlanarizeReport:
     fix: str = "corners"
     n_fixed: int = 0
     regularized: bool = False
+    methods_tried: list[str] = field(default_factory=list)
+    edge_length_ratio_min: float = 1.0
+    edge_length_ratio_max: float = 1.0
+    nonconvex: list[int] = field(default_factory=list)
+    collapsed_edges: int = 0
+    failure: str = ""
     held_off_reference: float = 0.0
 
     def notes(self) -> list[str]:
@@ -151,7 +167,9 @@ class PlanarizeReport:
         []
         """
         out: list[str] = []
-        if not self.converged:
+        if self.failure:
+            out.append(self.failure)
+        if not self.converged and not self.failure:
             out.append(f"not converged: planarity {self.planarity_max:.3g} (relative) after {self.iterations} "
                        f"iterations ({self.method}); the tolerance {self.planar_tolerance!r} was not met")
         if self.held_off_reference > 0.1 * self.length_scale:
@@ -444,6 +462,12 @@ def planarize(
     def finish(x: np.ndarray, converged: bool, its: int, history: list[float], w_p_now: float, facts: int,
                used: str = "local-global", n_steps: int = 0):
         out = mesh if x is x0 else mesh.with_vertices(x)
+        quality = _quality(mesh, out)
+        met = converged
+        converged = bool(converged and not quality["failure"])
+        failure = quality["failure"] if met else ("the planar tolerance was not reached; " + quality["failure"]
+                                                  if quality["failure"] else "the planar tolerance was not reached")
+        quality["failure"] = failure
         pl = diagonal_distance(out)
         pl_len = diagonal_distance(out, relative=False)
         moved = np.linalg.norm(x - x0, axis=1)
@@ -459,7 +483,7 @@ def planarize(
             reference="none" if ref is None else ref.source,
             reference_distance_max=float(dist.max()), reference_distance_mean=float(dist.mean()),
             weight_planarity_final=w_p_now, factorizations=facts, seconds=time.perf_counter() - t0,
-            length_scale=h, history=history, method=used, newton_steps=n_steps,
+            length_scale=h, history=history, method=used, newton_steps=n_steps, methods_tried=[used], **quality,
         )
 
     if p_before <= tol:
@@ -468,6 +492,18 @@ def planarize(
         raise InputError(
             f"fixed: every vertex is fixed but quad {int(np.argmax(plan0))} has planarity {p_before:.3g} "
             f"> planar_tolerance {planar_tolerance!r}; free some vertices"
+        )
+
+    stuck = np.flatnonzero(held[mesh.faces].all(axis=1) & (plan0 > tol))
+    if stuck.size:
+        worst = float(plan0[stuck].max())
+        ids = ", ".join(str(int(i)) for i in stuck[:12]) + (" …" if stuck.size > 12 else "")
+        raise InputError(
+            f"fix={fix!r}, fixed: {stuck.size} quad{'s' if stuck.size > 1 else ''} ({ids}) "
+            f"{'have' if stuck.size > 1 else 'has'} all four corners "
+            f"held and are non-planar beyond planar_tolerance {planar_tolerance!r} (up to {worst:.3g}): the "
+            "tolerance cannot be reached. Free a vertex of each (fix='none', or fewer fixed vertices) or "
+            f"raise planar_tolerance to at least {worst:.3g}"
         )
 
     faces = mesh.faces
@@ -541,5 +577,34 @@ def planarize(
     if converged or method != "auto" or fi.size > NEWTON_LIMIT:
         return result
     other = run_newton(it, history, facts)
-    better = other[1].converged or other[1].planarity_max < result[1].planarity_max
-    return other if better else result
+    better = other[1].converged or (not result[1].converged and other[1].planarity_max < result[1].planarity_max)
+    chosen = other if better else result
+    return chosen[0], replace(chosen[1], methods_tried=["local-global", "newton"])
+
+
+def _quality(before: QuadMesh, after: QuadMesh) -> dict[str, Any]:
+    """Edge-length ratio range, newly non-convex quads, collapsed edges and the failure they make."""
+    e = before.topology.edges
+    l0 = np.linalg.norm(before.vertices[e[:, 1]] - before.vertices[e[:, 0]], axis=1)
+    l1 = np.linalg.norm(after.vertices[e[:, 1]] - after.vertices[e[:, 0]], axis=1)
+    ratio = l1 / l0
+    collapsed = np.flatnonzero(ratio < COLLAPSED_EDGE_RATIO)
+    from .flatness import nonconvex_panels
+
+    bad = np.flatnonzero(nonconvex_panels(after) & ~nonconvex_panels(before))
+    parts = []
+    if bad.size:
+        ids = ", ".join(str(int(i)) for i in bad[:12]) + (" …" if bad.size > 12 else "")
+        parts.append(f"{bad.size} quad{'s' if bad.size > 1 else ''} became non-convex or folded ({ids})")
+    if collapsed.size:
+        k = int(collapsed[np.argmin(ratio[collapsed])])
+        parts.append(f"{collapsed.size} edge{'s' if collapsed.size > 1 else ''} collapsed below "
+                     f"{COLLAPSED_EDGE_RATIO:g} of their length (edge {int(e[k, 0])}-{int(e[k, 1])} to "
+                     f"{ratio[k]:.2g})")
+    return {
+        "edge_length_ratio_min": float(ratio.min()) if ratio.size else 1.0,
+        "edge_length_ratio_max": float(ratio.max()) if ratio.size else 1.0,
+        "nonconvex": bad.tolist(),
+        "collapsed_edges": int(collapsed.size),
+        "failure": "; ".join(parts),
+    }

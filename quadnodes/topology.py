@@ -38,7 +38,13 @@ __all__ = [
     "adjacency",
     "fixed_vertices",
     "FIX_MODES",
+    "CORNER_ANGLE",
+    "as_grid",
 ]
+
+#: A boundary vertex is a corner when the boundary turns by more than this many degrees
+#: there, at the scale of one edge and of two edges (see :func:`corner_vertices`).
+CORNER_ANGLE = 45.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -564,18 +570,87 @@ def boundary_vertices(mesh: QuadMesh) -> np.ndarray:
     return _validate.quad_mesh(mesh).topology.boundary_vertices.copy()
 
 
-def corner_vertices(mesh: QuadMesh) -> np.ndarray:
-    """Mask of boundary corners (convex, reflex and hole corners), ``(n,) bool``.
+def corner_vertices(mesh: QuadMesh, *, angle: float = CORNER_ANGLE) -> np.ndarray:
+    """Mask of boundary corners: where the boundary turns, ``(n,) bool``.
+
+    A boundary vertex ``v`` that is not a regular boundary point (valence ≠ 3 or
+    not two faces: convex, reflex and hole corners — :attr:`Topology.corner_vertices`),
+    with boundary neighbours ``a`` (before) and ``b`` (after) and the boundary
+    vertices ``a2``, ``b2`` two steps away, is a corner when
+
+    - the boundary turns by more than ``angle`` degrees at ``v``: the angle between
+      ``v − a`` and ``b − v`` exceeds ``angle``, **and**
+    - it still turns by more than ``angle`` across two edges: the angle between
+      ``v − a2`` and ``b2 − v`` exceeds ``angle``;
+
+    or when two boundary arcs touch at ``v`` (more than two boundary edges). The
+    second condition tells a real corner (the end of a side: both scales turn
+    by about 90°) from a step of a staircase boundary (an MIQ-like mesh whose
+    boundary steps left and right along the quads: 90° at every step vertex, about
+    0° across two edges), whose vertices are then not corners and may move. Valence
+    alone would hold every step; the angle alone would make noise on a smooth
+    boundary into corners: both are asked. On a rectangular grid the corners are
+    its four corner vertices, as by valence.
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+    angle : float
+        Turning angle in degrees (0 < angle < 180), default :data:`CORNER_ANGLE`.
+
+    Returns
+    -------
+    (n,) bool
+
+    Raises
+    ------
+    InputError
+        On an angle outside (0, 180).
 
     Examples
     --------
     >>> from quadnodes.mesh import grid
     >>> np.flatnonzero(corner_vertices(grid(3, 3))).tolist()
     [0, 2, 6, 8]
+    >>> from quadnodes.mesh import QuadMesh
+    >>> v = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0], [1, 1, 0], [2, 1, 0], [1, 2, 0], [2, 2, 0]]
+    >>> stair = QuadMesh(np.array(v, float), np.array([[0, 1, 4, 3], [1, 2, 5, 4], [4, 5, 7, 6]]))
+    >>> np.flatnonzero(corner_vertices(stair)).tolist()  # vertex 4, the step, turns 90° but is no corner
+    [0, 2, 3, 6, 7]
     """
     from . import _validate
+    _validate.quad_mesh(mesh)
+    from .errors import InputError
 
-    return _validate.quad_mesh(mesh).topology.corner_vertices.copy()
+    angle = _validate.finite_number(angle, "angle")
+    if not 0 < angle < 180:
+        raise InputError(f"angle: expected degrees between 0 and 180, got {angle!r}")
+    topo = mesh.topology
+    n = mesh.n_vertices
+    x = mesh.vertices
+    bnd_he = np.flatnonzero(topo.he_twin < 0)
+    start, end = topo.he_start[bnd_he], topo.he_end[bnd_he]
+    nxt = np.full(n, -1, dtype=np.int64)
+    prv = np.full(n, -1, dtype=np.int64)
+    nxt[start] = end
+    prv[end] = start
+    touching = topo._boundary_count > 2
+    v = np.flatnonzero(topo.corner_vertices & ~touching)
+    a, b = prv[v], nxt[v]
+    a2, b2 = prv[a], nxt[b]
+    cos_max = np.cos(np.radians(angle))
+
+    def turns(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        u, w = x[v] - x[p], x[q] - x[v]
+        nu = np.linalg.norm(u, axis=1)
+        nw = np.linalg.norm(w, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = np.einsum("ij,ij->i", u, w) / (nu * nw)
+        return ~(c >= cos_max)  # degenerate (0/0) counts as a turn
+
+    mask = touching & topo.boundary_vertices
+    mask[v] = turns(a, b) & turns(a2, b2)
+    return mask
 
 
 def adjacency(mesh: QuadMesh) -> sp.csr_matrix:
@@ -599,7 +674,7 @@ def fixed_vertices(mesh: QuadMesh, fix: str = "none", fixed: object = None) -> n
     ----------
     mesh : QuadMesh
     fix : {"none", "corners", "boundary"}
-        ``"corners"``: the boundary corners (:func:`corner_vertices`);
+        ``"corners"``: the boundary corners, where the boundary turns (:func:`corner_vertices`);
         ``"boundary"``: every boundary vertex.
     fixed : (n,) bool or int indices, optional
         More vertices to hold (a boolean mask or a list of indices; an integer
@@ -630,7 +705,102 @@ def fixed_vertices(mesh: QuadMesh, fix: str = "none", fixed: object = None) -> n
     n = mesh.n_vertices
     mask = _validate.vertex_mask(fixed, n, "fixed")
     if mode == "corners":
-        mask |= mesh.topology.corner_vertices
+        mask |= corner_vertices(mesh)
     elif mode == "boundary":
         mask |= mesh.topology.boundary_vertices
     return mask
+
+
+def as_grid(mesh: QuadMesh) -> QuadMesh | None:
+    """The mesh renumbered as a ``rows × cols`` vertex grid when its connectivity is one, else None.
+
+    Recognizes a topological grid from the faces alone, whatever the order of its
+    faces and the numbering of its vertices (as Rhino or COMPAS write OBJ files):
+    a disk with four corners of valence 2, every other boundary vertex of valence 3
+    and every interior vertex of valence 4. The corner with the smallest index becomes
+    vertex 0; row 0 runs along the corner's boundary line whose next vertex has the
+    smaller index; vertex ``i*cols + j`` is then row ``i``, column ``j``, faces are
+    listed row by row (orientation kept) and ``grid_shape`` is set, so panels are
+    labelled ``P_<row>_<col>`` and fairing takes its grid path. Vertex numbers
+    change (a ``fixed`` list in the file's numbering must be mapped by position).
+    Cylinder and torus grids (closed structure lines) are not renumbered: None.
+
+    Parameters
+    ----------
+    mesh : QuadMesh
+
+    Returns
+    -------
+    QuadMesh or None
+        ``mesh`` itself when it already has a ``grid_shape``; a renumbered copy
+        (same unit) when it is a grid; None otherwise.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid, QuadMesh
+    >>> g = grid(3, 4)
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.permutation(12)
+    >>> inv = np.argsort(p)
+    >>> shuffled = QuadMesh(g.vertices[p], inv[g.faces][rng.permutation(6)])
+    >>> shuffled.grid_shape is None, as_grid(shuffled).grid_shape
+    (True, (4, 3))
+    """
+    from .mesh import QuadMesh as _QuadMesh
+
+    if mesh.grid_shape is not None:
+        return mesh
+    topo = mesh.topology
+    n = mesh.n_vertices
+    if topo.grid_shape is not None:
+        return _QuadMesh(mesh.vertices, mesh.faces, grid_shape=topo.grid_shape, unit=mesh.unit)
+    bnd = topo.boundary_vertices
+    corner = bnd & (topo.valence == 2) & (topo.vertex_face_count == 1)
+    if (int(corner.sum()) != 4 or not np.array_equal(bnd, corner | topo.regular_boundary)
+            or not np.array_equal(~bnd, topo.regular_interior)):
+        return None
+    lines = topo.structure_lines
+    if lines.closed.any():
+        return None
+    c0 = int(np.flatnonzero(corner)[0])
+    first = lines.indices[lines.offsets[:-1]]
+    last = lines.indices[lines.offsets[1:] - 1]
+    at_c0 = np.flatnonzero((first == c0) | (last == c0))
+    if at_c0.size != 2:
+        return None
+
+    def oriented(i: int, head: int) -> np.ndarray:
+        line = lines[i]
+        return line if line[0] == head else line[::-1]
+
+    a, b = (oriented(int(i), c0) for i in at_c0)
+    row0, col0 = (a, b) if a[1] < b[1] else (b, a)
+    cols = row0.size
+    # the other line ending at every vertex of row 0 is a column
+    on_row0 = np.full(n, -1, dtype=np.int64)
+    on_row0[row0] = np.arange(cols)
+    row0_line = at_c0[0] if np.array_equal(oriented(int(at_c0[0]), c0), row0) else at_c0[1]
+    is_col = ((on_row0[first] >= 0) | (on_row0[last] >= 0)) & (np.arange(len(lines)) != row0_line)
+    col_ids = np.flatnonzero(is_col)
+    lengths = lines.lengths[col_ids]
+    rows = col0.size
+    if col_ids.size != cols or not (lengths == rows).all() or rows * cols != n or rows < 2 or cols < 2:
+        return None
+    seq = lines.indices[lines.offsets[col_ids][:, None] + np.arange(rows)]  # (cols, rows)
+    flip = on_row0[seq[:, 0]] < 0
+    seq[flip] = seq[flip, ::-1]
+    j = on_row0[seq[:, 0]]
+    if (j < 0).any() or np.unique(j).size != cols:
+        return None
+    G = np.empty((rows, cols), dtype=np.int64)
+    G[:, j] = seq.T
+    order = G.reshape(-1)
+    new_index = np.full(n, -1, dtype=np.int64)
+    new_index[order] = np.arange(n)
+    if (new_index < 0).any():
+        return None
+    faces = new_index[mesh.faces]
+    faces = faces[np.argsort(faces.min(axis=1), kind="stable")]
+    if _grid_shape(faces, n) != (rows, cols):
+        return None
+    return _QuadMesh(mesh.vertices[order], faces, grid_shape=(rows, cols), unit=mesh.unit)

@@ -12,7 +12,21 @@ from . import _validate
 from .mesh import QuadMesh
 from .topology import fixed_vertices
 
-__all__ = ["window_edges", "window_deviation", "vertex_deviation", "ZigzagReport", "detect"]
+__all__ = [
+    "window_edges",
+    "window_deviation",
+    "window_alternation",
+    "vertex_deviation",
+    "ZigzagReport",
+    "detect",
+    "DETECTIONS",
+    "DEFAULT_DETECTION",
+]
+
+#: The values of ``detection``: ``"alternating"`` (turning that flips side) or ``"thesis"`` (eq. 30).
+DETECTIONS: tuple[str, ...] = ("alternating", "thesis")
+#: Chosen by measurement (``benchmarks/bench_real_meshes.py``, ``docs/real-meshes.md``).
+DEFAULT_DETECTION = "alternating"
 
 
 def window_edges(vertices: np.ndarray, windows: np.ndarray) -> list[np.ndarray]:
@@ -54,6 +68,51 @@ def window_deviation(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
     [0.0, 2.632]
     """
     return _window_geometry(vertices, windows)[0]
+
+
+def window_alternation(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
+    """Alternating turning of every window: ``max(0, −t1·t2)`` with ``t1 = u1 − u0``, ``t2 = u2 − u1``.
+
+    ``u0, u1, u2`` are the unit directions of the window's three edges, ``t1`` and
+    ``t2`` the turning vectors at its two middle points. Eq. 30 is ``||t2 − t1||²/4``:
+    large when the line turns left then right (a zigzag, ``t2 ≈ −t1``) but also at a
+    single sharp bend (``t2 ≈ 0``). This measure keeps only the part where the two
+    turns point to opposite sides: 0 for a straight line, a steady bend (``t1·t2 > 0``)
+    and a single kink (``t2 = 0``); equal to eq. 30 for a symmetric zigzag
+    (``t2 = −t1``). Scale-free (unit directions), between 0 and 4.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    windows : (w, 4) int64
+
+    Returns
+    -------
+    (w,) float64
+
+    Examples
+    --------
+    >>> v = np.array([[0, 0, 0], [1, 0, 0], [2, 1, 0], [3, 0, 0], [2, 2, 0], [2, 3, 0.]])
+    >>> w = np.array([[0, 1, 2, 3], [0, 1, 2, 4]])  # a zigzag, then a steady left turn
+    >>> window_alternation(v, w).round(3).tolist(), window_deviation(v, w).round(3).tolist()
+    ([1.0, 0.0], [1.146, 0.086])
+    """
+    u = window_edges(vertices, windows)
+    for d in u:
+        d /= np.sqrt(np.einsum("ij,ij->i", d, d))[:, None]
+    return np.maximum(0.0, -np.einsum("ij,ij->i", u[1] - u[0], u[2] - u[1]))
+
+
+def _walk_alternation(vertices: np.ndarray, walk: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """:func:`window_alternation` of the topology's windows along its window walk (each edge once)."""
+    ext, start = walk
+    g = np.take(vertices, ext, axis=0)
+    e = g[1:] - g[:-1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e /= np.sqrt(np.einsum("ij,ij->i", e, e))[:, None]
+    t = e[1:] - e[:-1]
+    a = -np.einsum("ij,ij->i", t[:-1], t[1:])
+    return np.maximum(0.0, np.take(a, start))
 
 
 def _window_geometry(
@@ -144,7 +203,12 @@ class ZigzagReport:
         Vertices held in place: on no window's middle, user-fixed, or boundary
         when asked.
     free : (n,) bool
-        ``(vertex_deviation > threshold) & ~fixed`` — the zigzag vertices to fair.
+        The measure of ``detection`` above ``threshold``, and not ``fixed`` — the zigzag vertices to fair.
+    detection : {"alternating", "thesis"}
+        The measure compared with ``threshold``: eq. 30 (``vertex_deviation``,
+        ``"thesis"``) or the alternating turning (``vertex_alternation``).
+    vertex_alternation : (n,) float64 or None
+        Per-vertex maximum of :func:`window_alternation` (``"alternating"`` only).
     """
 
     threshold: float
@@ -154,6 +218,8 @@ class ZigzagReport:
     fixed: np.ndarray
     free: np.ndarray
     fix: str = "corners"
+    detection: str = "thesis"
+    vertex_alternation: np.ndarray | None = None
 
     @property
     def n_free(self) -> int:
@@ -167,7 +233,8 @@ class ZigzagReport:
 
     def to_dict(self) -> dict:
         """Plain-Python summary (JSON-ready): threshold, fixing, counts and deviation statistics."""
-        return {"threshold": self.threshold, "fix": self.fix, "n_fixed": self.n_fixed, **self.summary()}
+        return {"threshold": self.threshold, "detection": self.detection, "fix": self.fix, "n_fixed": self.n_fixed,
+                **self.summary()}
 
     def summary(self) -> dict[str, float]:
         """Mean and max window deviation and the number of free vertices."""
@@ -186,6 +253,7 @@ def detect(
     *,
     fix: Literal["none", "corners", "boundary"] = "corners",
     fixed: ArrayLike | None = None,
+    detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
 ) -> ZigzagReport:
     """Find the zigzag vertices of a quad mesh.
 
@@ -204,6 +272,11 @@ def detect(
         corners lie in no window's middle, so they are never free anyway.
     fixed : (n,) bool or int indices, optional
         More vertices to hold in place.
+    detection : {"alternating", "thesis"}
+        ``"thesis"``: a window counts when its eq. 30 deviation exceeds ``threshold``
+        (the thesis exactly). ``"alternating"`` (default): when its alternating
+        turning (:func:`window_alternation`) does — a zigzag is found as by eq. 30,
+        a steady sharp bend (a design feature) is not.
 
     Returns
     -------
@@ -218,23 +291,31 @@ def detect(
     --------
     >>> from quadnodes.mesh import grid
     >>> m = grid(3, 6, height=[[0, 0, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0], [0] * 6])
-    >>> detect(m, 0.1).free.reshape(3, 6).astype(int).tolist()
+    >>> detect(m, 0.1, detection="thesis").free.reshape(3, 6).astype(int).tolist()
     [[0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 1, 0], [0, 0, 0, 0, 0, 0]]
+    >>> detect(m, 0.1).free.reshape(3, 6).astype(int).tolist()  # vertex 10 lies on a straight run
+    [[0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 0, 0], [0, 0, 0, 0, 0, 0]]
     """
     _validate.quad_mesh(mesh)
     threshold = _validate.nonnegative_number(threshold, "threshold")
+    detection = _validate.choice(detection, DETECTIONS, "detection")
     held = fixed_vertices(mesh, fix, fixed)
-    return _detect(mesh, threshold, held, _mesh_window_deviation(mesh), fix)
+    alt = _walk_alternation(mesh.vertices, mesh.topology.window_walk) if detection == "alternating" else None
+    return _detect(mesh, threshold, held, _mesh_window_deviation(mesh), fix, alt)
 
 
-def _detect(mesh: QuadMesh, threshold: float, held: np.ndarray, wd: np.ndarray, fix: str = "corners") -> ZigzagReport:
-    """:func:`detect` with checked arguments: ``held`` the resolved fixed mask, ``wd`` the windows' deviation."""
+def _detect(mesh: QuadMesh, threshold: float, held: np.ndarray, wd: np.ndarray, fix: str = "corners",
+            alternation: np.ndarray | None = None) -> ZigzagReport:
+    """:func:`detect` with checked arguments: ``held`` the resolved fixed mask, ``wd`` the windows' deviation,
+    ``alternation`` the windows' alternating turning when that is the detection (else eq. 30 decides)."""
     n = mesh.n_vertices
     topo = mesh.topology
     w = topo.windows
     vd = vertex_deviation(wd, w, n)
+    va = None if alternation is None else vertex_deviation(alternation, w, n)
     fixed = held | ~topo.window_middle
-    free = (vd > threshold) & ~fixed
-    for a in (wd, vd, fixed, free):
+    free = ((vd if va is None else va) > threshold) & ~fixed
+    for a in (wd, vd, fixed, free) + (() if va is None else (va,)):
         a.setflags(write=False)
-    return ZigzagReport(float(threshold), w, wd, vd, fixed, free, fix)
+    return ZigzagReport(float(threshold), w, wd, vd, fixed, free, fix,
+                        "thesis" if alternation is None else "alternating", va)

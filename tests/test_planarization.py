@@ -11,7 +11,7 @@ from quadnodes.errors import InputError
 from quadnodes.fairing import fair
 from quadnodes.mesh import grid, torus
 from quadnodes.noise import perturb
-from quadnodes.flatness import diagonal_distance
+from quadnodes.flatness import diagonal_distance, nonconvex_panels
 from quadnodes.planarization import planarize, quad_plane_projection
 from quadnodes.zigzag import window_deviation
 
@@ -20,6 +20,21 @@ def hypar(n: int = 8, rise: float = 0.4) -> object:
     """z = rise·x·y on its rulings: every quad is skew."""
     y, x = np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n), indexing="ij")
     return grid(n, n, spacing=2.0 / (n - 1), height=rise * x * y)
+
+
+def _check_quality(before, after, rep, tol=None):
+    """The report's quality figures against independent counts; converged exactly when nothing is wrecked."""
+    e = before.topology.edges
+    ratio = (np.linalg.norm(after.vertices[e[:, 1]] - after.vertices[e[:, 0]], axis=1)
+             / np.linalg.norm(before.vertices[e[:, 1]] - before.vertices[e[:, 0]], axis=1))
+    assert rep.edge_length_ratio_min == pytest.approx(ratio.min()) and rep.edge_length_ratio_max == pytest.approx(ratio.max())
+    new_bad = np.flatnonzero(nonconvex_panels(after) & ~nonconvex_panels(before)).tolist()
+    assert rep.nonconvex == new_bad and rep.collapsed_edges == int((ratio < 0.2).sum())
+    planar = rep.planarity_max <= rep.tolerance
+    assert rep.converged == (planar and not new_bad and rep.collapsed_edges == 0)
+    assert (rep.failure == "") == rep.converged
+    for q in new_bad[:12]:
+        assert str(q) in rep.failure
 
 
 def test_a_planar_grid_stays_put():
@@ -31,13 +46,19 @@ def test_a_planar_grid_stays_put():
 def test_a_hyperbolic_paraboloid_becomes_planar_by_bounded_movement():
     m = hypar()
     assert diagonal_distance(m).max() > 0.01
-    out, rep = planarize(m, planar_tolerance=1e-4)
+    # corners held (the default): planar, but the corner quads turn into darts — not "converged" (issue 16)
+    spiky, rep_c = planarize(m, planar_tolerance=1e-4)
+    assert rep_c.planarity_max <= 1e-4 and not rep_c.converged
+    assert rep_c.nonconvex == [0, 6, 42, 48] and "non-convex" in rep_c.failure
+    assert np.flatnonzero(nonconvex_panels(spiky)).tolist() == rep_c.nonconvex  # an independent count
+    out, rep = planarize(m, planar_tolerance=1e-4, fix="none")
     d = diagonal_distance(out)
     assert rep.converged and d.max() <= 1e-4 and rep.planarity_max == pytest.approx(d.max())
+    assert rep.failure == "" and rep.nonconvex == [] and 0.8 < rep.edge_length_ratio_min <= rep.edge_length_ratio_max < 1.1
     h = m.mean_edge_length
     moved = np.linalg.norm(out.vertices - m.vertices, axis=1)
-    # it has to move, and not further than the surface's rise (its corners, held, are ±0.4 off the plane z=0)
-    assert 0.01 * h < moved.max() < 0.4
+    # it has to move, and not further than the surface's rise (its corners are ±0.4 off the plane z=0)
+    assert 0.01 * h < moved.max() <= 0.4 and rep.moved_max == pytest.approx(moved.max())
     assert rep.moved_max == pytest.approx(moved.max())
     # the history is the maximum planarity after every iteration and ends at the result
     assert len(rep.history) == rep.iterations and rep.history[-1] == pytest.approx(d.max())
@@ -64,7 +85,13 @@ def test_fixed_vertices_never_move(seed, frac):
     m, _ = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
     rng = np.random.default_rng(seed)
     fixed = rng.random(m.n_vertices) < frac
+    stuck = fixed[m.faces].all(axis=1) & (diagonal_distance(m) > 1e-3)
+    if stuck.any():  # infeasible from the start: refused, naming the quads (issue 16)
+        with pytest.raises(InputError, match=f"\\({int(np.flatnonzero(stuck)[0])}.*all four corners held"):
+            planarize(m, fixed=fixed, fix="none", max_iterations=200)
+        return
     out, rep = planarize(m, fixed=fixed, fix="none", max_iterations=200)
+    _check_quality(m, out, rep)
     np.testing.assert_array_equal(out.vertices[fixed], m.vertices[fixed])
     assert np.isfinite(out.vertices).all()
     assert rep.planarity_max <= rep.planarity_max_before
@@ -106,7 +133,8 @@ def test_reference_surface_keeps_vertices_on_it():
     a, ra = planarize(faired)
     b, rb = planarize(faired, reference=clean)
     assert ra.reference == "none" and rb.reference == "mesh"
-    assert rb.converged and rb.planarity_max <= 1e-3
+    assert rb.planarity_max <= 1e-3
+    _check_quality(faired, b, rb)
     from quadnodes.metrics import distance_to_mesh
 
     np.testing.assert_allclose(distance_to_mesh(b.vertices, clean).max(), rb.reference_distance_max, rtol=1e-9)
@@ -127,8 +155,14 @@ def test_unreachable_tolerance_stops_unconverged():
     m = hypar(4)
     fixed = np.ones(m.n_vertices, bool)
     fixed[5] = False  # one free vertex cannot flatten four quads around it and the others
-    out, rep = planarize(m, fixed=fixed, max_iterations=60)
-    assert not rep.converged and rep.iterations <= 60 and rep.planarity_max > 1e-3
+    # quads with all four corners held and non-planar: refused before any iteration, naming them
+    with pytest.raises(InputError, match=r"5 quads \(2, 5, 6, 7, 8\) have all four corners held.*at least 0\.0895"):
+        planarize(m, fixed=fixed, max_iterations=60)
+    fixed = np.zeros(m.n_vertices, bool)
+    fixed[[0, 3, 12, 15, 5]] = True  # now every quad has a free vertex, but 5 pins the middle
+    out, rep = planarize(m, fixed=fixed, max_iterations=60, method="local-global")
+    assert rep.methods_tried == ["local-global"] and rep.iterations <= 60
+    _check_quality(m, out, rep)
 
 
 @pytest.mark.parametrize(
@@ -177,8 +211,9 @@ def test_node_and_step_export_write_planar_faces(tmp_path):
 def test_newton_meets_the_tolerance_with_fixed_vertices_untouched(seed):
     m, _ = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
     out, rep = planarize(m, method="newton", planar_tolerance=1e-4)
-    assert rep.method == "newton" and rep.converged and rep.newton_steps <= 30
+    assert rep.method == "newton" and rep.newton_steps <= 30 and rep.methods_tried == ["newton"]
     assert diagonal_distance(out).max() <= 1e-4
+    _check_quality(m, out, rep)  # planar, but corners held: darts at the corners are reported, not "converged"
     c = m.topology.corner_vertices
     np.testing.assert_array_equal(out.vertices[c], m.vertices[c])
 
@@ -192,7 +227,9 @@ def test_auto_falls_back_to_newton_where_local_global_stalls():
     lg, rep_lg = planarize(faired, fix="boundary", method="local-global")
     assert not rep_lg.converged
     out, rep = planarize(faired, fix="boundary")
-    assert rep.converged and rep.method == "newton" and rep.planarity_max <= 1e-3
+    assert rep.method == "newton" and rep.planarity_max <= 1e-3
+    assert rep.methods_tried == ["local-global", "newton"]  # every method tried is reported (issue 16)
+    _check_quality(faired, out, rep)
     assert rep.iterations == rep_lg.iterations  # the local/global iterations it tried first
     b = clean.topology.boundary_vertices
     np.testing.assert_array_equal(out.vertices[b], faired.vertices[b])

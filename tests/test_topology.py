@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given, settings, strategies as st
 
 from quadnodes.mesh import QuadMesh, cylinder, grid, torus
 from quadnodes.topology import adjacency, corner_vertices, structure_lines, windows
@@ -168,3 +168,62 @@ def test_window_walk_spells_the_windows(kind):
     ext, start = topo.window_walk
     assert np.array_equal(topo.windows, windows(topo.structure_lines))
     assert np.array_equal(ext[start[:, None] + np.arange(4)], windows(topo.structure_lines))
+
+
+# --- issue 16: grids from connectivity, corners by turning ------------------------------------
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=st.integers(2, 7), cols=st.integers(2, 7))
+def test_as_grid_recognizes_any_numbering(seed, rows, cols):
+    from quadnodes.mesh import QuadMesh
+    from quadnodes.topology import as_grid
+
+    g = grid(rows, cols, height=np.random.default_rng(seed).normal(size=(rows, cols)))
+    rng = np.random.default_rng(seed)
+    p = rng.permutation(g.n_vertices)
+    inv = np.argsort(p)
+    faces = inv[g.faces][rng.permutation(g.n_faces)]
+    faces = np.array([np.roll(f, int(k)) for f, k in zip(faces, rng.integers(0, 4, len(faces)))])
+    shuffled = QuadMesh(g.vertices[p], faces, unit="m")
+    out = as_grid(shuffled)
+    assert out is not None and sorted(out.grid_shape) == sorted((rows, cols)) and out.unit == "m"
+    r, c = out.grid_shape
+    ids = np.arange(r * c).reshape(r, c)
+    # the renumbered vertices are the same points, and grid neighbours are mesh neighbours
+    np.testing.assert_array_equal(np.sort(out.vertices, axis=0), np.sort(g.vertices, axis=0))
+    e = {tuple(x) for x in out.topology.edges.tolist()}
+    assert {(int(a), int(b)) for a, b in zip(ids[:, :-1].ravel(), ids[:, 1:].ravel())} <= e
+    assert {(int(a), int(b)) for a, b in zip(ids[:-1].ravel(), ids[1:].ravel())} <= e
+    assert out.topology.grid_shape == out.grid_shape
+
+
+def test_as_grid_refuses_what_is_not_a_grid():
+    from quadnodes.mesh import cylinder
+    from quadnodes.topology import as_grid
+    from meshes import extraordinary_mesh, l_shape_with_hole
+
+    assert as_grid(extraordinary_mesh()) is None
+    assert as_grid(l_shape_with_hole()) is None
+    assert as_grid(cylinder(4, 6)) is None  # closed lines: left as is
+    g = grid(3, 4)
+    assert as_grid(g) is g
+
+
+def test_staircase_steps_are_not_corners_but_sides_ends_are():
+    from quadnodes.mesh import QuadMesh
+
+    # cells (i, j) with i + j <= 3 of a 5 x 5 vertex grid: a staircase hypotenuse
+    n = 5
+    cells = [(i, j) for i in range(n - 1) for j in range(n - 1) if i + j <= 3]
+    f = np.array([[i * n + j, i * n + j + 1, (i + 1) * n + j + 1, (i + 1) * n + j] for i, j in cells])
+    used = np.unique(f)
+    remap = np.full(n * n, -1)
+    remap[used] = np.arange(used.size)
+    y, x = np.divmod(used, n)
+    m = QuadMesh(np.stack([x, y, 0 * x], axis=1).astype(float), remap[f])
+    by_valence = np.flatnonzero(m.topology.corner_vertices)
+    by_turn = np.flatnonzero(corner_vertices(m))
+    assert len(by_valence) == 10  # the three triangle corners and the 7 step vertices
+    pos = m.vertices[by_turn, :2].tolist()
+    assert sorted(map(tuple, pos)) == [(0.0, 0.0), (0.0, 4.0), (1.0, 4.0), (4.0, 0.0), (4.0, 1.0)]

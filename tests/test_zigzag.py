@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings, strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.mesh import grid
@@ -66,3 +66,47 @@ def test_bad_threshold():
         detect(grid(4, 4), float("nan"))
     with pytest.raises(InputError, match="fixed: vertex index 99"):
         detect(grid(4, 4), 0.1, fixed=[99])
+
+
+# --- issue 16: alternating detection ---------------------------------------------------------
+
+
+def test_alternating_tells_a_zigzag_from_a_steady_bend():
+    from quadnodes.zigzag import window_alternation
+
+    t = np.linspace(0, np.pi / 2, 6)
+    arc = np.stack([np.cos(t), np.sin(t), 0 * t], axis=1)  # a steady quarter circle: 18° per vertex
+    kink = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [2, 2, 0.0]])  # one sharp 90° bend
+    zig = np.array([[0, 0, 0], [1, 0.3, 0], [2, 0, 0], [3, 0.3, 0], [4, 0, 0.0]])
+    w = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    assert window_alternation(arc, w).max() == 0 and window_alternation(kink, w).max() == 0
+    assert window_deviation(kink, w).max() > 0.1  # eq. 30 takes the bend for a zigzag
+    np.testing.assert_allclose(window_alternation(zig, w), window_deviation(zig, w), rtol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), scale=st.sampled_from([1e-3, 1.0, 1e3]))
+def test_alternation_is_scale_free_and_bounded(seed, scale):
+    from quadnodes.zigzag import window_alternation
+
+    v = np.random.default_rng(seed).normal(size=(4, 3))
+    w = np.array([[0, 1, 2, 3]])
+    a = window_alternation(v, w)
+    np.testing.assert_allclose(window_alternation(scale * v + 5.0, w), a, rtol=1e-9, atol=1e-12)
+    assert 0 <= a[0] <= 4 + 1e-12
+
+
+def test_thesis_detection_is_eq30_and_alternating_leaves_a_bend_alone():
+    # a clean grid folded along one row: every column bends once, sharply and steadily
+    z = np.zeros((7, 5))
+    z[4:] = np.arange(1, 4)[:, None] * 1.0
+    m = grid(7, 5, height=z)
+    th = detect(m, 0.1, detection="thesis")
+    assert th.n_free > 0 and th.detection == "thesis"
+    np.testing.assert_array_equal(th.vertex_deviation, vertex_deviation(window_deviation(m.vertices, th.windows), th.windows, m.n_vertices))
+    alt = detect(m, 0.1)
+    assert alt.n_free == 0 and alt.to_dict()["detection"] == "alternating"
+    np.testing.assert_array_equal(alt.vertex_deviation, th.vertex_deviation)  # eq. 30 either way
+    assert alt.vertex_alternation.max() <= 0.1 and th.vertex_alternation is None
+    noisy, _ = perturb(m, tangential=0.2, seed=2)
+    assert detect(noisy, 0.1).n_free > 0.5 * noisy.n_vertices - 2 * (7 + 5)

@@ -154,7 +154,8 @@ def save(mesh: QuadMesh, path: str | os.PathLike[str], *, file_type: str | None 
         raise
 
 
-def load(path: str | os.PathLike[str], *, file_type: str | None = None, **options: Any) -> QuadMesh:
+def load(path: str | os.PathLike[str], *, file_type: str | None = None, renumber_grid: bool = True,
+         **options: Any) -> QuadMesh:
     """Read a mesh in the format named by ``file_type`` or the extension of ``path``.
 
     Parameters
@@ -162,6 +163,10 @@ def load(path: str | os.PathLike[str], *, file_type: str | None = None, **option
     path : str or path-like
     file_type : str, optional
         One of :data:`LOADERS` (``obj``, ``json``, ``3dm``, ``off``, ``ply``); default: the extension.
+    renumber_grid : bool
+        A mesh whose connectivity is a vertex grid but whose faces and vertices come
+        in any order (Rhino, COMPAS) is renumbered row by row and gets its
+        ``grid_shape`` (:func:`quadnodes.topology.as_grid`); False keeps the file's numbering.
     **options
         Passed to the reader, e.g. ``non_quads="drop"`` for OBJ.
 
@@ -171,8 +176,15 @@ def load(path: str | os.PathLike[str], *, file_type: str | None = None, **option
         On an unknown file type or option, or as the reader (naming file and line).
     """
     key = _file_type(path, file_type, LOADERS, "read")
+    if not isinstance(renumber_grid, bool):
+        raise InputError(f"renumber_grid: expected True or False, got {renumber_grid!r}")
     try:
-        return LOADERS[key](path, **options)
+        mesh = LOADERS[key](path, **options)
+        if renumber_grid:
+            from ..topology import as_grid
+
+            mesh = as_grid(mesh) or mesh
+        return mesh
     except TypeError as exc:
         if "unexpected keyword argument" in str(exc):
             raise InputError(f"{key} reader: {exc}") from None

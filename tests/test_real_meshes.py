@@ -1,0 +1,92 @@
+"""The public meshes of tests/data (see its README): loaded, detected, faired, planarized and exported (issue 16)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+from quadnodes.errors import InputError
+from quadnodes.fairing import fair
+from quadnodes.io import load, save_obj
+from quadnodes.noise import perturb
+from quadnodes.planarization import planarize
+from quadnodes.topology import as_grid, corner_vertices
+from quadnodes.zigzag import detect
+
+DATA = Path(__file__).resolve().parent / "data"
+MESHES = {
+    "compas/quadmesh.obj": (100, 81, (10, 10)),
+    "compas/tubemesh.obj": (200, 171, (20, 10)),
+    "compas/hypar.obj": (81, 64, (9, 9)),
+    "rounded_box.obj": (386, 384, None),
+    "polygon_quads.obj": (603, 562, None),
+    "quadmesh_hole.obj": (100, 77, None),
+    "staircase_saddle.obj": (364, 321, None),
+}
+
+
+def test_every_data_file_is_small_and_described():
+    readme = (DATA / "README.md").read_text()
+    for name in MESHES:
+        assert (DATA / name).stat().st_size < 200_000
+        assert f"`{name}`" in readme
+    assert "MIT" in (DATA / "compas" / "LICENSE").read_text()
+
+
+@pytest.mark.parametrize("name", sorted(MESHES))
+def test_load_detect_fair_planarize_export(name, tmp_path):
+    n, m, shape = MESHES[name]
+    mesh = load(DATA / name)
+    assert (mesh.n_vertices, mesh.n_faces, mesh.grid_shape) == (n, m, shape)
+    # clean designed meshes are left untouched by the default detection
+    assert detect(mesh).n_free == 0
+    same, _ = fair(mesh, iterations=2)
+    np.testing.assert_array_equal(same.vertices, mesh.vertices)
+    noisy, _ = perturb(mesh, tangential=0.2, normal=0.1, seed=3)
+    h = mesh.mean_edge_length
+    faired, rep = fair(noisy, iterations=3)
+    err_before = np.linalg.norm(noisy.vertices - mesh.vertices, axis=1).mean()
+    err_after = np.linalg.norm(faired.vertices - mesh.vertices, axis=1).mean()
+    assert rep.effective_iterations >= 1 and err_after < err_before
+    flat, prep = planarize(faired, planar_tolerance=1e-2, fix="none", max_iterations=300, method="local-global")
+    assert prep.planarity_max <= 1e-2 or not prep.converged
+    assert prep.converged == (prep.planarity_max <= 1e-2 and not prep.nonconvex and prep.collapsed_edges == 0)
+    assert prep.edge_length_ratio_min > 0
+    assert prep.moved_max == pytest.approx(np.linalg.norm(flat.vertices - faired.vertices, axis=1).max())
+    save_obj(flat, tmp_path / "out.obj")
+    back = meshio.read(tmp_path / "out.obj")  # an independent reader
+    np.testing.assert_allclose(back.points, flat.vertices, rtol=0, atol=1e-6 * max(1.0, np.abs(flat.vertices).max()))
+    assert sum(len(c.data) for c in back.cells) == m
+
+
+def test_unordered_rhino_grids_are_renumbered_row_by_row():
+    raw = load(DATA / "compas/quadmesh.obj", renumber_grid=False)
+    assert raw.grid_shape is None
+    g = load(DATA / "compas/quadmesh.obj")
+    rows, cols = g.grid_shape
+    ids = np.arange(rows * cols).reshape(rows, cols)
+    # neighbours in the numbering are neighbours in the mesh: every row and column is an edge chain
+    e = {tuple(sorted(x)) for x in g.topology.edges.tolist()}
+    assert all((int(a), int(b)) in e for a, b in zip(ids[:, :-1].ravel(), ids[:, 1:].ravel()))
+    assert all((int(a), int(b)) in e for a, b in zip(ids[:-1].ravel(), ids[1:].ravel()))
+    # the same points, the same quads
+    np.testing.assert_array_equal(np.sort(g.vertices, axis=0), np.sort(raw.vertices, axis=0))
+    assert as_grid(raw).grid_shape == (rows, cols)
+
+
+def test_staircase_boundary_has_few_corners_and_planarizes_with_defaults():
+    m = load(DATA / "staircase_saddle.obj")
+    topo = m.topology
+    assert int(topo.corner_vertices.sum()) == 52  # by valence: every step of the staircase
+    corners = corner_vertices(m)
+    assert int(corners.sum()) == 18 and not (corners & ~topo.corner_vertices).any()
+    assert not (m.topology.faces.shape[0] and np.all(corners[m.faces], axis=1).any())
+    out, rep = planarize(m, planar_tolerance=1e-2, max_iterations=300)
+    np.testing.assert_array_equal(out.vertices[corners], m.vertices[corners])
+    assert rep.n_fixed == 18 and rep.methods_tried[0] == "local-global"
+    # holding the whole valence-defined set would leave some quads with four held corners: refused, named
+    with pytest.raises(InputError, match="have all four corners held"):
+        planarize(m, fix="none", fixed=topo.corner_vertices | topo.boundary_vertices, planar_tolerance=1e-6)
