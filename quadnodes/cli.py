@@ -289,9 +289,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from .graph.sweep import variants
 
     n_variants = len(variants(vary, zip=args.zip))
-    res = run_sweep(graph, vary, out=out, zip=args.zip, overrides=_parse_sets(args.set or []), cache=cache,
-                    scheduler=args.scheduler, workers=args.workers, plot=_parse_plot(args.plot),
-                    progress=progress, on_start=on_start, command=command, source=path)
+    try:
+        res = run_sweep(graph, vary, out=out, zip=args.zip, overrides=_parse_sets(args.set or []), cache=cache,
+                        scheduler=args.scheduler, workers=args.workers, plot=_parse_plot(args.plot),
+                        progress=progress, on_start=on_start, command=command, source=path)
+    except KeyboardInterrupt:
+        print(f"interrupted: {out / 'sweep.csv'} lists what finished; the same command continues the sweep "
+              "(finished nodes come from the cache)", file=sys.stderr, flush=True)
+        return 130
     n_ok = sum(r.status == "ok" for r in res.rows)
     computed = sum(a == "compute" for _, a in res.tasks.values())
     loaded = sum(a == "load" for _, a in res.tasks.values())

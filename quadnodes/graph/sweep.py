@@ -49,6 +49,7 @@ import re
 import socket
 import sys
 import time
+import types
 import uuid
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -222,7 +223,7 @@ def variants(vary: Mapping[str, Any], *, zip: bool = False) -> list[dict[str, An
     >>> variants({"a.x": [1, 2], "b.y": [1]}, zip=True)
     Traceback (most recent call last):
     ...
-    quadnodes.errors.GraphError: --zip: the lists differ in length: a.x has 2 values, b.y has 1
+    quadnodes.errors.GraphError: --zip: the lists differ in length: a.x has 2 values, b.y has 1 value
     """
     if not isinstance(vary, Mapping) or not vary:
         raise GraphError("a sweep needs at least one setting to vary (--vary node.setting=v1,v2,...)")
@@ -235,7 +236,8 @@ def variants(vary: Mapping[str, Any], *, zip: bool = False) -> list[dict[str, An
         lists.append(_as_values(str(key), values))
     if zip:
         if len({len(v) for v in lists}) > 1:
-            sizes = ", ".join(f"{k} has {len(v)} values" for k, v in builtins_zip(keys, lists))
+            sizes = ", ".join(f"{k} has {len(v)} value{'s' if len(v) != 1 else ''}"
+                              for k, v in builtins_zip(keys, lists))
             raise GraphError(f"--zip: the lists differ in length: {sizes}")
         combos = list(builtins_zip(*lists))
     else:
@@ -315,7 +317,8 @@ def _check_code(call: NodeCall) -> None:
         return
     if code_fingerprint(nt.func) != nt.code_fingerprint:
         raise NodeError(f"{label(call.node_id, nt.op)}: the worker on {socket.gethostname()} runs other quadnodes "
-                        f"code (or Python/NumPy/SciPy versions) than the client; install the same on every machine")
+                        "code (or Python/NumPy/SciPy versions) than the client, or the sources changed after the "
+                        "sweep started; install the same on every machine")
     _VERIFIED.add(tag)
 
 
@@ -379,7 +382,7 @@ def _scalars(outputs: Mapping[str, Any]) -> dict[str, Any]:
 def _may_have_scalars(annotation: Any) -> bool:
     if annotation in (int, float, bool, str, dict) or get_origin(annotation) in (dict, Mapping):
         return True
-    if get_origin(annotation) in (Union, getattr(__import__("types"), "UnionType", Union)):
+    if get_origin(annotation) in (Union, types.UnionType):
         return any(_may_have_scalars(a) for a in get_args(annotation))
     return isinstance(annotation, type) and callable(getattr(annotation, "to_dict", None))
 
@@ -387,7 +390,15 @@ def _may_have_scalars(annotation: Any) -> bool:
 # ----------------------------------------------------------------------------- results
 @dataclass
 class SweepRow:
-    """One variant: its settings, folder, status (``"ok"``, ``"error"``, ``"not run"``), error, numbers."""
+    """One variant: its settings, folder, status (``"ok"``, ``"error"``, ``"not run"``), error, numbers.
+
+    ``seconds`` is the compute time of the variant's nodes that ran in this sweep (a node shared by
+    several variants counts in each; ``node_seconds`` has it per node), ``elapsed`` the time from the
+    start of the sweep until the variant was complete, ``ran`` / ``cached`` how many of its nodes ran or
+    were reused (read from the cache, or not needed because what they feed was reused), ``outputs`` its
+    files relative to the sweep folder (by ``node.setting``), ``values`` every scalar of its reports
+    (``metrics.metrics.zigzag_max``).
+    """
 
     index: int
     settings: dict[str, Any]
@@ -400,6 +411,7 @@ class SweepRow:
     cached: int = 0
     outputs: dict[str, str] = field(default_factory=dict)
     values: dict[str, Any] = field(default_factory=dict)
+    node_seconds: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -693,6 +705,7 @@ def run_sweep(
         disk = Cache(Path(cache).expanduser().resolve())
     cache_dir = str(disk.directory) if disk is not None and disk.directory is not None else None
 
+    _rooted(base, out_dir)  # refuses absolute output paths before anything runs
     sweep_id = uuid.uuid4().hex[:12]
     names = _folder_names(combos)
     rows = [SweepRow(i, dict(c), n) for i, (c, n) in enumerate(builtins_zip(combos, names))]
@@ -704,9 +717,7 @@ def run_sweep(
             g = _rooted(base.with_overrides(row.settings), folder)
             calls = plan(g)
             folder.mkdir(exist_ok=True)
-        except QuadnodesError as exc:
-            if isinstance(exc, GraphError) and "absolute path" in str(exc):
-                raise
+        except QuadnodesError as exc:  # e.g. a file it reads is missing
             row.status, row.error = "error", str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             continue
         for c in calls:
@@ -787,6 +798,7 @@ def _submit_and_wait(client: Any, plans: list[_Plan], tasks: dict[str, tuple[str
             for node_id, act in p.action.items():
                 if node_id in result:
                     status, seconds, scalars = result[node_id]
+                    row.node_seconds[node_id] = seconds
                     if status == "ran":
                         row.ran += 1
                         row.seconds += seconds
@@ -942,11 +954,17 @@ def _scatter_html(path: Path, table: list[dict[str, Any]], cols: list[str], x: n
                                  marker={"color": color, "size": size, "line": {"width": 1, "color": "#333"}},
                                  text=[names[i] for i in idx], customdata=[names[i] for i in idx],
                                  hovertemplate="%{text}<br>x=%{x:.4g}<br>y=%{y:.4g}<extra></extra>"))
+    order = np.flatnonzero(front)[np.argsort(x[front])]
+    fig.add_trace(go.Scatter(x=x[order], y=y[order], mode="lines", line={"shape": "hv", "color": "#d9480f"},
+                             hoverinfo="skip", showlegend=False))
     fig.update_layout(xaxis_title=xcol, yaxis_title=ycol, height=520, margin={"l": 60, "r": 20, "t": 30, "b": 50},
                       legend={"orientation": "h"})
     body = pio.to_html(fig, full_html=False, include_plotlyjs=True, include_mathjax=False, div_id="plot",
                        config={"displaylogo": False, "responsive": True})
-    show = cols
+    settings = [c for c in cols[: cols.index("status")]] if "status" in cols else []
+    first = settings + [xcol, ycol, "status", "error", "folder"]
+    show = first + [c for c in cols if c not in first]
+    links = {c for r in table for c in show if isinstance(r.get(c), str) and "/" in r[c] and c.endswith("path")}
     on_front = {names[i] for i in np.flatnonzero(front)}
     head = "".join(f"<th onclick=\"sortBy({i})\">{_html.escape(c)}</th>" for i, c in enumerate(show))
     body_rows = []
@@ -955,8 +973,8 @@ def _scatter_html(path: Path, table: list[dict[str, Any]], cols: list[str], x: n
         for c in show:
             v = r.get(c, "")
             text = _html.escape(f"{v:.6g}" if isinstance(v, float) else str(v))
-            if c == "folder" and v:
-                text = f"<a href=\"{_html.escape(str(v))}/\">{text}</a>"
+            if (c == "folder" or c in links) and v:
+                text = f"<a href=\"{_html.escape(str(v))}{'/' if c == 'folder' else ''}\">{text}</a>"
             elif c in (xcol, ycol):
                 text = f"<b>{text}</b>"
             cells.append(f"<td>{text}</td>")
