@@ -283,8 +283,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     def progress(done: int, total: int, row: Any) -> None:
         width = len(str(total))
-        detail = row.error if row.status == "error" else f"{row.ran} ran, {row.cached} cached, {row.seconds:.2f} s"
-        print(f"  [{done:{width}d}/{total}] {row.status:5s} {row.folder}  {detail}", flush=True)
+        detail = row.error if row.status == "error" else f"{row.ran} ran, {row.cached} cached"
+        when = ""
+        if row.elapsed is not None:
+            left = row.elapsed / done * (total - done)
+            when = f"  [{row.elapsed:.0f} s" + (f", about {left:.0f} s left]" if done < total else "]")
+        print(f"  [{done:{width}d}/{total}] {row.status:5s} {row.folder}  {detail}{when}", flush=True)
 
     from .graph.sweep import variants
 

@@ -380,6 +380,12 @@ def _scalars(outputs: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _may_have_scalars(annotation: Any) -> bool:
+    """Whether an output so annotated can carry table numbers (then a cached one is read for the table).
+
+    Judged from the annotation, not the value, so that the plan needs no data. An output annotated ``Any``
+    (a build123d face) is not read; a dict returned under ``Any`` therefore reaches the table only in a
+    sweep that computes it.
+    """
     if annotation in (int, float, bool, str, dict) or get_origin(annotation) in (dict, Mapping):
         return True
     if get_origin(annotation) in (Union, types.UnionType):

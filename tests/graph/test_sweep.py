@@ -252,6 +252,39 @@ def test_python_api_sweep_zip_and_executed_list(tmp_path, counter_module):
     assert not (tmp_path / "o" / ".cache").exists()
 
 
+def test_an_interrupted_sweep_continues_without_recomputing(tmp_path, counter_module):
+    import signal
+
+    g, counter = _graph(tmp_path, surface=False)
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-c", "import sys; from quadnodes.cli import main; sys.exit(main())", "sweep", str(g),
+           "--vary", "fair.iterations=1:8", "--out", str(out), "--workers", "1"]
+    p = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for line in p.stdout:
+            if "[2/8]" in line:
+                break
+        p.send_signal(signal.SIGINT)  # Ctrl-C after two variants
+        _, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 130 and "continues the sweep" in err
+    first = {r["folder"]: r["status"] for r in _rows(out / "sweep.csv")}
+    finished = [f for f, st in first.items() if st == "ok"]
+    assert len(finished) >= 2 and len(first) == 8
+    from quadnodes.graph import load
+
+    res = load(g).sweep({"fair.iterations": "1:8"}, out=out, workers=1)
+    assert [r.status for r in res.rows] == ["ok"] * 8
+    assert counter.read_text().count("ran") == 1  # the shared upstream is not run again
+    for r in res.rows:
+        if r.folder in finished:
+            assert r.ran == 0, r.folder  # a variant done before the interruption: nothing recomputed
+    assert "clean" not in res.ran_nodes and "noisy" not in res.ran_nodes
+
+
 # ----------------------------------------------------------------------------- an existing cluster
 def _free_port() -> int:
     import socket
