@@ -76,13 +76,13 @@ def main() -> None:
 
     with open(sweep_out / "sweep.csv", newline="") as f:
         bad = [r for r in csv.DictReader(f) if r["status"] != "ok"]
-    if bad:
-        sys.exit(f"{len(bad)} variants failed, e.g. {bad[0]['folder']}: {bad[0]['error']}")
+    for r in bad:  # a variant that fails fails in the loop too; both peers still do the same work
+        print(f"  variant {r['folder']} failed: {r['error']}", flush=True)
 
     variants = [(w, s) for w in WEIGHTS for s in SEEDS]
     k = max(1, min(args.loop_runs, len(variants)))
     picked = [variants[round(i * (len(variants) - 1) / max(k - 1, 1))] for i in range(k)] if k < 100 else variants
-    times, same = [], 0
+    times, same, compared = [], 0, 0
     for i, (w, s) in enumerate(picked):
         one = base / "loop" / f"w{w}_s{s}"
         cmd = [sys.executable, *CLI, "run", str(GRAPH), "--set", f"fair.weight={w}", "--set", f"noisy.seed={s}",
@@ -90,10 +90,10 @@ def main() -> None:
         t = time.perf_counter()
         r = subprocess.run(cmd, env=env, capture_output=True, text=True)
         times.append(time.perf_counter() - t)
-        if r.returncode != 0:
-            sys.exit(f"run failed: {' '.join(cmd)}\n{r.stderr}")
         swept = sweep_out / f"fair.weight={w}__noisy.seed={s}" / "faired.obj"
-        same += swept.read_bytes() == (one / "faired.obj").read_bytes()
+        if r.returncode == 0 and swept.exists():
+            same += swept.read_bytes() == (one / "faired.obj").read_bytes()
+            compared += 1
         print(f"  loop {i + 1}/{k}: {times[-1]:.1f} s", flush=True)
     t_loop = sum(times) * len(variants) / k
     estimated = "" if k == len(variants) else f" (estimated from {k} runs)"
@@ -110,7 +110,8 @@ def main() -> None:
     print(f"| `quadnodes sweep`, embedded cluster, {args.workers} workers x 1 thread | {t_sweep:.0f} | "
           f"{t_sweep / 100:.2f} | {t_sweep / t_loop:.2f} |")
     print()
-    print(f"faired.obj byte-equal between sweep and loop: {same} of {k} variants compared")
+    print(f"faired.obj byte-equal between sweep and loop: {same} of {compared} variants compared "
+          f"({len(bad)} variants failed in the sweep)")
     if tmp is not None:
         tmp.cleanup()
 

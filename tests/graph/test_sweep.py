@@ -15,6 +15,7 @@ import meshio
 import numpy as np
 import pytest
 
+import quadnodes.nodes  # noqa: F401  (registers the built-in nodes)
 from quadnodes.cli import main
 from quadnodes.errors import GraphError
 from quadnodes.graph.sweep import pareto_front, parse_vary, variants
@@ -257,7 +258,8 @@ def test_an_interrupted_sweep_continues_without_recomputing(tmp_path, counter_mo
 
     g, counter = _graph(tmp_path, surface=False)
     out = tmp_path / "o"
-    cmd = [sys.executable, "-c", "import sys; from quadnodes.cli import main; sys.exit(main())", "sweep", str(g),
+    cmd = [sys.executable, "-c", "import sys, qn_sweep_counter; from quadnodes.cli import main; sys.exit(main())",
+           "sweep", str(g),
            "--vary", "fair.iterations=1:8", "--out", str(out), "--workers", "1"]
     p = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -270,7 +272,7 @@ def test_an_interrupted_sweep_continues_without_recomputing(tmp_path, counter_mo
         if p.poll() is None:
             p.kill()
             p.wait()
-    assert p.returncode == 130 and "continues the sweep" in err
+    assert p.returncode == 130 and "continues the sweep" in err, err[-2000:]
     first = {r["folder"]: r["status"] for r in _rows(out / "sweep.csv")}
     finished = [f for f, st in first.items() if st == "ok"]
     assert len(finished) >= 2 and len(first) == 8
