@@ -1,4 +1,4 @@
-"""The ``quadnodes`` command line: run, watch, check, nodes, new, compare.
+"""The ``quadnodes`` command line: run, watch, sweep, check, nodes, new, compare.
 
 Examples
 --------
@@ -6,6 +6,7 @@ Examples
 
     quadnodes run examples/e3_wavy.toml --out out/e3 --set fair.iterations=5
     quadnodes watch examples/e3_wavy.toml
+    quadnodes sweep examples/quickstart.toml --vary fair.weight=0.1,0.3,1 --vary noisy.seed=1:5
     quadnodes nodes fair
     quadnodes compare --out out/thesis-comparison --examples E1 E3
 """
@@ -360,6 +361,76 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _parse_plot(items: Sequence[str] | None) -> tuple[str, str] | None:
+    from .errors import InputError
+
+    if not items:
+        return None
+    axes = dict(item.partition("=")[::2] for item in items)
+    if sorted(axes) != ["x", "y"] or not all(axes.values()):
+        raise InputError(f"--plot {' '.join(items)}: expected x=COLUMN y=COLUMN (columns of sweep.csv)")
+    return axes["x"], axes["y"]
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .errors import GraphError
+    from .graph import load
+    from .graph.sweep import parse_vary, run_sweep
+
+    path = Path(args.graph)
+    vary: dict[str, Any] = {}
+    for item in args.vary or []:
+        key, values = parse_vary(item)
+        if key in vary:
+            raise GraphError(f"--vary {key}: given twice")
+        vary[key] = values
+    graph = load(path, registry=_registry())
+    out = Path(args.out) if args.out else Path("out") / f"{path.stem}-sweep"
+    cache: Any = False if args.no_cache else (Path(args.cache) if args.cache else True)
+    command = ["quadnodes", "sweep", str(path)] + [f"--vary={v}" for v in args.vary or []] + \
+        [f"--set={v}" for v in args.set or []] + (["--zip"] if args.zip else []) + ["--out", str(out)] + \
+        (["--scheduler", args.scheduler] if args.scheduler else ["--workers", str(args.workers)]) + \
+        (["--plot", *args.plot] if args.plot else [])
+
+    def on_start(dashboard: str | None, n_tasks: int) -> None:
+        where = args.scheduler or f"an embedded cluster of {args.workers} worker processes"
+        print(f"sweep {path}: {n_variants} variants, {n_tasks} node tasks on {where} -> {out}/", flush=True)
+        print(f"  dashboard: {dashboard}" if dashboard else
+              "  dashboard: none (it needs bokeh: pip install bokeh)", flush=True)
+
+    def progress(done: int, total: int, row: Any) -> None:
+        width = len(str(total))
+        detail = row.error if row.status == "error" else f"{row.ran} ran, {row.cached} cached"
+        when = ""
+        if row.elapsed is not None:
+            left = row.elapsed / done * (total - done)
+            when = f"  [{row.elapsed:.0f} s" + (f", about {left:.0f} s left]" if done < total else "]")
+        print(f"  [{done:{width}d}/{total}] {row.status:5s} {row.folder}  {detail}{when}", flush=True)
+
+    from .graph.sweep import variants
+
+    n_variants = len(variants(vary, zip=args.zip))
+    try:
+        res = run_sweep(graph, vary, out=out, zip=args.zip, overrides=_parse_sets(args.set or []), cache=cache,
+                        scheduler=args.scheduler, workers=args.workers, plot=_parse_plot(args.plot),
+                        progress=progress, on_start=on_start, command=command, source=path)
+    except KeyboardInterrupt:
+        print(f"interrupted: {out / 'sweep.csv'} lists what finished; the same command continues the sweep "
+              "(finished nodes come from the cache)", file=sys.stderr, flush=True)
+        return 130
+    n_ok = sum(r.status == "ok" for r in res.rows)
+    computed = sum(a == "compute" for _, a in res.tasks.values())
+    loaded = sum(a == "load" for _, a in res.tasks.values())
+    print(f"done in {res.seconds:.1f} s: {n_ok} of {len(res.rows)} variants ok; of the {res.node_results} node "
+          f"results they need, {computed} were computed (shared ones once) and {loaded} read from the cache",
+          flush=True)
+    if n_ok < len(res.rows):
+        print(f"  {len(res.rows) - n_ok} variants failed: see the error column of sweep.csv", flush=True)
+    for p in [res.csv, res.manifest, *res.plots]:
+        print(f"  wrote {os.path.relpath(p)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="quadnodes", description="Fair, buildable quad-panel surfaces.")
     ap.add_argument("--version", action="version", version=f"quadnodes {__version__}")
@@ -384,6 +455,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-runs", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--timeout", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_watch)
+    p = sub.add_parser("sweep", help="run variants of a graph on Dask (shared nodes once): one folder per "
+                                     "variant, sweep.csv, a manifest, a Pareto plot")
+    graph_args(p)
+    p.add_argument("--vary", action="append", metavar="NODE.SETTING=VALUES", required=True,
+                   help="values of a setting (repeatable): v1,v2,... (TOML values), a:b (integers a to b) or "
+                        "a:b:count (count numbers from a to b); every combination runs")
+    p.add_argument("--zip", action="store_true", help="pair the i-th values of every --vary instead")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="a running Dask scheduler (default: an embedded cluster on this machine)")
+    p.add_argument("--workers", type=int, default=2, help="worker processes of the embedded cluster (default 2)")
+    p.add_argument("--plot", nargs=2, metavar=("x=COLUMN", "y=COLUMN"),
+                   help="scatter plot of two sweep.csv columns (PNG + HTML table), Pareto front highlighted")
+    p.set_defaults(func=cmd_sweep)
     p = sub.add_parser("check", help="validate a graph file without running it; lists every problem")
     p.add_argument("graph")
     p.add_argument("--out", help="output folder the paths are checked against (default out/<graph name>/)")

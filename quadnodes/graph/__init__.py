@@ -32,6 +32,7 @@ from .graph import Constant, Graph, NodeHandle, NodeSpec, PortRef
 from .node import REGISTRY, NodeType, Registry, describe, node
 from ..progress import report_progress
 from .run import ProgressEvent, RunRecord, RunResult, keys, run
+from .sweep import SweepResult, SweepRow, parse_vary, run_sweep, variants
 
 __all__ = [
     "node",
@@ -63,4 +64,9 @@ __all__ = [
     "RunRecord",
     "ProgressEvent",
     "report_progress",
+    "run_sweep",
+    "variants",
+    "parse_vary",
+    "SweepResult",
+    "SweepRow",
 ]

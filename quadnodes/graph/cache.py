@@ -125,6 +125,10 @@ class Cache:
     def __contains__(self, key: str) -> bool:
         return key in self._memory or (self.directory is not None and self._path(key).is_file())
 
+    def on_disk(self, key: str) -> bool:
+        """Whether the disk cache holds an entry for ``key`` (other processes can read it)."""
+        return self.directory is not None and self._path(key).is_file()
+
     def get(self, key: str) -> CacheEntry | None:
         """The entry for ``key`` from memory, else from disk (then kept in memory), else None."""
         entry = self._memory.get(key)

@@ -443,6 +443,12 @@ class Graph:
 
         return run(self, cache=cache, overrides=overrides, progress=progress, out=out, allow_read=allow_read)
 
+    def sweep(self, vary: Mapping[str, Any], **options: Any) -> Any:
+        """Run variants of the graph on Dask; see :func:`quadnodes.graph.sweep.run_sweep`."""
+        from .sweep import run_sweep
+
+        return run_sweep(self, vary, **options)
+
     def to_dict(self) -> dict[str, Any]:
         """The file model; see :func:`quadnodes.graph.files.to_dict`."""
         from .files import to_dict

@@ -246,7 +246,9 @@ class NodeType:
         problem = s.range.problem(coerced) if s.range is not None else None
         if problem:
             sep = "" if problem.startswith("[") else ": "
-            raise graph_error(f"{label(node_id, self.op)}: setting {name!r}{sep}{problem}", node_id=node_id)
+            err = graph_error(f"{label(node_id, self.op)}: setting {name!r}{sep}{problem}", node_id=node_id)
+            err.out_of_range = True  # type: ignore[attr-defined]  (a sweep keeps such a variant as an error row)
+            raise err
         return coerced
 
     def resolve_settings(self, params: Mapping[str, Any], *, node_id: str) -> dict[str, Any]:

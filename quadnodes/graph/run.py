@@ -45,7 +45,7 @@ from .node import NodeType
 from .templates import expand
 from ..progress import reporting
 
-__all__ = ["RunRecord", "ProgressEvent", "RunResult", "run", "keys"]
+__all__ = ["RunRecord", "ProgressEvent", "RunResult", "run", "keys", "NodeCall", "plan"]
 
 
 @dataclass(frozen=True)
@@ -429,3 +429,89 @@ def _execute(
     except Exception as exc:
         raise _node_error(f"{label(prep.node_id, op)}: {_explain(exc)}", prep.node_id) from exc
 
+
+
+# --------------------------------------------------------------------------- one node at a time, elsewhere
+@dataclass(frozen=True)
+class NodeCall:
+    """One node of a graph, ready to run in another process (what :mod:`quadnodes.graph.sweep` ships to workers).
+
+    ``settings`` are as passed to the function (defaults filled in, relative
+    paths resolved), ``constants`` the Python values wired into input ports,
+    ``connections`` the upstream ports by input port, ``key`` the cache key
+    (None: never cached). Plain dicts, so it pickles.
+    """
+
+    node_id: str
+    node_type: NodeType
+    settings: dict[str, Any]
+    constants: dict[str, Any]
+    connections: dict[str, PortRef]
+    key: str | None
+
+    @property
+    def op(self) -> str:
+        return self.node_type.op
+
+    def execute(self, inputs: Mapping[str, Any]) -> dict[str, Any]:
+        """Call the node with ``inputs`` (upstream values by port; constants are added).
+
+        Raises
+        ------
+        NodeError
+            ``"node 'fair' (fair@1): <message>"`` when the function raises (chained).
+        """
+        prep = _Prepared(self.node_id, self.node_type, dict(self.settings), {**self.constants, **inputs}, self.key)
+        return _execute(prep, self.op, 0, 1, None)
+
+    def written(self) -> dict[str, list[str | None]]:
+        """Digests of the files named by the node's ``writes`` settings (None for a missing file)."""
+        return _written(self.node_type, self.settings)
+
+    def reusable(self, entry: CacheEntry) -> bool:
+        """Whether a cache entry may stand for this node: every file it wrote is still there, unchanged."""
+        if not self.node_type.writes:
+            return True
+        now = self.written()
+        return all(now.get(s) == list(entry.files.get(s, ())) for s in self.node_type.writes)
+
+
+def plan(graph: Graph, *, overrides: Mapping[str, Any] | None = None) -> list[NodeCall]:
+    """Every node of ``graph`` as a :class:`NodeCall`, in run order, with the keys :func:`run` would use.
+
+    Raises
+    ------
+    GraphError
+        If the graph (after overrides) is invalid.
+    NodeError
+        If a file named in a ``reads`` setting is missing.
+
+    Examples
+    --------
+    >>> from quadnodes.graph.node import Registry, node
+    >>> reg = Registry()
+    >>> @node("num", registry=reg)
+    ... def num(*, value: float = 0.0) -> float:
+    ...     return value
+    >>> @node("neg", registry=reg)
+    ... def neg(x: float) -> float:
+    ...     return -x
+    >>> g = Graph(registry=reg)
+    >>> x = g.add("num", id="x", value=2); y = g.add("neg", x, id="y")
+    >>> calls = plan(g)
+    >>> [c.node_id for c in calls], calls[1].connections, calls[1].key == keys(g)["y"]
+    (['x', 'y'], {'x': PortRef(node='x', port='out')}, True)
+    >>> calls[1].execute({"x": calls[0].execute({})["out"]})
+    {'out': -2.0}
+    """
+    g = graph.with_overrides(overrides) if overrides else graph
+    g.validate()
+    node_keys: dict[str, str | None] = {}
+    out: list[NodeCall] = []
+    for node_id in g.order():
+        spec = g.nodes[node_id]
+        prep = _prepare(g, spec, node_keys, None)
+        node_keys[node_id] = prep.key
+        connections = {p: c for p, c in spec.inputs.items() if isinstance(c, PortRef)}
+        out.append(NodeCall(node_id, prep.nt, dict(prep.settings), dict(prep.inputs), connections, prep.key))
+    return out
