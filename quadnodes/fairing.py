@@ -168,6 +168,8 @@ def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
         a2 = np.where(ln[sel] >= 3, idx[np.clip(e + 2 * step, 0, idx.size - 1)], -1)
         arms.append(np.stack([idx[e], idx[e + step], a2], axis=1))
     arm = np.concatenate(arms)
+    if len(arm) == 0:  # no line ends at these vertices
+        return np.empty((0, 4), dtype=np.int64)
     arm = arm[np.lexsort((arm[:, 1], arm[:, 0]))]
     v = arm[:, 0]
     d = vertices[arm[:, 1]] - vertices[v]

@@ -248,8 +248,8 @@ class Topology:
 
     @cached_property
     def extraordinary(self) -> np.ndarray:
-        """Interior vertices whose valence is not 4, ``(n,) bool``."""
-        return ~self.boundary_vertices & ~self.regular_interior
+        """Interior vertices whose valence is not 4, ``(n,) bool`` (vertices in no face are none)."""
+        return ~self.boundary_vertices & ~self.regular_interior & (self.vertex_face_count > 0)
 
     # --- structure lines --------------------------------------------------------
     @cached_property

@@ -25,10 +25,10 @@ def off_text(faces, points=POINTS, newline="\n"):
 def test_off_quads_kept(tmp_path):
     p = tmp_path / "a.off"
     p.write_text(off_text([(0, 1, 2, 3), (1, 4, 5, 2), (4, 6, 7, 5)]))
-    m = load(p)
+    m = load(p, renumber_grid=False)
     assert m.faces.tolist() == [[0, 1, 2, 3], [1, 4, 5, 2], [4, 6, 7, 5]]
     assert np.array_equal(m.vertices, np.array(POINTS, dtype=float)) and m.unit == "mm"
-    assert load(p, unit="m").unit == "m"
+    assert load(p, renumber_grid=False, unit="m").unit == "m"
 
 
 def test_off_variants_bom_crlf_tabs_colours_and_counts_on_the_keyword_line(tmp_path):
@@ -37,7 +37,7 @@ def test_off_variants_bom_crlf_tabs_colours_and_counts_on_the_keyword_line(tmp_p
     text = text.replace("4\t1\t4\t5\t2", "4\t1\t4\t5\t2\t255 0 0")  # a face colour
     p = tmp_path / "c.off"
     p.write_text(text, encoding="utf-8")
-    assert load(p).faces.tolist() == [[0, 1, 2, 3], [1, 4, 5, 2]]
+    assert load(p, renumber_grid=False).faces.tolist() == [[0, 1, 2, 3], [1, 4, 5, 2]]
 
 
 def test_off_non_quads_follow_the_obj_rule():
@@ -85,7 +85,7 @@ def test_ascii_ply(tmp_path):
     body += "".join(" ".join(map(str, [len(f), *f])) + "\n" for f in FACES)
     p = tmp_path / "a.ply"
     p.write_text(ply_header("ascii", 3) + body)
-    m = load(p)
+    m = load(p, renumber_grid=False)
     assert m.faces.tolist() == [list(f) for f in FACES]
     assert np.array_equal(m.vertices, np.array(POINTS, dtype=float))
 
@@ -97,7 +97,7 @@ def test_binary_ply(tmp_path, endian, fmt):
     data += b"".join(struct.pack(endian + "B4i", 4, *f) for f in FACES)
     p = tmp_path / "b.ply"
     p.write_bytes(ply_header(fmt, 3).encode() + data)
-    m = load(p, unit="cm")
+    m = load(p, renumber_grid=False, unit="cm")
     assert m.faces.tolist() == [list(f) for f in FACES] and m.unit == "cm"
     assert np.array_equal(m.vertices, pts)  # bit for bit
 
@@ -109,15 +109,15 @@ def test_ply_non_quads(tmp_path):
     p = tmp_path / "t.ply"
     p.write_text(ply_header("ascii", 3) + body)
     with pytest.raises(InputError, match=r"t.ply: face 1 has 3 corners; only quads are supported"):
-        load(p)
-    assert load(p, non_quads="drop").faces.tolist() == [[0, 1, 2, 3], [4, 6, 7, 5]]
+        load(p, renumber_grid=False)
+    assert load(p, renumber_grid=False, non_quads="drop").faces.tolist() == [[0, 1, 2, 3], [4, 6, 7, 5]]
 
 
 def test_ply_that_is_not_ply(tmp_path):
     p = tmp_path / "bad.ply"
     p.write_text("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nend_header\n1\n")
     with pytest.raises(InputError, match="bad.ply: not a PLY file meshio can read"):
-        load(p)
+        load(p, renumber_grid=False)
     with pytest.raises(InputError, match="cannot read"):
         load(tmp_path / "missing.ply")
 
@@ -127,7 +127,7 @@ def test_grid_through_off(tmp_path):
     lines = ["OFF", f"{g.n_vertices} {g.n_faces} 0"] + ["%r %r %r" % tuple(v) for v in g.vertices.tolist()]
     lines += ["4 %d %d %d %d" % tuple(f) for f in g.faces.tolist()]
     (tmp_path / "g.off").write_text("\n".join(lines))
-    m = load(tmp_path / "g.off")
+    m = load(tmp_path / "g.off", renumber_grid=False)
     assert np.array_equal(m.vertices, g.vertices) and np.array_equal(m.faces, g.faces)
 
 
