@@ -57,7 +57,7 @@ MAX_CG_ITERATIONS = 20000
 BLOCK_SIZE = 16
 #: Precondition when the mean diagonal of AᵀA exceeds this many times ω (else plain CG wins);
 #: about ω < 0.2 (normalized) — or ω < 0.02 where the grid's faster diagonal storage applies
-#: (``benchmarks/cg_weights.py``).
+#: (``benchmarks/studies/cg_weights.py``).
 BLOCK_JACOBI_RATIO = 50.0
 GRID_BLOCK_JACOBI_RATIO = 500.0
 #: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
@@ -66,7 +66,7 @@ GRID_BLOCK_JACOBI_RATIO = 500.0
 GRID_MIN_FREE = 0.6
 
 #: Default dimensionless penalty weight (in units of the mean edge length).
-#: Chosen from ``benchmarks/weight_sweep.py``; see ``docs/fairing.md``.
+#: Chosen from ``benchmarks/studies/weight_sweep.py``; see ``docs/fairing.md``.
 DEFAULT_WEIGHT = 0.3
 
 
