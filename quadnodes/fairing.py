@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike
 from . import _validate
 from .errors import InputError
 from .linalg import factorize
-from .linalg.cg import HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, block_cg, permuted
+from .linalg.cg import HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner, block_cg, permuted
 from .linalg.grid import GridPattern
 from .linalg.threads import RowBlocks
 from .progress import report_progress
@@ -176,6 +176,23 @@ def grid_pattern(topology: object) -> GridPattern | None:
     return pattern
 
 
+def _line_preconditioner(data: np.ndarray, cols: int) -> LinePreconditioner:
+    """Row-line and column-line blocks of a grid's 13 diagonals (offsets ±1..3 come only from row
+    windows, ±cols.. only from column windows), each with the whole diagonal, in banded form."""
+    n = data.shape[1]
+    rows = n // cols
+    first = np.zeros((4, n))
+    first[3] = data[6]
+    for k in (1, 2, 3):
+        first[3 - k, k:] = data[6 + k, k:]  # data[6 + k, j] = M[j - k, j]
+    order = np.arange(n).reshape(rows, cols).T.reshape(-1)  # column-major: the columns are contiguous
+    second = np.zeros((4, n))
+    second[3] = data[6][order]
+    for k in (1, 2, 3):
+        second[3 - k, k:] = data[9 + k][order][k:]  # data[9 + k, j] = M[j - k·cols, j]
+    return LinePreconditioner(first, second, order)
+
+
 def _with_weight(AtA: sp.csr_matrix, weight: float) -> sp.csr_matrix:
     """``AᵀA + ω I``, adding ω on the stored diagonal in place (every free vertex is in a
     window, so AᵀA stores each diagonal entry; SciPy would insert a missing one)."""
@@ -245,6 +262,12 @@ class FairingSystem:
     rtol : float
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
+    preconditioner : {"auto", "lines"}
+        ``"auto"``: block Jacobi at small weights, else none. ``"lines"`` (on the
+        grid's diagonal storage only; experimental, issue 15): the additive
+        row-line + column-line block preconditioner
+        (:class:`~quadnodes.linalg.cg.LinePreconditioner`), whose step count barely
+        depends on the noise (59 steps on 200² broadband noise against 222).
 
     Attributes
     ----------
@@ -272,6 +295,7 @@ class FairingSystem:
         *,
         solver: Literal["auto", "direct", "cg"] = "auto",
         rtol: float = 1e-9,
+        preconditioner: Literal["auto", "lines"] = "auto",
         _inverse_lengths: np.ndarray | None = None,
         _topology: object | None = None,
     ) -> None:
@@ -342,6 +366,8 @@ class FairingSystem:
         if solver not in ("auto", "direct", "cg"):
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
         self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
+        self.preconditioner = _validate.choice(preconditioner, ("auto", "lines"), "preconditioner")
+        self._grid_cols = None if _topology is None or _topology.grid_shape is None else _topology.grid_shape[1]
         self.rtol = _validate.positive_number(rtol, "rtol")
         self.iterations = 0
         self.residual = 0.0
@@ -403,7 +429,9 @@ class FairingSystem:
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 pattern, coef, free = self._grid
-                self._cg = (DiagonalBlocks(*pattern.normal_matrix(coef, free, self.weight)), None, None)
+                offsets, data = pattern.normal_matrix(coef, free, self.weight)
+                precond = _line_preconditioner(data, self._grid_cols) if self.preconditioner == "lines" else None
+                self._cg = (DiagonalBlocks(offsets, data), precond, None)
             else:
                 self._cg = (RowBlocks(self.matrix), None, None)
         return self._cg

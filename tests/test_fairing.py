@@ -512,3 +512,30 @@ def test_cg_on_closed_and_irregular_meshes_equals_the_direct_solve(monkeypatch, 
     assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     out, _ = fair(m, threshold=0.0, fixed=~free, fix="none", solver="cg")
     np.testing.assert_array_equal(out.vertices[~free], m.vertices[~free])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("noise", ["broadband", "zigzag"])
+def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, threads, noise):
+    from quadnodes.linalg.cg import LinePreconditioner
+
+    m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)[0] if noise == "zigzag" else \
+        grid(40, 50, spacing=25.0)
+    if noise == "broadband":
+        m = m.with_vertices(m.vertices + np.random.default_rng(5).normal(scale=5.0, size=m.vertices.shape))
+    m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
+    free = m.topology.window_middle & ~m.topology.boundary_vertices
+    if threads > 1:
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    w = 0.3 / m.mean_edge_length**2
+    s = _grid_system(m, free, w, preconditioner="lines")
+    x = s.solve(m.vertices[free])
+    plain = _grid_system(m, free, w)
+    plain.solve(m.vertices[free])
+    assert isinstance(s._cg[1], LinePreconditioner) and len(s._cg[0].ranges) == threads
+    assert s.residual <= 1e-9 and s.iterations < plain.iterations
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    with pytest.raises(InputError, match="preconditioner"):
+        FairingSystem(m.vertices, m.topology.windows, free, w, preconditioner="multigrid")

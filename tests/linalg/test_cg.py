@@ -90,3 +90,38 @@ def test_the_pool_works_in_a_forked_child(monkeypatch):
     assert child.exitcode == 0
     ranges, residual = queue.get(timeout=5)
     assert ranges == 2 and residual <= 1e-10
+
+
+def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses():
+    from quadnodes.linalg.cg import LinePreconditioner
+
+    rows, cols = 7, 9
+    n = rows * cols
+    rng = np.random.default_rng(3)
+    # random SPD bands along rows (offsets 1..3) and along columns (offsets cols..3 cols)
+    def band(step, length, count):
+        A = np.zeros((n, n))
+        for line in range(count):
+            idx = (np.arange(length) * step + line * (cols if step == 1 else 1))
+            B = rng.normal(size=(length + 3, length))
+            for i in range(length):
+                B[i + 4:, i] = 0.0
+                B[: max(i - 3, 0), i] = 0.0
+            A[np.ix_(idx, idx)] += B.T @ B * np.tri(length, length, 3) * np.tri(length, length, 3).T
+        return A
+    Ar, Ac = band(1, cols, rows), band(cols, rows, cols)
+    D = np.diag(0.5 + rng.random(n))
+    B1, B2 = Ar + D, Ac + D
+    ab = lambda A: np.vstack([np.r_[np.zeros(k), np.diag(A, k)] for k in (3, 2, 1, 0)])
+    order = np.arange(n).reshape(rows, cols).T.reshape(-1)
+    P = LinePreconditioner(ab(B1), ab(B2[np.ix_(order, order)]), order)
+    R = np.zeros((3, 128))
+    R[:, :n] = rng.normal(size=(3, n))
+    Z = np.full_like(R, np.nan)
+    P.apply(R, Z, 0, 128, True)
+    ref = np.linalg.solve(B1, R[:, :n].T) + np.linalg.solve(B2, R[:, :n].T)
+    np.testing.assert_allclose(Z[:, :n].T, ref, atol=1e-10)
+    assert not Z[:, n:].any()
+    Zr = np.full((128, 3), np.nan)
+    P.apply(np.ascontiguousarray(R.T), Zr, 0, 128, False)  # (n, c) layout
+    np.testing.assert_allclose(Zr, Z.T, atol=1e-12)
