@@ -49,7 +49,7 @@ from .mesh import QuadMesh
 from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
-from .linalg import factorize, regularization
+from .linalg import QuadraticProblem, factorize, regularization
 from .topology import adjacency, fixed_vertices
 from .flatness import DEFAULT_PLANAR_TOLERANCE, resolve_planar_tolerance
 
@@ -520,18 +520,16 @@ def planarize(
     if method == "newton":
         return run_newton(0, [], 0)
     C = _centering_matrix(faces, n) / h**2
-    Cff, Cfx = C[fi][:, fi], C[fi][:, ~free]
-    Fff, Ffx = F[fi][:, fi], F[fi][:, ~free]
-    I = sp.identity(fi.size, format="csc") / h**2
-    xfix = x0[~free]
-    fixed_F = Ffx @ xfix if Ffx.shape[1] else np.zeros((fi.size, 3))
-    fixed_C = Cfx @ xfix if Cfx.shape[1] else np.zeros((fi.size, 3))
+    I = sp.identity(n, format="csr") / h**2
+    known = np.flatnonzero(~free)
+    xfix = x0[known]
 
-    def factor(wp: float) -> Any:
-        M = (wp * Cff + w_f * Fff + (w_c + w_i) * I).tocsc()
-        if w_c + w_i == 0:  # only the held vertices pin the mesh: checked above, kept definite here
-            M = M + regularization(M, 1e-10) * sp.identity(fi.size, format="csc")
-        return factorize(M, kind="spd", what="planarize (local/global step)")
+    def factor(wp: float) -> QuadraticProblem:
+        # ½ xᵀQx − xᵀ(...): the held vertices move to the right-hand side inside the engine;
+        # only the held vertices pin the mesh when w_c + w_i == 0 (checked above): kept definite by a shift
+        Q = (wp * C + w_f * F + (w_c + w_i) * I).tocsr()
+        return QuadraticProblem(Q, known=known, method="direct", shift=1e-10 if w_c + w_i == 0 else 0.0,
+                                what="planarize (local/global step)")
 
     lu = factor(w_p)
     facts = 1
@@ -544,8 +542,8 @@ def planarize(
         """One local/global step from positions ``x``: new free positions (the fixed-point map)."""
         qv = gather @ quad_plane_projection(x, faces).reshape(-1, 3)
         target, _ = closest(x)
-        rhs = (w_p / h**2) * qv[fi] - w_p * fixed_C - w_f * fixed_F + (w_c / h**2) * target[fi] + (w_i / h**2) * x0[fi]
-        return lu.solve(rhs)
+        lin = -((w_p / h**2) * qv + (w_c / h**2) * target + (w_i / h**2) * x0)
+        return lu.solve(lin, Y=xfix)[fi]
 
     x = x0.copy()
     xf = x0[fi]

@@ -31,7 +31,7 @@ from scipy.optimize import brentq
 
 from . import _validate
 from .errors import InputError
-from .fairing import _RowBlocks
+from .linalg.threads import RowBlocks
 from .mesh import QuadMesh
 from .topology import fixed_vertices
 
@@ -186,9 +186,9 @@ def _smooth(mesh: QuadMesh, factors: list[float], weighting: Weighting, fixed: n
         return mesh.with_vertices(x)
     # the operator is fixed: x' = (1 − f·moving) x + (f W) x, one product per step,
     # written row range by row range (in parallel on large meshes) into a second buffer;
-    # small meshes store the coordinates as (3, n), see fairing.COLUMNS_MAX_NNZ
+    # small meshes store the coordinates as (3, n), see linalg.threads.COLUMNS_MAX_NNZ
     W = _weights(mesh, weighting, None, fixed)
-    blocks = _RowBlocks(W)
+    blocks = RowBlocks(W)
     scaled = {f: W.data * f for f in set(factors)}
     still = np.flatnonzero(~moving)  # rows that keep their position (f·W is empty there)
     if blocks.columns:

@@ -25,7 +25,7 @@ __all__ = [
 
 #: The values of ``detection``: ``"alternating"`` (turning that flips side) or ``"thesis"`` (eq. 30).
 DETECTIONS: tuple[str, ...] = ("alternating", "thesis")
-#: Chosen by measurement (``benchmarks/bench_real_meshes.py``, ``docs/real-meshes.md``).
+#: Chosen by measurement (``benchmarks/studies/bench_real_meshes.py``, ``docs/real-meshes.md``).
 DEFAULT_DETECTION = "alternating"
 
 

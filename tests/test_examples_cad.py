@@ -1,6 +1,6 @@
 """The example graphs' CAD outputs at the sizes that used to abort the STEP export (issue 13).
 
-Only the nodes the STEP and CSV outputs need are run; benchmarks/bench_cad.py runs 40, 45, 60 and 120 per
+Only the nodes the STEP and CSV outputs need are run; benchmarks/perf/bench_cad.py runs 40, 45, 60 and 120 per
 side.
 """
 

@@ -6,6 +6,9 @@ from hypothesis import given, settings, strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.fairing import FairingSystem, fair, fairing_energy, fairing_matrix
+from quadnodes.linalg import threads as linalg_threads
+from quadnodes.linalg.cg import BlockJacobi, DiagonalBlocks, permuted
+from quadnodes.linalg.threads import RowBlocks
 from quadnodes.mesh import QuadMesh, cylinder, grid
 from quadnodes.noise import perturb
 from quadnodes.zigzag import detect, window_deviation
@@ -204,9 +207,7 @@ def test_conjugate_gradients_equal_the_direct_solve(make, weight):
 @pytest.mark.parametrize("weight", [0.3, 0.01])  # plain CG, block-Jacobi CG
 @pytest.mark.parametrize("columns", [True, False])  # (3, n) vectors, (n, 3) vectors
 def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, weight, columns):
-    from quadnodes import fairing
-
-    monkeypatch.setattr(fairing, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
+    monkeypatch.setattr(linalg_threads, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
 
     m, _ = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
@@ -214,8 +215,8 @@ def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, wei
     w = weight / m.mean_edge_length**2
     one = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg")
     x1 = one.solve(m.vertices[free])
-    monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
-    monkeypatch.setattr(fairing, "_thread_count", lambda: threads)
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
     par = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg")
     xp = par.solve(m.vertices[free])
     assert len(par._cg[0].ranges) == threads and len(one._cg[0].ranges) == 1
@@ -267,7 +268,7 @@ def test_shared_window_geometry_gives_the_same_system():
 
 
 def test_patch_order_and_permutation():
-    from quadnodes.fairing import _BlockJacobi, _patch_order, _permuted
+    from quadnodes.fairing import _patch_order
 
     m, _ = perturb(grid(13, 11), tangential=0.2, seed=1)
     free = detect(m, 0.0).free
@@ -281,9 +282,9 @@ def test_patch_order_and_permutation():
     compact = (np.ptp(blocks, axis=1) <= 7).all(axis=1)  # within two neighbouring 4 x 4 patches
     assert compact.mean() > 0.7
     M = s.matrix
-    P = _permuted(M, order)
+    P = permuted(M, order)
     np.testing.assert_array_equal(P.toarray(), M.toarray()[order][:, order])
-    bj = _BlockJacobi(P, 16)
+    bj = BlockJacobi(P, 16)
     D = P.toarray()
     R = np.zeros((3, bj.inv.shape[0] * 16))  # (c, n) layout, zero padding
     R[:, : s.n_free] = np.random.default_rng(0).normal(size=(3, s.n_free))
@@ -298,10 +299,8 @@ def test_patch_order_and_permutation():
 
 
 def _threaded_solve_in_child(queue):
-    from quadnodes import fairing
-
-    fairing.PARALLEL_MIN_ROWS = 10
-    fairing._thread_count = lambda: 2
+    linalg_threads.PARALLEL_MIN_ROWS = 10
+    linalg_threads.thread_count = lambda: 2
     m, _ = perturb(grid(20, 20), tangential=0.2, seed=1)
     free = detect(m, 0.0).free
     s = FairingSystem(m.vertices, m.topology.windows, free, 1.0, solver="cg")
@@ -313,14 +312,12 @@ def _threaded_solve_in_child(queue):
 def test_threaded_solve_works_in_a_forked_child(monkeypatch):
     import multiprocessing
 
-    from quadnodes import fairing
-
-    monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
-    monkeypatch.setattr(fairing, "_thread_count", lambda: 2)
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(linalg_threads, "thread_count", lambda: 2)
     m, _ = perturb(grid(20, 20), tangential=0.2, seed=1)
     free = detect(m, 0.0).free
     FairingSystem(m.vertices, m.topology.windows, free, 1.0, solver="cg").solve(m.vertices[free])
-    assert fairing._POOL is not None  # the parent's pool exists before the fork
+    assert linalg_threads.pool() is not None  # the parent's pool exists before the fork
     ctx = multiprocessing.get_context("fork")
     queue = ctx.Queue()
     child = ctx.Process(target=_threaded_solve_in_child, args=(queue,))
@@ -345,7 +342,7 @@ def _grid_system(m, free, weight, **kw):
 def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_share, seed):
     """On a vertex grid the normal matrix in diagonal storage (grid numbering, fixed rows
     identity) holds exactly AᵀA + ωI of the free vertices."""
-    from quadnodes.fairing import _GridPattern
+    from quadnodes.fairing import grid_pattern
 
     rng = np.random.default_rng(seed)
     m, _ = perturb(grid(rows, cols), tangential=0.2, normal=0.1, seed=seed)
@@ -354,7 +351,7 @@ def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_sha
         return
     s = FairingSystem(m.vertices, m.topology.windows, free, 0.7)
     t = m.topology
-    offsets, data = _GridPattern.of(t).normal_matrix(window_coefficients_all(m), free, 0.7)
+    offsets, data = grid_pattern(t).normal_matrix(window_coefficients_all(m), free, 0.7)
     import scipy.sparse as sp
 
     D = sp.dia_matrix((data, offsets), shape=(m.n_vertices,) * 2).toarray()
@@ -375,8 +372,6 @@ def window_coefficients_all(m):
 @pytest.mark.parametrize("fix", ["corners", "boundary", "random"])
 @pytest.mark.parametrize("threads", [1, 2])
 def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, threads):
-    from quadnodes import fairing
-
     m, _ = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
     free = m.topology.window_middle.copy()
@@ -385,31 +380,29 @@ def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, th
     elif fix == "random":
         free &= np.random.default_rng(0).random(m.n_vertices) > 0.3
     if threads > 1:
-        monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
-        monkeypatch.setattr(fairing, "_thread_count", lambda: threads)
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
     w = weight / m.mean_edge_length**2
     s = _grid_system(m, free, w)
     x = s.solve(m.vertices[free])
     blocks = s._cg[0]
-    assert isinstance(blocks, fairing._DiagonalBlocks) and len(blocks.ranges) == threads
+    assert isinstance(blocks, DiagonalBlocks) and len(blocks.ranges) == threads
     assert s.residual <= 1e-9
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
     assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
 
 
 def test_grid_diagonal_path_only_when_it_pays():
-    from quadnodes import fairing
-
     m, _ = perturb(grid(40, 50), tangential=0.25, seed=3)
     free = m.topology.window_middle.copy()
     w = 0.3 / m.mean_edge_length**2
     few = free & (np.random.default_rng(0).random(m.n_vertices) < 0.3)  # mostly fixed: free-index CSR
     s = _grid_system(m, few, w)
     s.solve(m.vertices[few])
-    assert isinstance(s._cg[0], fairing._RowBlocks) and not isinstance(s._cg[0], fairing._DiagonalBlocks)
+    assert isinstance(s._cg[0], RowBlocks) and not isinstance(s._cg[0], DiagonalBlocks)
     s = _grid_system(m, free, 0.003 / m.mean_edge_length**2)  # small weight: block-Jacobi CG
     s.solve(m.vertices[free])
-    assert s._cg[1] is not None and not isinstance(s._cg[0], fairing._DiagonalBlocks)
+    assert s._cg[1] is not None and not isinstance(s._cg[0], DiagonalBlocks)
     c = perturb(cylinder(30, 40), tangential=0.2, seed=5)[0]  # not a complete open grid
     assert c.topology.grid_shape is None
 
@@ -424,11 +417,11 @@ def test_fair_on_a_grid_uses_diagonal_storage_and_agrees_with_the_direct_solver(
 
 def test_iterations_reuse_the_grid_pattern(monkeypatch):
     """Multi-iteration runs build the grid's diagonal pattern once per mesh, not per iteration."""
-    from quadnodes import fairing
+    from quadnodes.linalg.grid import GridPattern
 
     made = []
-    init = fairing._GridPattern.__init__
-    monkeypatch.setattr(fairing._GridPattern, "__init__", lambda self, *a: (made.append(1), init(self, *a))[1])
+    init = GridPattern.__init__
+    monkeypatch.setattr(GridPattern, "__init__", lambda self, *a: (made.append(1), init(self, *a))[1])
     m, _ = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
     _, rep = fair(m, iterations=3, threshold=0.0)
     assert [r.solver for r in rep.iterations] == ["cg"] * 3 and len(made) == 1
@@ -572,3 +565,54 @@ def test_unknown_extraordinary_and_detection_are_refused():
         fair(grid(4, 4), extraordinary="Fair")
     with pytest.raises(InputError, match="detection"):
         fair(grid(4, 4), detection="eq30")
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("case", ["torus", "extraordinary"])
+def test_cg_on_closed_and_irregular_meshes_equals_the_direct_solve(monkeypatch, threads, case):
+    """Broadband noise on a closed torus and on a mesh with extraordinary vertices: CG (one or two
+    threads) within 1e-8 of the mesh's size of the direct solve; held vertices do not move."""
+    from quadnodes.mesh import torus
+
+    base = torus(24, 40) if case == "torus" else extraordinary_mesh(3)
+    rng = np.random.default_rng(11)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
+    if threads > 1:
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    free = m.topology.window_middle & (rng.random(m.n_vertices) > 0.1)
+    w = 0.3 / m.mean_edge_length**2
+    s = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg")
+    x = s.solve(m.vertices[free])
+    assert len(s._cg[0].ranges) == threads and s.residual <= 1e-9
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    out, _ = fair(m, threshold=0.0, fixed=~free, fix="none", solver="cg")
+    np.testing.assert_array_equal(out.vertices[~free], m.vertices[~free])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("noise", ["broadband", "zigzag"])
+def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, threads, noise):
+    from quadnodes.linalg.cg import LinePreconditioner
+
+    m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)[0] if noise == "zigzag" else \
+        grid(40, 50, spacing=25.0)
+    if noise == "broadband":
+        m = m.with_vertices(m.vertices + np.random.default_rng(5).normal(scale=5.0, size=m.vertices.shape))
+    m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
+    free = m.topology.window_middle & ~m.topology.boundary_vertices
+    if threads > 1:
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    w = 0.3 / m.mean_edge_length**2
+    s = _grid_system(m, free, w, preconditioner="lines")
+    x = s.solve(m.vertices[free])
+    plain = _grid_system(m, free, w)
+    plain.solve(m.vertices[free])
+    assert isinstance(s._cg[1], LinePreconditioner) and len(s._cg[0].ranges) == threads
+    assert s.residual <= 1e-9 and s.iterations < plain.iterations
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    with pytest.raises(InputError, match="preconditioner"):
+        FairingSystem(m.vertices, m.topology.windows, free, w, preconditioner="multigrid")

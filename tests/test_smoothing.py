@@ -119,9 +119,9 @@ def test_mask_fixing_and_errors():
 @pytest.mark.parametrize("fix", ["none", "corners", "boundary"])
 @pytest.mark.parametrize("columns", [True, False])  # (3, n) or (n, 3) coordinates
 def test_threaded_taubin_equals_dense_steps(monkeypatch, fix, columns):
-    from quadnodes import fairing
+    from quadnodes.linalg import threads
 
-    monkeypatch.setattr(fairing, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
+    monkeypatch.setattr(threads, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
 
     m, _ = perturb(grid(30, 40), tangential=0.3, normal=0.1, seed=2)
     fixed = fixed_vertices(m, fix)
@@ -132,8 +132,8 @@ def test_threaded_taubin_equals_dense_steps(monkeypatch, fix, columns):
         for f in (lam, mu):
             ref = ref + f * (L @ ref)
     one = taubin(m, iterations=3, fix=fix)[0].vertices
-    monkeypatch.setattr(fairing, "PARALLEL_MIN_ROWS", 10)
-    monkeypatch.setattr(fairing, "_thread_count", lambda: 3)
+    monkeypatch.setattr(threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(threads, "thread_count", lambda: 3)
     par = taubin(m, iterations=3, fix=fix)[0].vertices
     np.testing.assert_allclose(one, ref, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(par, one)

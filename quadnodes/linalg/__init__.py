@@ -5,10 +5,18 @@ definite and quasi-definite matrices in a symmetric fill-reducing order without
 pivoting (a Cholesky-like factorization that cannot meet a zero pivot), anything
 else with pivoting; a singular matrix is an :class:`~quadnodes.errors.InputError`,
 never a SuperLU abort.
+``threads``: row ranges of a sparse matrix on the solver's own thread pool, BLAS
+held to one thread while it runs. ``cg``: conjugate gradients on several
+right-hand sides at once, with block-Jacobi preconditioning and diagonal storage.
+``grid``: diagonal storage for line operators on structured grids.
+``quadratic``: :class:`QuadraticProblem`, "minimize a quadratic energy with some
+unknowns fixed (and linear equality constraints), set up once, solve many
+right-hand sides".
 """
 
 from __future__ import annotations
 
 from .direct import Factorization, factorize, regularization
+from .quadratic import QuadraticProblem
 
-__all__ = ["Factorization", "factorize", "regularization"]
+__all__ = ["Factorization", "factorize", "regularization", "QuadraticProblem"]

@@ -1,5 +1,7 @@
 """How fast is quadnodes.surfaces.sample? A 1000 × 1000 grid, by evaluation path.
 
+Backs the sampling table in docs/cad.md.
+
 Each row runs in its own subprocess (so memory high-water marks do not mix):
 
 - wall time: best of 3 runs (``time.perf_counter``), after a 3 × 3 warm-up call
@@ -16,7 +18,7 @@ The per-point rows (``Face.position_at`` and the ``occt`` fallback) are timed on
 200 × 200 points and extrapolated linearly to 10⁶ points; their memory columns
 are for the 200 × 200 run as measured.
 
-Run:  python benchmarks/bench_sampling.py  (about a minute)
+Run:  python benchmarks/perf/bench_sampling.py  (about a minute)
 """
 
 from __future__ import annotations

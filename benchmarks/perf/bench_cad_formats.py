@@ -14,7 +14,7 @@ time of an idle machine when other jobs share the cores — and the file size):
 - peers: meshio writing the same quads as OBJ and PLY, trimesh exporting the (triangulated) mesh as PLY.
 - reading back: ``load_3dm``, ``load_ply`` (meshio), ``load_off``.
 
-Run:  python benchmarks/bench_cad_formats.py [--repeat 3]   (about a minute)
+Run:  python benchmarks/perf/bench_cad_formats.py [--repeat 3]   (about a minute)
 """
 
 from __future__ import annotations

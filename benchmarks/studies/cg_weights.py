@@ -1,7 +1,9 @@
 """Conjugate gradients across weights: plain CG (free-index CSR, and the grid's diagonal storage)
 against block-Jacobi CG on the same system.
 
-On an n×n grid (the bench_core surface: a wavy sheet with tangential 0.2 and normal 0.05 noise) with
+Backs the table in docs/fairing.md "Speed" (small weights: block-Jacobi preconditioning).
+
+On an n×n grid (the bench_core surface, ``benchmarks/_common.py``; ``--noise zigzag`` — tangential 0.2 and normal 0.05 — or ``broadband``) with
 every window-middle vertex free, builds the one-iteration system at normalized weights 0.001 … 10 and
 solves it (x, y, z together, rtol 1e-9, from the anchor) three ways: plain CG on the free-index CSR
 matrix (any mesh), plain CG on the 13 diagonals in the grid's numbering (complete vertex grids), and
@@ -9,21 +11,25 @@ block-Jacobi CG (``quadnodes.fairing.BLOCK_JACOBI_RATIO`` and ``GRID_BLOCK_JACOB
 solve (best of ``--repeat`` runs), and which one the default rule picks for this grid. Also checks that
 all three agree to 1e-8 of the mesh's extent.
 
-Run:  python benchmarks/cg_weights.py [--size 300] [--repeat 3]
+Run:  python benchmarks/studies/cg_weights.py [--size 300] [--noise zigzag|broadband] [--repeat 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from quadnodes import fairing
 from quadnodes.fairing import FairingSystem
+from quadnodes.linalg.cg import DiagonalBlocks
 from quadnodes.zigzag import detect
 
-from bench_core import _mesh
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import _common  # noqa: E402
 
 WEIGHTS = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
 
@@ -47,9 +53,10 @@ def _run(m, free, w, ratio, repeat, grid=False):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=300)
+    ap.add_argument("--noise", choices=_common.NOISES, default="zigzag")
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    m = _mesh(args.size)
+    m = _common.noisy_grid(args.size, args.noise)
     free = detect(m, 0.0).free
     extent = np.ptp(m.vertices, axis=0).max()
     print(f"{args.size}×{args.size} grid, {int(free.sum())} free vertices")
@@ -66,7 +73,7 @@ def main() -> None:
                           _topology=m.topology)
         blocks, precond, _ = s._cg_setup()
         pick = ("block-Jacobi" if precond is not None else
-                "grid diagonals" if isinstance(blocks, fairing._DiagonalBlocks) else "plain CSR")
+                "grid diagonals" if isinstance(blocks, DiagonalBlocks) else "plain CSR")
         print(f"| {w:g} | {sp_} | {tp:.3f} | {tg:.3f} | {sb} | {tb:.3f} | {pick} |", flush=True)
 
 

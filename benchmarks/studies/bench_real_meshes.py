@@ -25,7 +25,7 @@ The last columns say whether fair is the best (``zigzag``) or within 20 % of the
 clean meshes and on E1–E4 (``quadnodes.report``'s noise and parameters, seed 7), and the pseudo-window
 scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``.
 
-Run:  python benchmarks/bench_real_meshes.py [--seeds 3] [--markdown] [--studies]
+Run:  python benchmarks/studies/bench_real_meshes.py [--seeds 3] [--markdown] [--studies]
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from quadnodes.noise import perturb
 from quadnodes.smoothing import laplacian, taubin
 from quadnodes.topology import fixed_vertices
 
-DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
+DATA = Path(__file__).resolve().parents[2] / "tests" / "data"
 MESHES = ["compas/quadmesh.obj", "compas/tubemesh.obj", "compas/hypar.obj", "quadmesh_hole.obj",
           "staircase_saddle.obj", "polygon_quads.obj", "rounded_box.obj"]
 NOISE = {"zigzag": {"tangential": 0.25}, "normal": {"normal": 0.2}, "jitter": {"jitter": 0.2}}

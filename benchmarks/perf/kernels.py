@@ -1,5 +1,7 @@
 """The NumPy/SciPy kernel choices behind the fairing solver, timed on the bench_core grids.
 
+Backs the kernel table in docs/fairing.md "Speed".
+
 For each size (the bench_core surface, every window-middle vertex free, ω = 0.3):
 - gather of (n, 3) rows: fancy indexing ``V[idx]`` against ``np.take(V, idx, axis=0)``;
 - per-coordinate scalar times a vector: ``(k, 3) * (3,)`` against the ``(k/64, 192)`` view and the
@@ -12,14 +14,16 @@ For each size (the bench_core surface, every window-middle vertex free, ω = 0.3
 
 Best of 20 runs each, one thread, in milliseconds.
 
-Run:  python benchmarks/kernels.py [--sizes 100 300 1000]
+Run:  python benchmarks/perf/kernels.py [--sizes 100 300 1000]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
+from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one thread, as the fairing's serial CG runs BLAS
 
@@ -27,10 +31,11 @@ import numpy as np  # noqa: E402
 from scipy.linalg.blas import daxpy
 from scipy.sparse._sparsetools import csr_matvec, csr_matvecs, dia_matvec
 
-from quadnodes.fairing import FairingSystem, _GridPattern, window_coefficients
+from quadnodes.fairing import FairingSystem, grid_pattern, window_coefficients
 from quadnodes.zigzag import detect
 
-from bench_core import _mesh
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import _common  # noqa: E402
 
 
 def _best(f, reps: int = 20) -> float:
@@ -51,7 +56,7 @@ def main() -> None:
           "3× matvec (3,k) | matvecs float32 | 3× dia_matvec (3,n) | update NumPy | update BLAS |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for n in args.sizes:
-        m = _mesh(n)
+        m = _common.noisy_grid(n)
         free = detect(m, 0.0).free
         s = FairingSystem(m.vertices, m.topology.windows, free, 0.3 / m.mean_edge_length**2, solver="cg")
         M = s.matrix
@@ -66,7 +71,7 @@ def main() -> None:
         XT, YT = np.ascontiguousarray(X.T), np.zeros((3, k))
         M32, X32, Y32 = M.data.astype(np.float32), X.astype(np.float32), Y.astype(np.float32)
         t = m.topology
-        offsets, data = _GridPattern.of(t).normal_matrix(window_coefficients(V, t.windows), free, s.weight)
+        offsets, data = grid_pattern(t).normal_matrix(window_coefficients(V, t.windows), free, s.weight)
         offsets = offsets.astype(np.int32)
         nv = m.n_vertices
         XN, YN = np.random.rand(3, nv), np.zeros((3, nv))

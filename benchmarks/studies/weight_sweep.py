@@ -1,12 +1,14 @@
 """Which default penalty weight? Fair noisy samples of known surfaces and measure.
 
+Backs the weight table in docs/fairing.md (the default weight 0.3).
+
 For four analytic height fields shaped like the thesis's examples, sample a grid,
 add seeded zigzag noise (quadnodes.perturb), fair with each normalized weight and
 both thesis schedules, and report the distance of the result to the TRUE surface
 (first-order normal distance |z − f(x, y)| / sqrt(1 + |∇f|²)), in mean edge
 lengths, and the remaining zigzag.
 
-Run:  python benchmarks/weight_sweep.py  (a few seconds)
+Run:  python benchmarks/studies/weight_sweep.py  (a few seconds)
 """
 
 from __future__ import annotations

@@ -1,5 +1,12 @@
 """Core benchmark: fairing and Taubin smoothing on square grids, beside trimesh.
 
+Backs the table in docs/fairing.md "Speed: a million vertices" and the README's Benchmarks section.
+Every fairing row states its noise: ``zigzag`` (``perturb(tangential=0.2, normal=0.05)``, the
+highest frequency, the easiest case for CG) or ``broadband`` (independent Gaussian offsets of
+0.2 edge lengths per coordinate, as a scan has); the sheet is ``z = 0.3 sin 3x cos 2y``
+(``benchmarks/_common.py``). ``--torus`` adds a closed torus of about n² vertices with broadband
+noise (no grid diagonals: the free-index CSR path).
+
 Every row runs in fresh subprocesses (``--repeat``, default 3) and the table shows
 the median run's wall time (the range in brackets) and memory: "peak MB" is that
 process's peak resident memory (ru_maxrss) minus the resident memory right after
@@ -21,39 +28,34 @@ Rows
 - trimesh filter_taubin, 10 steps: ``trimesh.smoothing.filter_taubin(iterations=10)``
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
-Run:  python benchmarks/bench_core.py [--sizes 100 300 1000] [--only fair taubin ...] [--repeat 3]
+Run:  python benchmarks/perf/bench_core.py [--sizes 100 300 1000] [--noise zigzag broadband]
+            [--only fair taubin ...] [--repeat 3] [--torus]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import resource
-import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-
-def _rss_mb() -> float:
-    with open("/proc/self/statm") as fh:
-        return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import _common  # noqa: E402
 
 
-def _mesh(n: int):
-    from quadnodes.mesh import grid
-    from quadnodes.noise import perturb
-
-    y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
-    return perturb(grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y)),
-                   tangential=0.2, normal=0.05, seed=0)[0]
+def _mesh(n: int, noise: str = "zigzag"):
+    if noise == "torus":
+        return _common.noisy_torus(n, n)
+    return _common.noisy_grid(n, noise)
 
 
-def run_row(kind: str, n: int) -> dict:
+def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
     from quadnodes.mesh import QuadMesh
 
-    noisy = _mesh(n)
+    noisy = _mesh(n, noise)
     m = QuadMesh(noisy.vertices, noisy.faces)  # fresh: no cached topology
     if kind == "trimesh":
         import trimesh
@@ -66,7 +68,7 @@ def run_row(kind: str, n: int) -> dict:
     from quadnodes.smoothing import taubin
     from quadnodes.topology import windows
 
-    base = _rss_mb()
+    base = _common.rss_mb()
     t = time.perf_counter()
     extra = ""
     if kind == "lines":
@@ -78,15 +80,14 @@ def run_row(kind: str, n: int) -> dict:
         extra = f"{r.n_free} free, {r.solver} {r.cg_iterations} steps, residual {r.residual:.0e}"
     elif kind in ("superlu", "superlu_mmd", "pyamg"):
         wall, extra = _peer(kind, m)
-        return {"wall_s": wall, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base,
+        return {"wall_s": wall, "peak_mb": _common.peak_mb() - base,
                 "note": extra}
     elif kind == "taubin":
         taubin(m, iterations=5)
     elif kind == "trimesh":
         trimesh.smoothing.filter_taubin(tm, iterations=10)
     wall = time.perf_counter() - t
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return {"wall_s": wall, "peak_mb": max(peak - base, 0.0), "note": extra}
+    return {"wall_s": wall, "peak_mb": max(_common.peak_mb() - base, 0.0), "note": extra}
 
 
 def _peer(kind: str, m) -> tuple[float, str]:
@@ -125,20 +126,26 @@ LABELS = {
 }
 
 
+FAIR_KINDS = ("fair", "superlu", "superlu_mmd", "pyamg")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000])
+    ap.add_argument("--noise", nargs="+", choices=_common.NOISES, default=list(_common.NOISES),
+                    help="noises of the fairing rows (default: both)")
+    ap.add_argument("--torus", action="store_true", help="also fair a noisy torus of about n² vertices")
     ap.add_argument("--slow", action="store_true", help="also run SuperLU at sizes above 300")
     ap.add_argument("--only", nargs="+", choices=list(LABELS), help="run only these rows")
     ap.add_argument("--repeat", type=int, default=3,
                     help="fresh processes per row; the table shows the median time (default 3)")
-    ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--row", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
-        print(json.dumps(run_row(args.row[0], int(args.row[1]))))
+        print(json.dumps(run_row(args.row[0], int(args.row[1]), args.row[2])))
         return
-    print("| grid | operation | wall time (s) | peak memory above baseline (MB) | note |")
-    print("|---|---|---:|---:|---|")
+    print("| mesh | noise | operation | wall time (s), median (range) | peak memory above baseline (MB) | note |")
+    print("|---|---|---|---:|---:|---|")
     try:
         import pyamg  # noqa: F401
         have_pyamg = True
@@ -150,16 +157,15 @@ def main() -> None:
                 continue
             if kind == "pyamg" and not have_pyamg:
                 continue
-            runs = []
-            for _ in range(max(1, args.repeat)):
-                out = subprocess.run([sys.executable, __file__, "--row", kind, str(n)],
-                                     capture_output=True, text=True, check=True)
-                runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
-            walls = sorted(r["wall_s"] for r in runs)
-            r = runs[[x["wall_s"] for x in runs].index(walls[len(walls) // 2])]  # the median run
-            spread = f" ({walls[0]:.3f}–{walls[-1]:.3f})" if len(walls) > 1 else ""
-            print(f"| {n}×{n} | {LABELS[kind]} | {r['wall_s']:.3f}{spread} | {r['peak_mb']:.0f} | {r['note']} |",
-                  flush=True)
+            noises = list(args.noise) if kind in FAIR_KINDS else ["zigzag"]
+            if args.torus and kind in FAIR_KINDS:
+                noises.append("torus")
+            for noise in noises:
+                r, walls = _common.fresh_runs(__file__, [kind, str(n), noise], args.repeat)
+                mesh = f"torus {n}×{n}" if noise == "torus" else f"{n}×{n}"
+                label = "broadband" if noise == "torus" else noise
+                print(f"| {mesh} | {label} | {LABELS[kind]} | {r['wall_s']:.3f}{_common.spread(walls)} | "
+                      f"{r['peak_mb']:.0f} | {r['note']} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -1,11 +1,13 @@
 """Does a line-family preconditioner pay off for the fairing system? (It did not; see docs/fairing.md.)
 
+Backs the line-preconditioner note in docs/fairing.md "Speed".
+
 On a 300×300 grid with every window-middle vertex free, CG on (AᵀA + ωI) x = b (x coordinate),
 started from the current positions, with no preconditioner and with the additive row/column
 line preconditioner P = S_rows + S_cols, where S_f solves the system restricted to the lines of
 one family exactly (banded Cholesky, bandwidth 3, SciPy/LAPACK). Prints steps and wall time.
 
-Run:  python benchmarks/line_preconditioner.py  (about 10 s)
+Run:  python benchmarks/studies/line_preconditioner.py  (about 10 s)
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ seed 7), then fairing with several schedules at the default weight, and the
 baselines. Distances are in mean edge lengths from each vertex to its clean
 position. Backs the table in docs/fairing.md.
 
-Run:  python benchmarks/schedule_study.py  (a few seconds)
+Run:  python benchmarks/studies/schedule_study.py  (a few seconds)
 """
 
 from __future__ import annotations

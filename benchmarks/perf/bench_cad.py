@@ -11,7 +11,7 @@ Part 2 (``--examples``): examples/quickstart.toml and examples/planar_panels.tom
 side (only the nodes the STEP and CSV need), STEP as a sewn shell: panels, planar, fallbacks, largest
 corner move, time.
 
-Run:  python benchmarks/bench_cad.py [--examples]
+Run:  python benchmarks/perf/bench_cad.py [--examples]
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 from quadnodes.io.step import step_panels, write_step
 from quadnodes.mesh import QuadMesh, grid
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 MODES = ("compound", "shell", "assembly")
 
 

@@ -1,5 +1,7 @@
 """Incremental re-run: change one fair setting in a 100×100 pipeline, time the re-run.
 
+Backs the pipeline table in docs/graphs.md.
+
 Pipeline: wavy surface -> sample 100×100 -> perturb -> fair -> compare -> OBJ + CSV
 export (STEP is left out so the table isolates the graph engine's overhead; add it
 and the re-run grows by the export time). Rows: the cold run, a re-run with nothing
@@ -7,7 +9,7 @@ changed (all from the cache), a re-run after ``fair.iterations`` changed (fair a
 its downstream run), with each node's own time in that re-run and what is left:
 the engine's overhead. Median of 5 repetitions, in-memory cache.
 
-Run:  python benchmarks/bench_graph.py
+Run:  python benchmarks/perf/bench_graph.py
 """
 
 from __future__ import annotations

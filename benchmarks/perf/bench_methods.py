@@ -22,7 +22,7 @@ gradient steps, spring or Schneider–Kobbelt iterations; ``fair``: its 3 outer
 iterations). "peak MB": the process's peak resident memory minus its resident
 memory after the mesh was built (as in ``bench_core.py``).
 
-Run:  python benchmarks/bench_methods.py [--sizes 100 300] [--only spring fair ...] [--cap 200]
+Run:  python benchmarks/perf/bench_methods.py [--sizes 100 300] [--only spring fair ...] [--cap 200]
 """
 
 from __future__ import annotations

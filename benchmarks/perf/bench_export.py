@@ -1,5 +1,7 @@
 """How long do the exporters take on architectural sizes, and how big are the files?
 
+Backs the export table in docs/cad.md.
+
 - STEP: 10,000 panels (a 101 × 101 vertex grid, 1 m spacing in mm) on a curved
   height field (every panel a bilinear patch) and on a flat one (every panel a
   plane), in each mode (compound, shell, assembly). "build" is
@@ -8,7 +10,7 @@
   atomic rename).
 - OBJ: write and read a 1000 × 1000 vertex grid (998,001 quads).
 
-Prints a markdown table. Run:  python benchmarks/bench_export.py  (about a minute)
+Prints a markdown table. Run:  python benchmarks/perf/bench_export.py  (about a minute)
 """
 
 from __future__ import annotations

@@ -1,5 +1,7 @@
 """Planar panels: quadnodes ``planarize`` beside libigl's ``planarize_quad_mesh`` on the same meshes.
 
+Backs the tables in docs/planarize.md and the README's planarization line.
+
 Meshes: the four thesis examples E1–E4 (``quadnodes.surfaces.example``) with the
 noise of ``quadnodes.report.THESIS_EXAMPLES`` (``perturb(clean, tangential=t,
 normal=n, seed=7, fix="corners")``: 0.25/0.1 for E1–E3, 0.6/0.2 for E4), then
@@ -49,7 +51,7 @@ Columns
   mesh's structure lines and module imports excluded); peak MB: that row's subprocess peak resident memory (ru_maxrss) minus
   its resident memory just before the call.
 
-Run:  python benchmarks/bench_planarize.py [--quick] [--slow]
+Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
@@ -62,10 +64,12 @@ import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from bench_core import _rss_mb
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import _common  # noqa: E402
 
 EXAMPLES = ("E1", "E2", "E3", "E4")
 FREEFORM = "F100"
@@ -116,7 +120,7 @@ def run_row(name: str, kind: str) -> dict:
     import trimesh.triangles  # noqa: F401  (imported lazily by the closest-point search: keep it out of the time)
 
     _ = faired.topology.windows  # built before timing, like the input of a graph node (cached on the mesh)
-    base = _rss_mb()
+    base = _common.rss_mb()
     t = time.perf_counter()
     iters = "—"
     if kind == "input":

@@ -17,7 +17,7 @@ Wall time of each, including process and cluster start-up. ``--loop-runs K`` tim
 runs (evenly spread) and scales to 100 — the table then says "estimated". The OBJ of every variant that
 both produced is compared byte for byte.
 
-Run:  python benchmarks/bench_sweep.py [--workers 2] [--loop-runs 100] [--out DIR]
+Run:  python benchmarks/perf/bench_sweep.py [--workers 2] [--loop-runs 100] [--out DIR]
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 GRAPH = ROOT / "examples" / "quickstart.toml"
 CLI = ["-c", "import sys; from quadnodes.cli import main; sys.exit(main())"]
 WEIGHTS = [round(0.1 * k, 1) for k in range(1, 11)]

@@ -1,0 +1,77 @@
+"""Shared helpers of the benchmark scripts: noisy grids, resident memory, medians of fresh processes.
+
+Scripts in ``benchmarks/perf/`` (speed tables) and ``benchmarks/studies/`` (studies that justify a
+default) import this module after putting ``benchmarks/`` on ``sys.path``::
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    import _common
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import subprocess
+import sys
+
+import numpy as np
+
+#: The noises a speed table can state: perturb's alternating zigzag (the highest frequency, the easiest
+#: case for CG) and broadband (independent Gaussian offsets of 0.2 edge lengths per coordinate).
+NOISES = ("zigzag", "broadband")
+
+
+def rss_mb() -> float:
+    """Resident memory of this process now, in MB."""
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
+
+
+def peak_mb() -> float:
+    """Peak resident memory of this process so far, in MB."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def noisy_grid(n: int, noise: str = "zigzag", seed: int = 0):
+    """The benchmark sheet ``z = 0.3 sin 3x cos 2y`` on an ``n × n`` unit grid, with noise.
+
+    ``"zigzag"``: ``perturb(tangential=0.2, normal=0.05, seed)``; ``"broadband"``:
+    ``rng.normal(scale=0.2 h, size=(n², 3))`` added to every vertex (h = 1/(n−1)).
+    """
+    from quadnodes.mesh import grid
+    from quadnodes.noise import perturb
+
+    y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
+    clean = grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y))
+    if noise == "zigzag":
+        return perturb(clean, tangential=0.2, normal=0.05, seed=seed)[0]
+    if noise == "broadband":
+        rng = np.random.default_rng(seed)
+        return clean.with_vertices(clean.vertices + rng.normal(scale=0.2 / (n - 1), size=(n * n, 3)))
+    raise ValueError(f"noise: expected one of {NOISES}, got {noise!r}")
+
+
+def noisy_torus(rings: int, segments: int, seed: int = 0):
+    """A torus (a closed mesh: lines wrap around, no grid diagonals) with broadband noise of 0.2 edge lengths."""
+    from quadnodes.mesh import torus
+
+    t = torus(rings, segments)
+    h = t.mean_edge_length
+    rng = np.random.default_rng(seed)
+    return t.with_vertices(t.vertices + rng.normal(scale=0.2 * h, size=t.vertices.shape))
+
+
+def fresh_runs(script: str, args: list[str], repeat: int) -> tuple[dict, list[float]]:
+    """Run ``script --row ARGS`` in ``repeat`` fresh processes; the median run's JSON and all wall times."""
+    runs = []
+    for _ in range(max(1, repeat)):
+        out = subprocess.run([sys.executable, script, "--row", *args], capture_output=True, text=True, check=True)
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    walls = sorted(r["wall_s"] for r in runs)
+    median = runs[[r["wall_s"] for r in runs].index(walls[len(walls) // 2])]
+    return median, walls
+
+
+def spread(walls: list[float]) -> str:
+    """`` (lo–hi)`` for more than one run."""
+    return f" ({walls[0]:.3f}–{walls[-1]:.3f})" if len(walls) > 1 else ""

@@ -1,0 +1,392 @@
+"""Conjugate gradients on several right-hand sides at once, threaded over row ranges.
+
+:func:`block_cg` runs one CG per column of ``B`` sharing every operator product;
+the operator is a :class:`~quadnodes.linalg.threads.RowBlocks` (CSR) or a
+:class:`DiagonalBlocks` (diagonal storage, for matrices of a structured grid);
+:class:`BlockJacobi` and :class:`LinePreconditioner` are its preconditioners.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg.blas import daxpy as _daxpy, ddot as _ddot, dscal as _dscal
+
+from . import threads as _threads
+from .threads import RANGE_ALIGN, RowBlocks, blas_pinned
+
+try:  # SciPy's diagonal-storage kernel (y += A x, one contiguous pass per diagonal)
+    from scipy.sparse._sparsetools import dia_matvec as _dia_matvec
+except ImportError:  # pragma: no cover - then callers use CSR
+    _dia_matvec = None
+
+__all__ = ["HAS_DIAGONAL_KERNEL", "DiagonalBlocks", "BlockJacobi", "LinePreconditioner", "block_cg", "permuted"]
+
+#: Whether SciPy's diagonal-storage kernel is available (else use :class:`RowBlocks`).
+HAS_DIAGONAL_KERNEL = _dia_matvec is not None
+
+
+class DiagonalBlocks(RowBlocks):
+    """A matrix in diagonal storage (``data[d, j] = M[j - offsets[d], j]``), cut into row ranges.
+
+    The same interface as :class:`RowBlocks` for :func:`block_cg`, with ``(c, n)``
+    vectors; a row range is the sub-matrix with offsets shifted by its first row.
+    """
+
+    def __init__(self, offsets: np.ndarray, data: np.ndarray, *, threads: int | None = None) -> None:
+        n = data.shape[1]
+        t = _threads.thread_count() if threads is None else max(1, int(threads))
+        t = max(1, min(t, n // _threads.PARALLEL_MIN_ROWS))
+        cuts = (np.arange(1, t) * n // t) // RANGE_ALIGN * RANGE_ALIGN  # every row costs the same
+        self.ranges = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, n].tolist()))
+        self.offsets = offsets.astype(np.int32 if n < 2**31 - 1 else np.int64)
+        self.data = data
+        self.M = sp.dia_matrix((data, self.offsets), shape=(n, n))
+        self.columns = True
+
+    def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
+               accumulate: bool = False) -> None:
+        n = self.data.shape[1]
+        hi = min(hi, n)
+        off = self.offsets + self.offsets.dtype.type(lo)
+        for x, y in zip(X, Y):
+            y = y[lo:hi]
+            if not accumulate:
+                y.fill(0.0)
+            _dia_matvec(hi - lo, n, off.size, n, off, self.data, x, y)
+
+
+
+
+def permuted(M: sp.csr_matrix, order: np.ndarray) -> sp.csr_matrix:
+    """``M[order][:, order]`` for a CSR matrix in one pass (column indices left unsorted)."""
+    k = M.shape[0]
+    idx = M.indices.dtype
+    rank = np.empty(k, dtype=idx)
+    rank[order] = np.arange(k, dtype=idx)
+    counts = np.diff(M.indptr)[order]
+    indptr = np.zeros(k + 1, dtype=M.indptr.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    # source position of every entry: its row's old start plus its place in the row
+    src = np.repeat(M.indptr[:-1][order] - indptr[:-1], counts) + np.arange(indptr[-1], dtype=indptr.dtype)
+    return sp.csr_matrix((M.data[src], rank[M.indices[src]], indptr), shape=M.shape)
+
+
+
+
+class BlockJacobi:
+    """Block-diagonal preconditioner: exact inverses of the diagonal ``b × b`` blocks of ``M``.
+
+    The unknowns are ordered by :func:`_patch_order`, so a block is a compact patch
+    of about 4 × 4 vertices. On such a patch the fairing energy of a smooth (slowly
+    varying) motion is small next to ω, so the local solves capture most of the
+    stiff, oscillating part and leave the smooth part to CG.
+    """
+
+    def __init__(self, M: sp.csr_matrix, size: int) -> None:
+        k = M.shape[0]
+        kp = -(-k // RANGE_ALIGN) * RANGE_ALIGN  # as the CG vectors (size divides RANGE_ALIGN)
+        counts = np.diff(M.indptr)
+        row = np.repeat(np.arange(k, dtype=np.int64), counts)
+        col = M.indices.astype(np.int64)
+        same = np.flatnonzero((row ^ col) < size) if size & (size - 1) == 0 else \
+            np.flatnonzero(row // size == col // size)  # same block (power of 2: equal high bits)
+        D = np.zeros(kp * size)
+        D[row[same] * size + (col[same] % size)] = M.data[same]
+        D = D.reshape(kp // size, size, size)
+        pad = np.arange(k, kp)
+        D[pad // size, pad % size, pad % size] = 1.0
+        inv = np.linalg.inv(D)
+        inv += inv.transpose(0, 2, 1)  # exactly symmetric, so a row vector can multiply it
+        inv *= 0.5
+        self.inv = inv
+        self.size = size
+
+    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
+        """``Z = P⁻¹ R`` on rows ``lo:hi`` (at block boundaries) of ``(c, n)`` or ``(n, c)`` arrays."""
+        b = self.size
+        inv = self.inv[lo // b : hi // b]
+        if columns:
+            c = R.shape[0]
+            r = R[:, lo:hi].reshape(c, -1, b).transpose(1, 0, 2)  # (blocks, c, b) views
+            z = Z[:, lo:hi].reshape(c, -1, b).transpose(1, 0, 2)
+            np.matmul(r, inv, out=z)
+        else:
+            c = R.shape[1]
+            np.matmul(inv, R[lo:hi].reshape(-1, b, c), out=Z[lo:hi].reshape(-1, b, c))
+
+
+
+
+def _run_cg(
+    blocks: RowBlocks,
+    B: np.ndarray,
+    X0: np.ndarray,
+    *,
+    rtol: float,
+    maxiter: int,
+    precond: object | None = None,
+) -> tuple[np.ndarray, int, float]:
+    """(Preconditioned) conjugate gradients on the columns of ``B`` at once.
+
+    Each column is an independent CG run; they share the operator products, and
+    every vector update runs on the row ranges of ``blocks`` in parallel. Stops
+    when every column's residual is at most ``rtol`` times its right-hand side.
+    Returns the solution, the number of steps and the worst relative residual.
+
+    The vectors are zero-padded to a multiple of :data:`RANGE_ALIGN` rows and
+    stored as ``(c, k)`` arrays for small systems (``blocks.columns``), else as
+    ``(k, c)`` arrays updated through ``(k / RANGE_ALIGN, RANGE_ALIGN·c)`` views:
+    either way per-column scalars broadcast along long rows (NumPy is several
+    times slower on an inner dimension of 3).
+    """
+    k, c = B.shape
+    kp = -(-k // RANGE_ALIGN) * RANGE_ALIGN
+    columns = blocks.columns
+    width = RANGE_ALIGN * c
+
+    def padded(a: np.ndarray | None) -> np.ndarray:
+        out = np.zeros((c, kp) if columns else (kp, c))
+        if a is not None:
+            if columns:
+                out[:, :k] = a.T
+            else:
+                out[:k] = a
+        return out
+
+    X, B, R, P, Q = padded(X0), padded(B), padded(None), padded(None), padded(None)
+    Z = R if precond is None else padded(None)
+
+    if columns:
+        def part(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
+            return V[:, lo : kp if hi == k else hi]
+
+        def dot(U: np.ndarray, V: np.ndarray) -> np.ndarray:
+            return np.einsum("ij,ij->i", U, V)
+
+        alpha, beta = np.zeros((c, 1)), np.zeros((c, 1))  # per-column scalars
+        scalars = alpha[:, 0], beta[:, 0]
+    else:
+        def part(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
+            return V.reshape(-1, width)[lo // RANGE_ALIGN : (kp if hi == k else hi) // RANGE_ALIGN]
+
+        def dot(U: np.ndarray, V: np.ndarray) -> np.ndarray:
+            return np.einsum("ij,ij->j", U, V).reshape(RANGE_ALIGN, c).sum(axis=0)
+
+        alpha, beta = np.zeros(width), np.zeros(width)  # per-column scalars, repeated along a row
+        scalars = alpha.reshape(RANGE_ALIGN, c), beta.reshape(RANGE_ALIGN, c)
+
+    whole = getattr(precond, "whole", False)  # applied to all rows at once, after the ranges
+
+    def precondition(lo: int, hi: int) -> None:
+        if precond is not None and not whole:
+            precond.apply(R, Z, lo, kp if hi == k else hi, columns)
+
+    def start(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        blocks.matvec(X, R, lo, hi)
+        r, b = part(R, lo, hi), part(B, lo, hi)
+        np.subtract(b, r, out=r)
+        precondition(lo, hi)
+        if whole:
+            return dot(r, r), dot(b, b), None
+        z = part(Z, lo, hi)
+        part(P, lo, hi)[...] = z
+        return dot(r, r), dot(b, b), dot(r, z)
+
+    parts = blocks.run(start)
+    rr = sum(p[0] for p in parts)
+    bnorm = np.maximum(np.sqrt(sum(p[1] for p in parts)), 1e-300)
+    if whole:
+        precond.apply(R, Z, 0, kp, columns)  # type: ignore[union-attr]
+        P[...] = Z
+        rz = dot(R, Z)
+    else:
+        rz = sum(p[2] for p in parts)
+    tol2 = (rtol * bnorm) ** 2
+
+    if columns and len(blocks.ranges) == 1:
+        # one thread, one contiguous vector per coordinate: a plain loop with BLAS level 1
+        # in place (one pass per update; NumPy's α·p then x += t makes three and a
+        # temporary) and Python floats for the per-coordinate scalars. Not on threads:
+        # OpenBLAS's own threads would spin against the pool's.
+        rows = [(X[i], R[i], P[i], Q[i], Z[i]) for i in range(c)]
+        rr_, rz_, tol_ = rr.tolist(), rz.tolist(), tol2.tolist()
+        step = [0.0] * c
+        it = 0
+        while it < maxiter and any(rr_[i] > tol_[i] for i in range(c)):
+            blocks.matvec(P, Q, 0, kp)
+            for i, (x, r, p, q, _) in enumerate(rows):
+                pq = _ddot(p, q)
+                a = rz_[i] / pq if pq > 0 else 0.0
+                _daxpy(p, x, a=a)
+                _daxpy(q, r, a=-a)
+            if whole:
+                precond.apply(R, Z, 0, kp, columns)  # type: ignore[union-attr]
+            else:
+                precondition(0, kp)
+            for i, (_, r, _, _, z) in enumerate(rows):
+                rr_i = _ddot(r, r)
+                rz_i = rr_i if precond is None else _ddot(r, z)
+                step[i] = rz_i / rz_[i] if rz_[i] > 0 else 0.0
+                rr_[i], rz_[i] = rr_i, rz_i
+            it += 1
+            if it < maxiter and any(rr_[i] > tol_[i] for i in range(c)):
+                for i, (_, _, p, _, z) in enumerate(rows):
+                    _dscal(step[i], p)
+                    _daxpy(z, p)
+        x = np.ascontiguousarray(X[:, :k].T)
+        return x, it, float(np.max(np.sqrt(np.array(rr_)) / bnorm))
+
+    T = padded(None)  # (threaded runs: NumPy updates through a temporary)
+
+    def product(lo: int, hi: int) -> np.ndarray:
+        blocks.matvec(P, Q, lo, hi)
+        return dot(part(P, lo, hi), part(Q, lo, hi))
+
+    def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
+        t, r = part(T, lo, hi), part(R, lo, hi)
+        np.multiply(part(P, lo, hi), alpha, out=t)
+        part(X, lo, hi)[...] += t
+        np.multiply(part(Q, lo, hi), alpha, out=t)
+        r -= t
+        precondition(lo, hi)
+        return dot(r, r), (None if precond is None or whole else dot(r, part(Z, lo, hi)))
+
+    def direction(lo: int, hi: int) -> None:
+        p = part(P, lo, hi)
+        p *= beta
+        p += part(Z, lo, hi)
+
+    it = 0
+    while it < maxiter and (rr > tol2).any():
+        pq = sum(blocks.run(product))
+        scalars[0][...] = np.divide(rz, pq, out=np.zeros_like(rz), where=pq > 0)
+        parts = blocks.run(update)
+        rr_new = sum(p[0] for p in parts)
+        if whole:
+            precond.apply(R, Z, 0, kp, columns)  # type: ignore[union-attr]
+            rz_new = dot(R, Z)
+        else:
+            rz_new = rr_new if precond is None else sum(p[1] for p in parts)
+        scalars[1][...] = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
+        rr, rz = rr_new, rz_new
+        it += 1
+        if it < maxiter and (rr > tol2).any():
+            blocks.run(direction)
+    x = np.ascontiguousarray(X[:, :k].T) if columns else X[:k]
+    return x, it, float(np.max(np.sqrt(rr) / bnorm))
+
+
+def block_cg(
+    blocks: RowBlocks,
+    B: np.ndarray,
+    X0: np.ndarray,
+    *,
+    rtol: float,
+    maxiter: int,
+    precond: object | None = None,
+) -> tuple[np.ndarray, int, float]:
+    """(Preconditioned) conjugate gradients on the columns of ``B`` at once, BLAS held to one thread.
+
+    Parameters
+    ----------
+    blocks : RowBlocks or DiagonalBlocks
+        The symmetric positive definite operator ``M`` cut into row ranges.
+    B : (k, c) float64
+        Right-hand sides.
+    X0 : (k, c) float64
+        Starting guesses.
+    rtol : float
+        Stop when every column's residual is at most ``rtol`` times its right-hand side.
+    maxiter : int
+        Cap on steps.
+    precond : BlockJacobi or LinePreconditioner, optional
+        ``apply(R, Z, lo, hi, columns)`` writing ``Z = P⁻¹ R`` on rows ``lo:hi``
+        (a preconditioner with ``whole = True`` is applied to all rows at once).
+
+    Returns
+    -------
+    x : (k, c) float64
+    steps : int
+    residual : float
+        The worst column's relative residual.
+
+    Examples
+    --------
+    >>> M = sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(50, 50)).tocsr()
+    >>> b = np.ones((50, 2))
+    >>> x, steps, res = block_cg(RowBlocks(M), b, np.zeros((50, 2)), rtol=1e-12, maxiter=500)
+    >>> bool(np.abs(M @ x - b).max() < 1e-9), res <= 1e-12
+    (True, True)
+    """
+    with blas_pinned():
+        return _run_cg(blocks, B, X0, rtol=rtol, maxiter=maxiter, precond=precond)
+
+
+class LinePreconditioner:
+    """Additive line-block preconditioner: exact solves along two families of lines, added.
+
+    ``M``'s entries that couple nodes of the same line of the first family form
+    a band of half-width ``b`` in the nodes' order; those of the second family
+    a band after the permutation ``order``. Each family's band (with ``M``'s
+    whole diagonal) is factorized once by banded Cholesky over all its lines at
+    once (LAPACK ``pbtrf``: the lines are independent blocks of one band), and
+    ``P⁻¹ = B₁⁻¹ + B₂⁻¹`` — a sum of SPD inverses, so SPD by construction. It is
+    applied to all columns at once (``whole = True``: :func:`block_cg` calls it
+    once per step on every row).
+
+    Parameters
+    ----------
+    first : (b + 1, n) float64
+        Upper banded form of the first family's block (``first[b - k, j] = M[j - k, j]``).
+    second : (b + 1, n) float64
+        The same for the second family, in the permuted order.
+    order : (n,) int64
+        ``order[i]`` is the node at position ``i`` of the second family's order.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If a block is not positive definite.
+
+    Examples
+    --------
+    Two families on a 4 × 4 grid: rows and columns of a Laplacian-like matrix.
+
+    >>> T = sp.diags([-1.0, 2.2, -1.0], [-1, 0, 1], shape=(4, 4))
+    >>> M = sp.kronsum(T, T).tocsr()
+    >>> ab = lambda A: np.vstack([np.r_[0, A.diagonal(1)], A.diagonal()])
+    >>> order = np.arange(16).reshape(4, 4).T.reshape(-1)
+    >>> P = LinePreconditioner(ab(M), ab(M[order][:, order]), order)
+    >>> R = np.zeros((1, 64)); R[0, :16] = 1.0; Z = np.empty_like(R)
+    >>> P.apply(R, Z, 0, 64, True)
+    >>> bool(np.all(Z[0, :16] > 0)), bool(np.all(Z[0, 16:] == 0))
+    (True, True)
+    """
+
+    whole = True
+
+    def __init__(self, first: np.ndarray, second: np.ndarray, order: np.ndarray) -> None:
+        from scipy.linalg import cholesky_banded
+
+        self.n = first.shape[1]
+        self._first = cholesky_banded(first, lower=False, check_finite=False)
+        self._second = cholesky_banded(second, lower=False, check_finite=False)
+        self.order = np.asarray(order)
+
+    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
+        """``Z = P⁻¹ R`` on every row (``lo``, ``hi`` are ignored: the solves run along whole lines)."""
+        from scipy.linalg import cho_solve_banded
+
+        n = self.n
+        r = R[:, :n].T if columns else R[:n]  # (n, c); Fortran-ordered when columns (LAPACK's layout)
+        z = cho_solve_banded((self._first, False), r, check_finite=False, overwrite_b=False)
+        z2 = cho_solve_banded((self._second, False), np.take(r, self.order, axis=0), check_finite=False,
+                              overwrite_b=True)
+        z[self.order] += z2
+        if columns:
+            Z[:, :n] = z.T
+            Z[:, n:] = 0.0
+        else:
+            Z[:n] = z
+            Z[n:] = 0.0

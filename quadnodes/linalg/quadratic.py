@@ -1,0 +1,238 @@
+"""Minimize a quadratic energy with some unknowns fixed: set up once, solve many right-hand sides.
+
+The role of gpytoolbox's / libigl's ``min_quad_with_fixed``::
+
+    minimize   ½ zᵀ Q z + zᵀ B
+    subject to z[known] = Y   and   Aeq z = Beq
+
+``Q`` symmetric positive semi-definite (definite on the unknowns), ``B`` one
+column per right-hand side. The known unknowns move to the right-hand side
+(``Q_uu z_u = −B_u − Q_uk Y``); linear constraints make the symmetric KKT system
+``[[Q_uu, A_uᵀ], [A_u, 0]]``. Back-ends, chosen by size and structure:
+
+- ``"direct"``: :func:`~quadnodes.linalg.direct.factorize` — without constraints
+  ``Q_uu`` is positive definite and factorized without pivoting in a symmetric
+  fill-reducing order (a Cholesky factorization); with constraints the KKT
+  matrix is indefinite and factorized with pivoting. Neither can crash.
+- ``"cg"``: conjugate gradients on all right-hand sides at once
+  (:func:`~quadnodes.linalg.cg.block_cg`, threaded row ranges, BLAS pinned),
+  started from a guess, falling back to the direct factorization if it does not
+  converge. Without constraints only.
+
+``"auto"`` factorizes up to :data:`DIRECT_LIMIT` unknowns or with constraints,
+else uses CG.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike
+
+from ..errors import InputError
+from .cg import block_cg
+from .direct import Factorization, factorize, regularization
+from .threads import RowBlocks
+
+__all__ = ["DIRECT_LIMIT", "QuadraticProblem"]
+
+#: Unknowns up to which ``method="auto"`` factorizes.
+DIRECT_LIMIT = 20000
+
+
+class QuadraticProblem:
+    """``min ½ zᵀQz + zᵀB`` with ``z[known] = Y`` and ``Aeq z = Beq``, prepared once.
+
+    Parameters
+    ----------
+    Q : (n, n) sparse, symmetric
+        Positive definite on the unknowns (after ``shift``), else the problem is
+        refused (:class:`~quadnodes.errors.InputError`).
+    known : (n,) bool or int indices, optional
+        Unknowns whose value is given at :meth:`solve`.
+    Aeq : (m, n) sparse, optional
+        Linear equality constraints (full row rank on the unknowns).
+    method : {"auto", "direct", "cg"}
+    rtol : float
+        CG stopping rule (relative residual of every right-hand side).
+    shift : float
+        Relative diagonal shift (:func:`~quadnodes.linalg.direct.regularization`)
+        added to ``Q_uu``, for energies that leave some motion free.
+    what : str
+        Named in error messages.
+
+    Attributes
+    ----------
+    unknown : (k,) int64
+        Indices of the unknowns that are solved for.
+    method : str
+        The back-end in use (``"direct"`` or ``"cg"``).
+    iterations : int
+        CG steps of the last solve (0 when factorized).
+
+    Raises
+    ------
+    InputError
+        On shapes that do not fit, an unknown method, CG with constraints, or a
+        matrix that is not positive definite on the unknowns.
+
+    Examples
+    --------
+    A chain of 5 springs with both ends held: the middle goes to the mean.
+
+    >>> L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(5, 5)).tocsr()
+    >>> p = QuadraticProblem(L, known=[0, 4])
+    >>> p.solve(np.zeros(5), Y=[0.0, 4.0]).round(12).tolist()
+    [0.0, 1.0, 2.0, 3.0, 4.0]
+    >>> q = QuadraticProblem(L, known=[0], Aeq=sp.csr_matrix(np.ones((1, 5))))  # and the sum held
+    >>> q.solve(np.zeros(5), Y=[0.0], Beq=[5.0]).round(12).tolist()
+    [0.0, 1.0, 1.5, 1.5, 1.0]
+    """
+
+    def __init__(
+        self,
+        Q: sp.spmatrix,
+        *,
+        known: ArrayLike | None = None,
+        Aeq: sp.spmatrix | None = None,
+        method: Literal["auto", "direct", "cg"] = "auto",
+        rtol: float = 1e-10,
+        shift: float = 0.0,
+        what: str = "quadratic problem",
+    ) -> None:
+        Q = sp.csr_matrix(Q)
+        n = Q.shape[0]
+        if Q.shape != (n, n):
+            raise InputError(f"{what}: Q must be square, got shape {Q.shape}")
+        is_known = np.zeros(n, dtype=bool)
+        if known is not None:
+            kn = np.asarray(known)
+            if kn.dtype == bool:
+                if kn.shape != (n,):
+                    raise InputError(f"{what}: known mask has shape {kn.shape}, expected ({n},)")
+                is_known = kn.copy()
+            else:
+                kn = kn.astype(np.int64).reshape(-1)
+                if kn.size and (kn.min() < 0 or kn.max() >= n):
+                    raise InputError(f"{what}: known index {int(kn[(kn < 0) | (kn >= n)][0])} is not in 0..{n - 1}")
+                is_known[kn] = True
+        if method not in ("auto", "direct", "cg"):
+            raise InputError(f"method: expected 'auto', 'direct' or 'cg', got {method!r}")
+        self.n = n
+        self.known = np.flatnonzero(is_known)
+        self.unknown = np.flatnonzero(~is_known)
+        k = self.unknown.size
+        if k == 0:
+            raise InputError(f"{what}: every unknown is known; nothing to solve")
+        Qu = Q[self.unknown]
+        self._Quu = Qu[:, self.unknown].tocsr()
+        if shift > 0:
+            self._Quu = (self._Quu + regularization(self._Quu, shift) * sp.identity(k, format="csr")).tocsr()
+        self._Quk = Qu[:, self.known].tocsr()
+        self._Aeq = None
+        self._Aeq_k = None
+        if Aeq is not None:
+            Aeq = sp.csr_matrix(Aeq)
+            if Aeq.shape[1] != n:
+                raise InputError(f"{what}: Aeq has {Aeq.shape[1]} columns, expected {n}")
+            self._Aeq = Aeq[:, self.unknown].tocsr()
+            self._Aeq_k = Aeq[:, self.known].tocsr()
+            if method == "cg":
+                raise InputError(f"{what}: method='cg' takes no linear constraints; use 'direct' or 'auto'")
+        if method == "auto":
+            method = "direct" if (Aeq is not None or k <= DIRECT_LIMIT) else "cg"
+        self.method = method
+        self.rtol = float(rtol)
+        self.what = what
+        self.iterations = 0
+        self.residual = 0.0
+        self._factor: Factorization | None = None
+        self._blocks: RowBlocks | None = None
+        if method == "direct":
+            self._factorize()
+        else:
+            d = self._Quu.diagonal()
+            bad = np.flatnonzero(~(d > 0))
+            if bad.size:
+                raise InputError(f"{what}: the matrix is not positive definite (diagonal entry {int(bad[0])} is "
+                                 f"{d[bad[0]]:.3g}); the energy does not determine every unknown")
+            self._blocks = RowBlocks(self._Quu)
+
+    def _factorize(self) -> Factorization:
+        if self._factor is None:
+            if self._Aeq is None:
+                self._factor = factorize(self._Quu, kind="spd", what=self.what)
+            else:
+                m = self._Aeq.shape[0]
+                K = sp.bmat([[self._Quu, self._Aeq.T], [self._Aeq, sp.csr_matrix((m, m))]], format="csc")
+                self._factor = factorize(K, kind="general", what=self.what)
+        return self._factor
+
+    def solve(self, B: ArrayLike, *, Y: ArrayLike | None = None, Beq: ArrayLike | None = None,
+              guess: ArrayLike | None = None) -> np.ndarray:
+        """The minimizer for a linear term ``B``, known values ``Y`` and constraint values ``Beq``.
+
+        Parameters
+        ----------
+        B : (n,) or (n, c) float64
+            Linear term of the energy (rows of known unknowns are ignored).
+        Y : (n_known,) or (n_known, c) float64, optional
+            Values of the known unknowns, in the order of :attr:`known` (zero if omitted).
+        Beq : (m,) or (m, c) float64, optional
+            Right-hand sides of the constraints (zero if omitted).
+        guess : (k,) or (k, c) float64, optional
+            CG's starting point for the unknowns (zero if omitted).
+
+        Returns
+        -------
+        (n,) or (n, c) float64
+            ``z`` with ``z[known] = Y``.
+
+        Raises
+        ------
+        InputError
+            On shapes that do not fit, or a numerically singular system.
+        """
+        B = np.asarray(B, dtype=np.float64)
+        vector = B.ndim == 1
+        B2 = B.reshape(self.n, -1) if B.shape[:1] == (self.n,) else None
+        if B2 is None or B.ndim > 2:
+            raise InputError(f"{self.what}: B has shape {B.shape}, expected ({self.n},) or ({self.n}, c)")
+        c = B2.shape[1]
+        nk = self.known.size
+        Yv = np.zeros((nk, c)) if Y is None else np.asarray(Y, dtype=np.float64)
+        if Yv.shape == (nk,) and c == 1:
+            Yv = Yv.reshape(nk, 1)
+        if Yv.shape != (nk, c):
+            raise InputError(f"{self.what}: Y has shape {np.shape(Y)}, expected ({nk},) or ({nk}, {c})")
+        rhs = -B2[self.unknown]
+        if nk:
+            rhs -= self._Quk @ Yv
+        if self._Aeq is not None:
+            m = self._Aeq.shape[0]
+            bq = np.zeros((m, c)) if Beq is None else np.asarray(Beq, dtype=np.float64)
+            if bq.shape == (m,) and c == 1:
+                bq = bq.reshape(m, 1)
+            if bq.shape != (m, c):
+                raise InputError(f"{self.what}: Beq has shape {np.shape(Beq)}, expected ({m},) or ({m}, {c})")
+            if nk:
+                bq = bq - self._Aeq_k @ Yv
+            zu = self._factorize().solve(np.vstack([rhs, bq]))[: self.unknown.size]
+        elif self.method == "cg":
+            x0 = np.zeros_like(rhs) if guess is None else np.asarray(guess, dtype=np.float64).reshape(rhs.shape)
+            zu, its, res = block_cg(self._blocks, rhs, x0, rtol=self.rtol, maxiter=20000)  # type: ignore[arg-type]
+            self.iterations, self.residual = its, res
+            if not res <= self.rtol:
+                warnings.warn(f"{self.what}: conjugate gradients reached a relative residual of {res:.1e} after "
+                              f"{its} steps; falling back to the direct solver", UserWarning, stacklevel=2)
+                zu = self._factorize().solve(rhs)
+                self.iterations = 0
+        else:
+            zu = self._factorize().solve(rhs)
+        z = np.empty((self.n, c))
+        z[self.unknown] = np.asarray(zu).reshape(-1, c)
+        z[self.known] = Yv
+        return z[:, 0] if vector else z

@@ -1,0 +1,191 @@
+"""Row ranges of a sparse matrix on a small thread pool, with BLAS held to one thread.
+
+SciPy's sparse kernels and NumPy's array loops release the GIL, so a product or
+a vector update cut into row ranges runs in parallel on a few threads. OpenBLAS's
+own threads would spin against them (a 100×100 fairing measured 0.06–10.6 s on a
+loaded 2-core machine with two BLAS threads, 27–49 ms with one), so every solve
+runs inside :func:`blas_pinned`, which limits BLAS to one thread with
+``threadpoolctl`` for its duration.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import scipy.sparse as sp
+
+try:  # SciPy's own CSR kernels (y += A x on a row range); they release the GIL
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec, csr_matvecs as _csr_matvecs
+except ImportError:  # pragma: no cover - a SciPy that moved them: fall back to row blocks
+    _csr_matvec = _csr_matvecs = None
+
+__all__ = [
+    "MAX_THREADS",
+    "PARALLEL_MIN_ROWS",
+    "RANGE_ALIGN",
+    "COLUMNS_MAX_NNZ",
+    "thread_count",
+    "pool",
+    "blas_pinned",
+    "RowBlocks",
+]
+
+#: Threads for the products and updates (capped by the cores available).
+MAX_THREADS = 4
+#: Rows per thread below which a matrix is applied on one thread.
+PARALLEL_MIN_ROWS = 25000
+#: Row ranges (threads, preconditioner blocks) start at multiples of this many rows.
+RANGE_ALIGN = 64
+#: Matrices with at most this many nonzeros (about 24 MB, cache-sized) are applied to
+#: the columns one after the other ((c, n) vectors, SciPy's one-vector kernel: 25-30 %
+#: faster there); larger ones to all columns in one pass ((n, c) vectors, one read of the matrix).
+COLUMNS_MAX_NNZ = 2_000_000
+
+
+def thread_count() -> int:
+    """Cores this process may use (at most :data:`MAX_THREADS`).
+
+    Examples
+    --------
+    >>> 1 <= thread_count() <= MAX_THREADS
+    True
+    """
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        n = os.cpu_count() or 1
+    return max(1, min(n, MAX_THREADS))
+
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def pool() -> ThreadPoolExecutor:
+    """The process's solver pool (``MAX_THREADS - 1`` workers; the caller is the first thread).
+
+    Examples
+    --------
+    >>> pool().submit(sum, [1, 2]).result()
+    3
+    """
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=MAX_THREADS - 1, thread_name_prefix="quadnodes")
+    return _POOL
+
+
+def _forget_pool() -> None:
+    """A forked child has none of the parent's threads: start a new pool there."""
+    global _POOL
+    _POOL = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+_CONTROLLER: object | None = None
+
+
+@contextlib.contextmanager
+def blas_pinned() -> Iterator[None]:
+    """Hold BLAS (OpenBLAS, MKL, BLIS) to one thread for the duration of a solve.
+
+    The limit is process-wide while it lasts (BLAS libraries keep one setting)
+    and is restored afterwards; without ``threadpoolctl`` nothing is limited.
+
+    Examples
+    --------
+    >>> with blas_pinned():
+    ...     float(np.ones(3) @ np.ones(3))
+    3.0
+    """
+    global _CONTROLLER
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - an optional speed-up
+        yield
+        return
+    if _CONTROLLER is None:
+        import scipy.linalg.blas  # noqa: F401 - load SciPy's BLAS before looking for it
+
+        _CONTROLLER = ThreadpoolController()
+    with _CONTROLLER.limit(limits=1, user_api="blas"):  # type: ignore[attr-defined]
+        yield
+
+
+class RowBlocks:
+    """A CSR matrix cut into row ranges of about equal work, one per thread.
+
+    ``run(fn)`` calls ``fn(lo, hi)`` for every range — on the calling thread
+    when there is one range, else in parallel (SciPy's sparse kernels and NumPy's
+    array loops release the GIL) — and returns the results in order.
+    ``matvec(X, Y, lo, hi)`` writes rows ``lo:hi`` of ``M @ X`` into ``Y``; the
+    vectors are ``(c, n)`` arrays (one vector per row) when ``columns`` (small
+    matrices, see :data:`COLUMNS_MAX_NNZ`), else C-ordered ``(n, c)`` arrays.
+    """
+
+    def __init__(self, M: sp.spmatrix, *, threads: int | None = None) -> None:
+        M = M.tocsr()
+        rows = M.shape[0]
+        t = thread_count() if threads is None else max(1, int(threads))
+        t = max(1, min(t, rows // PARALLEL_MIN_ROWS))
+        # equal nonzeros per range, cut at multiples of RANGE_ALIGN rows
+        cuts = np.searchsorted(M.indptr, np.arange(1, t) * (M.nnz / t)) // RANGE_ALIGN * RANGE_ALIGN
+        self.ranges = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, rows].tolist()))
+        self.M = M
+        self.columns = M.nnz <= COLUMNS_MAX_NNZ
+        idx = np.result_type(M.indptr, M.indices)
+        self._indptr = M.indptr.astype(idx, copy=False)
+        self._indices = M.indices.astype(idx, copy=False)
+
+    def run(self, fn: Callable[[int, int], object]) -> list:
+        if len(self.ranges) == 1:
+            return [fn(*self.ranges[0])]
+        futures = [pool().submit(fn, lo, hi) for lo, hi in self.ranges[1:]]
+        first = fn(*self.ranges[0])
+        return [first] + [f.result() for f in futures]
+
+    def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
+               accumulate: bool = False) -> None:
+        """``Y[lo:hi] (+)= (M @ X)[lo:hi]`` in the layout of :attr:`columns`.
+
+        ``data`` replaces the matrix's values (same pattern); ``hi`` may exceed the
+        matrix's rows (padding rows of ``Y`` are left alone).
+        """
+        M = self.M
+        data = M.data if data is None else data
+        hi = min(hi, M.shape[0])
+        if _csr_matvec is None:  # pragma: no cover - SciPy without the private kernels
+            a, b = int(self._indptr[lo]), int(self._indptr[hi])
+            part = sp.csr_matrix((data[a:b], self._indices[a:b], self._indptr[lo : hi + 1] - a),
+                                 shape=(hi - lo, M.shape[1]))
+            if self.columns:
+                part = (part @ X[:, : M.shape[1]].T).T
+                y = Y[:, lo:hi]
+            else:
+                part = part @ X[: M.shape[1]]
+                y = Y[lo:hi]
+            if accumulate:
+                y += part
+            else:
+                y[...] = part
+            return
+        indptr = self._indptr[lo : hi + 1]
+        if not self.columns:
+            y = Y[lo:hi]
+            if not accumulate:
+                y.fill(0.0)  # the kernels accumulate
+            _csr_matvecs(hi - lo, M.shape[1], X.shape[1], indptr, self._indices, data, X.reshape(-1),
+                         y.reshape(-1))
+            return
+        for x, y in zip(X, Y):
+            y = y[lo:hi]
+            if not accumulate:
+                y.fill(0.0)
+            _csr_matvec(hi - lo, M.shape[1], indptr, self._indices, data, x, y)
+
+

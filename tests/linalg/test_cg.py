@@ -1,0 +1,127 @@
+"""The threaded block CG, its row ranges, block Jacobi, diagonal storage and the BLAS pin."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from quadnodes.linalg import threads as linalg_threads
+from quadnodes.linalg.cg import BlockJacobi, DiagonalBlocks, block_cg, permuted
+from quadnodes.linalg.threads import RowBlocks, blas_pinned
+
+
+def _poisson(n: int, shift: float = 0.01) -> sp.csr_matrix:
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
+    return (sp.kronsum(T, T) + shift * sp.identity(n * n)).tocsr()
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+@pytest.mark.parametrize("columns", [True, False])
+@pytest.mark.parametrize("jacobi", [False, True])
+def test_block_cg_solves_every_column(monkeypatch, threads, columns, jacobi):
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    monkeypatch.setattr(linalg_threads, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
+    M = _poisson(30)
+    rng = np.random.default_rng(0)
+    B = rng.normal(size=(M.shape[0], 3))
+    blocks = RowBlocks(M)
+    assert len(blocks.ranges) == threads and blocks.columns == columns
+    pre = BlockJacobi(M, 16) if jacobi else None
+    x, steps, res = block_cg(blocks, B, np.zeros_like(B), rtol=1e-11, maxiter=5000, precond=pre)
+    assert res <= 1e-11 and steps > 0
+    np.testing.assert_allclose(x, sp.linalg.spsolve(M.tocsc(), B), atol=1e-8)
+
+
+def test_diagonal_storage_equals_csr_products(monkeypatch):
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(linalg_threads, "thread_count", lambda: 2)
+    M = _poisson(20).todia()
+    d = DiagonalBlocks(M.offsets, M.data)
+    assert len(d.ranges) == 2
+    X = np.random.default_rng(1).normal(size=(3, M.shape[0]))
+    Y = np.empty_like(X)
+    for lo, hi in d.ranges:
+        d.matvec(X, Y, lo, hi)
+    np.testing.assert_allclose(Y, (M @ X.T).T, atol=1e-12)
+
+
+def test_permuted_is_a_symmetric_permutation():
+    M = _poisson(9)
+    order = np.random.default_rng(2).permutation(M.shape[0])
+    np.testing.assert_array_equal(permuted(M, order).toarray(), M.toarray()[order][:, order])
+
+
+def test_blas_is_pinned_to_one_thread_inside_and_restored_after():
+    from threadpoolctl import threadpool_info
+
+    before = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    with blas_pinned():
+        inside = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    after = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    assert inside and all(t == 1 for t in inside)
+    assert after == before
+
+
+def _solve_in_child(queue):
+    linalg_threads.PARALLEL_MIN_ROWS = 10
+    linalg_threads.thread_count = lambda: 2
+    M = _poisson(20)
+    blocks = RowBlocks(M)
+    x, _, res = block_cg(blocks, np.ones((M.shape[0], 3)), np.zeros((M.shape[0], 3)), rtol=1e-10, maxiter=2000)
+    queue.put((len(blocks.ranges), res))
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_the_pool_works_in_a_forked_child(monkeypatch):
+    import multiprocessing
+
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(linalg_threads, "thread_count", lambda: 2)
+    M = _poisson(20)
+    block_cg(RowBlocks(M), np.ones((M.shape[0], 3)), np.zeros((M.shape[0], 3)), rtol=1e-10, maxiter=2000)
+    assert linalg_threads.pool() is not None  # the parent's pool exists before the fork
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_solve_in_child, args=(queue,))
+    child.start()
+    child.join(timeout=60)
+    assert child.exitcode == 0
+    ranges, residual = queue.get(timeout=5)
+    assert ranges == 2 and residual <= 1e-10
+
+
+def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses():
+    from quadnodes.linalg.cg import LinePreconditioner
+
+    rows, cols = 7, 9
+    n = rows * cols
+    rng = np.random.default_rng(3)
+    # random SPD bands along rows (offsets 1..3) and along columns (offsets cols..3 cols)
+    def band(step, length, count):
+        A = np.zeros((n, n))
+        for line in range(count):
+            idx = (np.arange(length) * step + line * (cols if step == 1 else 1))
+            B = rng.normal(size=(length + 3, length))
+            for i in range(length):
+                B[i + 4:, i] = 0.0
+                B[: max(i - 3, 0), i] = 0.0
+            A[np.ix_(idx, idx)] += B.T @ B * np.tri(length, length, 3) * np.tri(length, length, 3).T
+        return A
+    Ar, Ac = band(1, cols, rows), band(cols, rows, cols)
+    D = np.diag(0.5 + rng.random(n))
+    B1, B2 = Ar + D, Ac + D
+    ab = lambda A: np.vstack([np.r_[np.zeros(k), np.diag(A, k)] for k in (3, 2, 1, 0)])
+    order = np.arange(n).reshape(rows, cols).T.reshape(-1)
+    P = LinePreconditioner(ab(B1), ab(B2[np.ix_(order, order)]), order)
+    R = np.zeros((3, 128))
+    R[:, :n] = rng.normal(size=(3, n))
+    Z = np.full_like(R, np.nan)
+    P.apply(R, Z, 0, 128, True)
+    ref = np.linalg.solve(B1, R[:, :n].T) + np.linalg.solve(B2, R[:, :n].T)
+    np.testing.assert_allclose(Z[:, :n].T, ref, atol=1e-10)
+    assert not Z[:, n:].any()
+    Zr = np.full((128, 3), np.nan)
+    P.apply(np.ascontiguousarray(R.T), Zr, 0, 128, False)  # (n, c) layout
+    np.testing.assert_allclose(Zr, Z.T, atol=1e-12)

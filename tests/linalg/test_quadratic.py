@@ -1,0 +1,114 @@
+"""The min_quad_with_fixed engine: direct and CG back-ends equal a dense solve; known unknowns never move."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from quadnodes.errors import InputError
+from quadnodes.linalg import QuadraticProblem
+from quadnodes.linalg import threads as linalg_threads
+
+
+def _spd(n: int, seed: int) -> sp.csr_matrix:
+    """A sparse SPD matrix: a random graph Laplacian plus a small diagonal."""
+    rng = np.random.default_rng(seed)
+    i = rng.integers(0, n, 4 * n)
+    j = rng.integers(0, n, 4 * n)
+    w = rng.random(4 * n)
+    W = sp.coo_matrix((w, (i, j)), shape=(n, n)).tocsr()
+    W = W + W.T
+    W.setdiag(0)
+    W.eliminate_zeros()
+    L = sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W
+    return (L + sp.diags(0.05 + rng.random(n))).tocsr()
+
+
+def _dense(Q, known, Y, B, Aeq=None, Beq=None):
+    Q = Q.toarray()
+    n = Q.shape[0]
+    u = np.setdiff1d(np.arange(n), known)
+    rhs = -B[u] - Q[np.ix_(u, known)] @ Y
+    K = Q[np.ix_(u, u)]
+    if Aeq is not None:
+        A = Aeq.toarray()
+        m = A.shape[0]
+        K = np.block([[K, A[:, u].T], [A[:, u], np.zeros((m, m))]])
+        rhs = np.vstack([rhs, Beq - A[:, known] @ Y])
+    z = np.empty((n, B.shape[1]))
+    z[u] = np.linalg.solve(K, rhs)[: u.size]
+    z[known] = Y
+    return z
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(5, 60), st.floats(0.0, 0.6), st.integers(0, 10_000), st.sampled_from(["direct", "cg"]))
+def test_equals_a_dense_solve_and_known_values_stay(n, share, seed, method):
+    rng = np.random.default_rng(seed)
+    Q = _spd(n, seed)
+    known = np.flatnonzero(rng.random(n) < share)
+    if known.size == n:
+        known = known[1:]
+    Y = rng.normal(size=(known.size, 3))
+    B = rng.normal(size=(n, 3))
+    p = QuadraticProblem(Q, known=known, method=method, rtol=1e-13)
+    z = p.solve(B, Y=Y)
+    np.testing.assert_array_equal(z[known], Y)  # exactly, not approximately
+    ref = _dense(Q, known, Y, B)
+    np.testing.assert_allclose(z, ref, rtol=0, atol=1e-8 * max(1.0, np.abs(ref).max()))
+
+
+def test_linear_constraints_hold_and_match_the_dense_kkt_solve():
+    rng = np.random.default_rng(1)
+    n = 40
+    Q = _spd(n, 1)
+    known = np.array([0, 7, 39])
+    Aeq = sp.csr_matrix(rng.normal(size=(3, n)))
+    Y, B, Beq = rng.normal(size=(3, 2)), rng.normal(size=(n, 2)), rng.normal(size=(3, 2))
+    p = QuadraticProblem(Q, known=known, Aeq=Aeq)
+    z = p.solve(B, Y=Y, Beq=Beq)
+    np.testing.assert_allclose(Aeq @ z, Beq, atol=1e-10)
+    np.testing.assert_allclose(z, _dense(Q, known, Y, B, Aeq, Beq), atol=1e-9)
+    assert p.method == "direct"
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_cg_back_end_threaded_equals_direct(monkeypatch, threads):
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    Q = _spd(3000, 4)
+    B = np.random.default_rng(4).normal(size=(3000, 3))
+    cg = QuadraticProblem(Q, known=[5, 6], method="cg", rtol=1e-12)
+    assert len(cg._blocks.ranges) == threads
+    d = QuadraticProblem(Q, known=[5, 6], method="direct")
+    a, b = cg.solve(B, Y=np.ones((2, 3))), d.solve(B, Y=np.ones((2, 3)))
+    assert cg.iterations > 0
+    np.testing.assert_allclose(a, b, atol=1e-8 * np.abs(b).max())
+
+
+def test_refusals_name_the_problem():
+    Q = sp.diags([1.0, 0.0, 1.0]).tocsr()
+    with pytest.raises(InputError, match="demo: the matrix is not positive definite"):
+        QuadraticProblem(Q, what="demo")
+    with pytest.raises(InputError, match="not positive definite"):
+        QuadraticProblem(Q, method="cg")
+    QuadraticProblem(Q, known=[1])  # the singular direction is known: fine
+    with pytest.raises(InputError, match="every unknown is known"):
+        QuadraticProblem(Q, known=[0, 1, 2])
+    with pytest.raises(InputError, match="method"):
+        QuadraticProblem(sp.identity(3), method="magic")
+    with pytest.raises(InputError, match="known index 5"):
+        QuadraticProblem(sp.identity(3), known=[5])
+    with pytest.raises(InputError, match="takes no linear constraints"):
+        QuadraticProblem(sp.identity(3), Aeq=sp.csr_matrix(np.ones((1, 3))), method="cg")
+    p = QuadraticProblem(sp.identity(3), known=[0])
+    with pytest.raises(InputError, match="Y has shape"):
+        p.solve(np.zeros(3), Y=[1.0, 2.0])
+    with pytest.raises(InputError, match="B has shape"):
+        p.solve(np.zeros(4))
+    # a singular KKT system (dependent constraints) is an error, never a crash
+    with pytest.raises(InputError, match="singular"):
+        QuadraticProblem(sp.identity(3), Aeq=sp.csr_matrix(np.ones((2, 3))))
