@@ -615,10 +615,12 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
                zigzag: ZigzagReport | None = None, *, path: str, titles: list[str] | None = None,
                notes: list[str] | None = None, planarity: bool | Literal["relative", "length"] = False, elev: float = 35.0,
                azim: float = -60.0, ncols: int | None = None, vmin: float = 1e-4, vmax: float = 1.0,
-               size_px: int = 1200) -> Path:
+               size_px: int = 1200,
+               color_by: Literal["mean", "gaussian", "gaussian_1", "gaussian_2", "gaussian_3", "k1", "k2",
+                                 "line_max"] | None = None) -> Path:
     """Up to four meshes side by side: shaded, structure lines coloured by zigzag deviation (one log
     scale); optional faint clean ``reference``, freed/fixed markers from a ``zigzag`` report (on every
-    panel), faces coloured by planarity.
+    panel), faces coloured by planarity or by a discrete curvature.
 
     Parameters
     ----------
@@ -628,8 +630,10 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
         One title per mesh; {node.setting} is replaced by that setting, e.g. "{fair.iterations} iterations".
     notes : list of str
         Lines under the figure; {node.setting} is replaced as in titles.
-    planarity : bool
-        Colour faces by planarity.
+    planarity : bool or str
+        Colour faces by planarity: true or relative (diagonal gap / diagonal), or length (gap in the unit).
+    color_by : str
+        Colour faces by a discrete curvature (mean, gaussian, gaussian_1..3, k1, k2, line_max), one shared scale.
     elev, azim : float
         Camera elevation and azimuth in degrees.
     ncols : int
@@ -646,7 +650,7 @@ def render_png(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh | 
         raise InputError(f"titles: {len(titles)} titles for {len(meshes)} connected meshes")
     return viz.render_png(meshes, path, titles=titles, notes=notes, free=zigzag, reference=reference,
                           planarity=planarity, elev=elev, azim=azim, ncols=ncols, vmin=vmin, vmax=vmax,
-                          size_px=size_px)
+                          size_px=size_px, color_by=color_by)
 
 
 @node("render_html", outputs=("path",), writes=("path",),

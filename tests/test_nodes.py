@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import quadnodes.nodes  # noqa: F401
-from quadnodes.errors import NodeError
+from quadnodes.errors import GraphError, NodeError
 from quadnodes.graph import REGISTRY, Cache, Graph, describe
 from quadnodes.io import load_obj
 
@@ -163,3 +163,16 @@ def test_thesis_chapter3_nodes_run_in_a_graph():
     v = c.vertices + 0.01 * np.cos(5 * np.arange(36))[:, None]
     out, rep = REGISTRY.get("fourier@1").func(c.with_vertices(v), keep=2)
     assert rep.closed_lines == 3 and rep.open_lines_untouched == 12
+
+
+def test_render_png_node_colours_by_curvature(tmp_path):
+    g = Graph()
+    m = g.add("grid", id="m", rows=6, cols=7)
+    noisy = g.add("perturb", m.mesh, id="noisy", normal=0.2, seed=3)
+    g.add("render_png", noisy.mesh, id="png", path="k.png", color_by="gaussian", size_px=400)
+    g.run(out=tmp_path)
+    assert (tmp_path / "k.png").stat().st_size > 5_000
+    bad = Graph()
+    bm = bad.add("grid", id="m", rows=3, cols=3)
+    with pytest.raises(GraphError, match="color_by"):
+        bad.add("render_png", bm.mesh, id="png", path="x.png", color_by="Gauss")
