@@ -1,4 +1,4 @@
-"""The ``quadnodes`` command line: run, watch, check, nodes, new, compare.
+"""The ``quadnodes`` command line: run, watch, serve, check, nodes, new, compare.
 
 Examples
 --------
@@ -6,6 +6,7 @@ Examples
 
     quadnodes run examples/e3_wavy.toml --out out/e3 --set fair.iterations=5
     quadnodes watch examples/e3_wavy.toml
+    quadnodes serve examples/quickstart.toml
     quadnodes nodes fair
     quadnodes compare --out out/thesis-comparison --examples E1 E3
 """
@@ -174,6 +175,13 @@ def cmd_watch(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_serve(args: argparse.Namespace) -> int:
+    from .server import serve
+
+    return serve(args.graph, host=args.host, port=args.port, out=args.out, cache=args.cache,
+                 browser=not args.no_browser)
+
+
 def cmd_check(args: argparse.Namespace) -> int:
     from .graph import load
 
@@ -265,6 +273,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-runs", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--timeout", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_watch)
+    p = sub.add_parser("serve", help="edit a graph in the browser: nodes, wires, settings, live 3-D views; "
+                                     "every edit is saved to the file and re-runs only what it affects")
+    p.add_argument("graph", help="graph file (.toml or .json)")
+    p.add_argument("--port", type=int, default=8765, help="port (default 8765)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--out", help="folder for the outputs (default out/<graph name>/)")
+    p.add_argument("--cache", help="disk cache folder (default <out>/.cache)")
+    p.add_argument("--no-browser", action="store_true", help="do not open the page in a browser")
+    p.set_defaults(func=cmd_serve)
     p = sub.add_parser("check", help="validate a graph file without running it")
     p.add_argument("graph")
     p.set_defaults(func=cmd_check)

@@ -176,6 +176,7 @@ class _Prepared:
     settings: dict[str, Any]  # as passed to the function (paths resolved)
     inputs: dict[str, Any]
     key: str | None
+    links: dict[str, PortRef] | None = None  # read from upstream outputs only when the node executes
 
 
 def _prepare(
@@ -193,6 +194,7 @@ def _prepare(
     call_settings = {k: _resolve(v, base, strings=k in file_settings) for k, v in settings.items()}
     cacheable = nt.code_fingerprint is not None
     inputs: dict[str, Any] = {}
+    links: dict[str, PortRef] = {}
     parts: list[list[Any]] = []
     for p in nt.inputs:
         conn = spec.inputs.get(p.name)
@@ -205,7 +207,7 @@ def _prepare(
             parts.append([p.name, "const", fp])
         else:
             if outputs is not None:
-                inputs[p.name] = outputs[conn.node][conn.port]
+                links[p.name] = conn
             up = keys.get(conn.node)
             cacheable &= up is not None
             parts.append([p.name, "node", up, conn.port])
@@ -228,7 +230,7 @@ def _prepare(
             "files": files,
         }
         key = hashlib.sha256(canonical_json(payload).encode()).hexdigest()
-    return _Prepared(node_id, nt, call_settings, inputs, key)
+    return _Prepared(node_id, nt, call_settings, inputs, key, links)
 
 
 def _written(nt: NodeType, settings: Mapping[str, Any]) -> dict[str, list[str | None]]:
@@ -351,9 +353,11 @@ def run(
             if any(now.get(s) != list(entry.files.get(s, ())) for s in nt.writes):
                 entry = None  # an output file is gone or was changed: write it again
         if entry is not None:
-            outputs[node_id] = dict(entry.outputs)
+            outputs[node_id] = entry.outputs  # type: ignore[assignment]  # read from disk: decoded on first use
             status: Literal["ran", "cached"] = "cached"
         else:
+            for port, conn in (prep.links or {}).items():
+                prep.inputs[port] = outputs[conn.node][conn.port]
             outputs[node_id] = _execute(prep, op, index, total, progress)
             status = "ran"
             if cache is not None and key is not None:
