@@ -621,7 +621,7 @@
     });
     const layout = {
       uirevision: v.id + "." + v.port, margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: false,
-      paper_bgcolor: "#ffffff", scene: scene([x, y, z], unit),
+      paper_bgcolor: "#ffffff", scene: scene([x, y, z], unit, plot.clientWidth / Math.max(1, plot.clientHeight)),
     };
     const msg = $(".msg", plot);
     if (msg) msg.remove();
@@ -641,7 +641,7 @@
 
   // The camera of the PNG and HTML views (elevation 35°, azimuth -65°, orthographic), the box scaled so
   // that a long flat sheet fills the view as a compact one does (as quadnodes/html.py does).
-  function scene(xyz, unit) {
+  function scene(xyz, unit, aspect) {
     const lo = xyz.map(a => a.reduce((m, v) => Math.min(m, v), Infinity));
     const hi = xyz.map(a => a.reduce((m, v) => Math.max(m, v), -Infinity));
     const size = hi.map((h, i) => h - lo[i]);
@@ -662,7 +662,7 @@
       ex = [Math.min(ex[0], sx), Math.max(ex[1], sx)];
       ey = [Math.min(ey[0], sy), Math.max(ey[1], sy)];
     }
-    const f = Math.min(2.3 / (ex[1] - ex[0]), 1.6 / (ey[1] - ey[0]));
+    const f = Math.min(Math.min(2.3, 1.6 * (aspect || 1.4) * 0.92) / (ex[1] - ex[0]), 1.6 / (ey[1] - ey[0]));
     ratio = ratio.map(r => r * f);
     const axis = (t, i) => ({ title: { text: `${t} (${unit})`, font: { size: 10, color: "#8a8f98" } }, range: ranges[i],
                               showbackground: false, gridcolor: "#e4e7ec", zerolinecolor: "#cfd4dc",
@@ -693,6 +693,10 @@
           renderRunState();
         }
         state.run.nodes[ev.id] = { status: ev.status, seconds: ev.seconds, error: ev.error, key: ev.key };
+        if (ev.status === "running") {
+          const done = Object.values(state.run.nodes).filter(n => n.status === "ran" || n.status === "cached").length;
+          $("#runstate").textContent = `running ${ev.id} (${done + 1}/${state.graph ? state.graph.order.length : "?"})…`;
+        }
         renderStatus(ev.id, ev);
         for (const v of state.views) if (v.id === ev.id) refreshView(v);
       } else if (ev.type === "refused") {

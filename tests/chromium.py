@@ -53,7 +53,8 @@ class Browser:
         if url is None:
             self.close()
             raise RuntimeError("chromium did not start (no DevTools URL)")
-        self.ws = connect(url, max_size=None, open_timeout=30)
+        self._conn = connect(url, max_size=None, open_timeout=30)
+        self.ws = self._conn.__enter__()
         self.ids = itertools.count(1)
         target = self.send("Target.createTarget", url="about:blank")["targetId"]
         self.session = self.send("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
@@ -118,7 +119,7 @@ class Browser:
                     self.send("Browser.close", timeout=5)
                 except Exception:
                     pass
-                self.ws.close()
+                self._conn.__exit__(None, None, None)
         finally:
             if self.proc.poll() is None:
                 self.proc.terminate()
