@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import hashlib
 import importlib
 import io
 import json
@@ -219,7 +220,12 @@ def _read_entry(path: Path, key: str) -> CacheEntry:
 
 
 class _LazyOutputs(Mapping):
-    """Outputs by port of an entry read from disk, each decoded when first read."""
+    """Outputs by port of an entry read from disk.
+
+    Ports holding a build123d shape are decoded when first read (that needs
+    build123d); the others at once, so a corrupt entry is a miss when it is read.
+    The BREP text is checked against its sha256 when the entry is read.
+    """
 
     def __init__(self, items: list[Any], arrays: list[np.ndarray]) -> None:
         if not all(isinstance(kv, list) and len(kv) == 2 and isinstance(kv[0], str) for kv in items):
@@ -227,6 +233,14 @@ class _LazyOutputs(Mapping):
         self._trees = {k: v for k, v in items}
         self._arrays = arrays
         self._values: dict[str, Any] = {}
+        for port, tree in self._trees.items():
+            breps = _breps(tree)
+            for node in breps:
+                data = arrays[node["$brep"]]
+                if hashlib.sha256(np.asarray(data, dtype=np.uint8).tobytes()).hexdigest() != node.get("sha256"):
+                    raise ValueError("malformed entry: BREP text does not match its checksum")
+            if not breps:
+                self._values[port] = decode(tree, arrays)
 
     def __getitem__(self, port: str) -> Any:
         if port not in self._values:
@@ -241,6 +255,17 @@ class _LazyOutputs(Mapping):
 
     def __repr__(self) -> str:
         return f"_LazyOutputs({list(self._trees)})"
+
+
+def _breps(tree: Any) -> list[dict[str, Any]]:
+    """The ``$brep`` nodes of an encoded tree."""
+    if isinstance(tree, list):
+        return [b for v in tree for b in _breps(v)]
+    if isinstance(tree, dict):
+        if "$brep" in tree:
+            return [tree]
+        return [b for v in tree.values() for b in _breps(v)]
+    return []
 
 
 def _brep_bytes(value: Any) -> bytes | None:
@@ -312,7 +337,7 @@ def encode(value: Any, arrays: list[np.ndarray]) -> Any:
     brep = _brep_bytes(value)
     if brep is not None:
         arrays.append(np.frombuffer(brep, dtype=np.uint8).copy())
-        return {"$brep": len(arrays) - 1}
+        return {"$brep": len(arrays) - 1, "sha256": hashlib.sha256(brep).hexdigest()}
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         fields = dataclasses.fields(value)
         if any(not f.init for f in fields):

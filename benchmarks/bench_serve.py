@@ -1,0 +1,183 @@
+"""`quadnodes serve`: from a changed setting to the new mesh on the page, through the server's own HTTP API.
+
+A real `quadnodes serve` process (uvicorn, 127.0.0.1, a free port) serves a copy of a graph; the script
+changes ``fair.iterations`` with ``POST /api/nodes/fair/settings`` (a new value each time, so fair really
+runs), polls ``GET /api/run`` every 2 ms until the fair node of that edit has finished, and fetches
+``GET /api/mesh/fair/mesh`` — the clock stops when the page would have the new mesh's bytes. Two states:
+
+- *idle*: the previous run, exporters included, had finished;
+- *busy*: the edit arrives while the previous run's exporters (STEP, PNG, ...) are still going; the old run
+  is given up at its next node or progress report.
+
+Inputs: the quick-start (``examples/quickstart.toml``, 22×41 = 902 vertices, every node), and the same graph
+sampled 100×100 (10 000 vertices) without its STEP, PNG and HTML writers (their cold run at that size takes
+minutes and does not change when the new mesh is ready).
+Peers in the same run: the fair node's own time inside the server, and `quadnodes run` as a whole process
+(imports included) — with a warm cache and nothing changed, and after ``--set fair.iterations=N`` (what a
+user of the CLI waits for instead).
+
+Run:  python benchmarks/bench_serve.py [--repeat 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+
+
+class Server:
+    def __init__(self, graph: Path, out: Path) -> None:
+        port = _free_port()
+        self.proc = subprocess.Popen([sys.executable, "-m", "quadnodes", "serve", str(graph), "--no-browser",
+                                      "--port", str(port), "--out", str(out)], cwd=graph.parent, env=_env(),
+                                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        assert self.proc.stdout is not None
+        self.proc.stdout.readline()
+        url = self.proc.stdout.readline().strip()
+        self.base = f"http://127.0.0.1:{port}"
+        self.token = url.split("token=", 1)[1]
+
+    def call(self, path: str, data: object = None) -> tuple[dict, int]:
+        req = urllib.request.Request(self.base + path, data=None if data is None else json.dumps(data).encode(),
+                                     method="GET" if data is None else "POST")
+        req.add_header("Authorization", f"Bearer {self.token}")
+        req.add_header("Content-Type", "application/json")
+        with urllib.request.urlopen(req, timeout=600) as r:
+            body = r.read()
+        return json.loads(body), len(body)
+
+    def idle(self, timeout: float = 1800) -> dict:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                run, _ = self.call("/api/run")
+                if run["state"] in ("done", "failed") and run["revision"] == run["graph_revision"]:
+                    return run
+            except OSError:
+                pass
+            time.sleep(0.05)
+        raise TimeoutError("the server did not finish its run")
+
+    def change(self, iterations: int) -> tuple[float, float, int]:
+        """Seconds from the POST to the new mesh's bytes; the fair node's own seconds; payload bytes."""
+        t0 = time.perf_counter()
+        res, _ = self.call("/api/nodes/fair/settings", {"iterations": iterations})
+        assert res["ok"], res
+        while True:
+            run, _ = self.call("/api/run")
+            fair = run["nodes"].get("fair", {})
+            if run["revision"] == res["revision"] and fair.get("status") in ("ran", "cached", "failed"):
+                break
+            time.sleep(0.002)
+        assert fair["status"] == "ran", fair
+        mesh, size = self.call("/api/mesh/fair/mesh")
+        elapsed = time.perf_counter() - t0
+        assert mesh["key"] == fair["key"]
+        return elapsed, fair["seconds"], size
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+
+def _cli(graph: Path, out: Path, *extra: str) -> float:
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "quadnodes", "run", str(graph), "--out", str(out), *extra],
+                   cwd=graph.parent, env=_env(), check=True, stdout=subprocess.DEVNULL)
+    return time.perf_counter() - t0
+
+
+def _variant_100(text: str) -> str:
+    text = text.replace("params = { nu = 22, nv = 41 }", "params = { nu = 100, nv = 100 }")
+    for node in ("step", "png", "planarity_png", "html"):
+        text = re.sub(rf"\n\[nodes\.{node}\]\n(?:[^\[\n].*\n)*", "\n", text)
+    return text
+
+
+def bench(name: str, text: str, repeat: int, rows: list[tuple[str, str, str]]) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        graph = Path(d) / "graph.toml"
+        graph.write_text(text)
+        out = Path(d) / "out"
+        server = Server(graph, out)
+        try:
+            t0 = time.perf_counter()
+            first = server.idle()
+            cold = time.perf_counter() - t0
+            idle, own, busy, sizes = [], [], [], []
+            for k in range(repeat):
+                server.idle()
+                e, s, b = server.change(10 + k)
+                idle.append(e), own.append(s), sizes.append(b)
+            for k in range(repeat):  # each edit right after the previous fair finished: exporters still busy
+                e, _, _ = server.change(10 + repeat + k)
+                busy.append(e)
+            server.idle()
+        finally:
+            server.stop()
+        nv = 902 if "22" in name else 10_000
+        rows.append((name, "first run in the server (cold cache, all nodes)", f"{cold:.2f} s"))
+        rows.append((name, "new mesh on the page after fair.iterations changed, idle server",
+                     f"{1000 * statistics.median(idle):.0f} ms"))
+        rows.append((name, "  of which the fair node itself", f"{1000 * statistics.median(own):.0f} ms"))
+        rows.append((name, "new mesh on the page, edit while the exporters still run",
+                     f"{1000 * statistics.median(busy):.0f} ms"))
+        rows.append((name, f"mesh payload ({nv} vertices, base64 float32/int32 JSON)",
+                     f"{statistics.median(sizes) / 1024:.0f} KiB"))
+        assert first["state"] == "done", first.get("error")
+        # the CLI in the same run, sharing nothing with the server (its own cache folder)
+        cli_out = Path(d) / "cli"
+        _cli(graph, cli_out)
+        warm = [_cli(graph, cli_out) for _ in range(repeat)]
+        rows.append((name, "`quadnodes run`, warm cache, nothing changed (whole process)",
+                     f"{statistics.median(warm):.2f} s"))
+        sets = [_cli(graph, cli_out, "--set", f"fair.iterations={30 + k}") for k in range(min(repeat, 3))]
+        rows.append((name, "`quadnodes run --set fair.iterations=N` (whole process, all writers)",
+                     f"{statistics.median(sets):.2f} s"))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--skip-100", action="store_true", help="only the quick-start")
+    args = ap.parse_args()
+    text = (ROOT / "examples" / "quickstart.toml").read_text()
+    rows: list[tuple[str, str, str]] = []
+    bench("quick-start 22×41", text, args.repeat, rows)
+    if not args.skip_100:
+        bench("quick-start 100×100, no STEP/PNG/HTML", _variant_100(text), args.repeat, rows)
+    print(f"median of {args.repeat}; `python benchmarks/bench_serve.py --repeat {args.repeat}`\n")
+    print("| graph | measure | value |")
+    print("|---|---|---:|")
+    for r in rows:
+        print(f"| {r[0]} | {r[1]} | {r[2]} |")
+
+
+if __name__ == "__main__":
+    main()
