@@ -149,7 +149,7 @@ def node_type_info(nt: NodeType) -> dict[str, Any]:
 
 
 def auto_layout(graph: Graph, *, saved: Mapping[str, list[float]] | None = None,
-                dx: float = 250.0, dy: float = 18.0, column_height: float = 820.0,
+                dx: float = 250.0, dy: float = 18.0, column_height: float = 1000.0,
                 node_height: Callable[[str], float] | None = None) -> dict[str, list[float]]:
     """Positions of every node: saved ones kept, the others in columns by topological depth.
 

@@ -441,7 +441,7 @@
       for (const id of order.filter(n => depth[n] === col && !keep.has(n))) {
         const n = $(`.node[data-node="${id}"]`);
         const h = n ? n.offsetHeight : 120;
-        if (used && y + h > 820) { x += 250; y = 20; }
+        if (used && y + h > 1000) { x += 250; y = 20; }
         pos[id] = [x, y];
         y += h + 18;
         used = true;
@@ -531,7 +531,8 @@
       }
       return;
     }
-    if (info.key && info.key === v.key && v.drawnMode === v.mode) return;
+    const aspect = plot.clientWidth / Math.max(1, plot.clientHeight);
+    if (info.key && info.key === v.key && v.drawnMode === v.mode && Math.abs(aspect - (v.aspect || 0)) < 0.25) return;
     const want = info.key;
     v.key = want;
     const d = await api("GET", `/api/mesh/${encodeURIComponent(v.id)}/${encodeURIComponent(v.port)}`);
@@ -539,6 +540,7 @@
     if (v.key !== want) return;   // a newer run arrived meanwhile
     draw(v, plot, d);
     v.drawnMode = v.mode;
+    v.aspect = aspect;
     card.dataset.key = d.key;
     const unit = d.unit || "";
     $("[data-info]", card).textContent = `${d.n_faces} panels · max zigzag ${d.max_deviation.toExponential(1)} · `
@@ -662,7 +664,7 @@
       ex = [Math.min(ex[0], sx), Math.max(ex[1], sx)];
       ey = [Math.min(ey[0], sy), Math.max(ey[1], sy)];
     }
-    const f = Math.min(Math.min(2.3, 1.6 * (aspect || 1.4) * 0.92) / (ex[1] - ex[0]), 1.6 / (ey[1] - ey[0]));
+    const f = Math.min(Math.min(2.7, 1.9 * (aspect || 1.4) * 0.92) / (ex[1] - ex[0]), 1.9 / (ey[1] - ey[0]));
     ratio = ratio.map(r => r * f);
     const axis = (t, i) => ({ title: { text: `${t} (${unit})`, font: { size: 10, color: "#8a8f98" } }, range: ranges[i],
                               showbackground: false, gridcolor: "#e4e7ec", zerolinecolor: "#cfd4dc",
