@@ -140,7 +140,36 @@ def _run(args: argparse.Namespace, cache: Any, stream: TextIO) -> Any:
           file=stream)
     for w in written:
         print(f"  wrote {os.path.relpath(w)}", file=stream)
+    if cache.directory is not None:  # lets the next run of the unchanged graph skip loading the nodes
+        from .graph import runlog
+        from .graph.watch import watched_files
+
+        runlog.note(cache.directory, runlog.signature(path, out=out, overrides=_parse_sets(args.set or [])),
+                    records=result.records, files=[*watched_files(path, graph), *written], written=written)
     return graph
+
+
+def _replay(args: argparse.Namespace, cache: Any, stream: TextIO) -> bool:
+    """Print the run and return True when the graph, its files and the cache are as the last run left them."""
+    from .graph import runlog
+
+    if cache.directory is None:
+        return False
+    t0 = time.perf_counter()
+    path = Path(args.graph)
+    out = Path(args.out) if args.out else _default_out(path)
+    hit = runlog.replay(cache.directory, runlog.signature(path, out=out, overrides=_parse_sets(args.set or [])))
+    if hit is None:
+        return False
+    records, written = hit
+    print(f"running {path} -> {out}/", file=stream, flush=True)
+    for i, (node_id, op, _) in enumerate(records):
+        print(f"  [{i + 1}/{len(records)}] {'cached':6s} {node_id:16s} {op:22s} {0.0:8.3f} s", file=stream)
+    print(f"done in {time.perf_counter() - t0:.2f} s: 0 ran, {len(records)} from cache "
+          "(graph, input files and outputs unchanged since the last run)", file=stream)
+    for w in written:
+        print(f"  unchanged {os.path.relpath(w)}", file=stream)
+    return True
 
 
 def _cache(args: argparse.Namespace) -> Any:
@@ -153,7 +182,9 @@ def _cache(args: argparse.Namespace) -> Any:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    _run(args, _cache(args), sys.stdout)
+    cache = _cache(args)
+    if not _replay(args, cache, sys.stdout):
+        _run(args, cache, sys.stdout)
     return 0
 
 
