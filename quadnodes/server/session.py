@@ -26,6 +26,7 @@ import math
 import os
 import threading
 import time
+import types
 import typing
 from collections.abc import Callable, Mapping
 from pathlib import Path, PurePath
@@ -37,7 +38,6 @@ from ..errors import GraphError, NodeError, QuadnodesError
 from ..graph import Cache, Graph, loads
 from ..graph import _types
 from ..graph.node import NO_DEFAULT, NodeType, Registry, Setting
-from ..graph.run import _path_values
 from ..graph.watch import snapshot, watched_files
 from ..io._atomic import write_text_atomic
 
@@ -74,6 +74,19 @@ def _setting_range(s: Setting, nt: NodeType) -> list[float] | None:
     return [lo, hi] if math.isfinite(lo) and math.isfinite(hi) and hi > lo else None
 
 
+def _is_union(ann: Any) -> bool:
+    return typing.get_origin(ann) in (typing.Union, types.UnionType)
+
+
+def _path_values(value: Any) -> list[Any]:
+    """The paths in a file setting's value (a path, a list of them, or None)."""
+    if value is None:
+        return []
+    if isinstance(value, (list, tuple)):
+        return [p for v in value for p in _path_values(v)]
+    return [value]
+
+
 def _kind(ann: Any) -> dict[str, Any]:
     origin, args = typing.get_origin(ann), typing.get_args(ann)
     if ann is bool:
@@ -89,7 +102,7 @@ def _kind(ann: Any) -> dict[str, Any]:
     if origin in (list, tuple) or ann in (list, tuple):
         item = _kind(args[0]) if args else {"kind": "json"}
         return {"kind": "list", "item": item.get("kind", "json")}
-    if _types._is_union(ann):
+    if _is_union(ann):
         rest = [a for a in args if a is not type(None)]
         kinds = [_kind(a) for a in rest]
         out: dict[str, Any]
@@ -132,7 +145,7 @@ def setting_field(s: Setting, nt: NodeType) -> dict[str, Any]:
 def _is_mesh_type(ann: Any) -> bool:
     from ..mesh import QuadMesh
 
-    return ann is QuadMesh or (_types._is_union(ann) and QuadMesh in typing.get_args(ann))
+    return ann is QuadMesh or (_is_union(ann) and QuadMesh in typing.get_args(ann))
 
 
 def node_type_info(nt: NodeType) -> dict[str, Any]:
