@@ -2,8 +2,9 @@
 
 A real `quadnodes serve` process (uvicorn, 127.0.0.1, a free port) serves a copy of a graph; the script
 changes ``fair.iterations`` with ``POST /api/nodes/fair/settings`` (a new value each time, so fair really
-runs), polls ``GET /api/run`` every 2 ms until the fair node of that edit has finished, and fetches
-``GET /api/mesh/fair/mesh`` — the clock stops when the page would have the new mesh's bytes. Two states:
+runs), waits on the event WebSocket (``/api/events``, as the page does) for the fair node of that edit to
+finish, and fetches ``GET /api/mesh/fair/mesh`` — the clock stops when the page would have the new mesh's
+bytes. Two states:
 
 - *idle*: the previous run, exporters included, had finished;
 - *busy*: the edit arrives while the previous run's exporters (STEP, PNG, ...) are still going; the old run
@@ -60,6 +61,22 @@ class Server:
         url = self.proc.stdout.readline().strip()
         self.base = f"http://127.0.0.1:{port}"
         self.token = url.split("token=", 1)[1]
+        self.ws = None
+
+    def events(self) -> None:
+        from websockets.sync.client import connect
+
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                self._conn = connect(f"ws://127.0.0.1:{self.base.rsplit(':', 1)[1]}/api/events?token={self.token}",
+                                     max_size=None)
+                self.ws = self._conn.__enter__()
+                return
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.2)
 
     def call(self, path: str, data: object = None) -> tuple[dict, int]:
         req = urllib.request.Request(self.base + path, data=None if data is None else json.dumps(data).encode(),
@@ -88,11 +105,11 @@ class Server:
         res, _ = self.call("/api/nodes/fair/settings", {"iterations": iterations})
         assert res["ok"], res
         while True:
-            run, _ = self.call("/api/run")
-            fair = run["nodes"].get("fair", {})
-            if run["revision"] == res["revision"] and fair.get("status") in ("ran", "cached", "failed"):
+            ev = json.loads(self.ws.recv(timeout=600))
+            if (ev["type"] == "node" and ev["id"] == "fair" and ev["revision"] == res["revision"]
+                    and ev["status"] in ("ran", "cached", "failed")):
+                fair = ev
                 break
-            time.sleep(0.002)
         assert fair["status"] == "ran", fair
         mesh, size = self.call("/api/mesh/fair/mesh")
         elapsed = time.perf_counter() - t0
@@ -100,6 +117,8 @@ class Server:
         return elapsed, fair["seconds"], size
 
     def stop(self) -> None:
+        if self.ws is not None:
+            self._conn.__exit__(None, None, None)
         self.proc.terminate()
         try:
             self.proc.wait(timeout=60)
@@ -133,6 +152,7 @@ def bench(name: str, text: str, repeat: int, rows: list[tuple[str, str, str]]) -
         server = Server(graph, out)
         try:
             t0 = time.perf_counter()
+            server.events()
             first = server.idle()
             cold = time.perf_counter() - t0
             idle, own, busy, sizes = [], [], [], []

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import GraphError, NodeError, QuadnodesError
+from ..errors import ExportError, GraphError, NodeError, QuadnodesError
 from ..graph import Cache, Graph, loads
 from ..graph import _types
 from ..graph.node import NO_DEFAULT, NodeType, Registry, Setting
@@ -313,6 +313,7 @@ class Session:
         self._lock = threading.RLock()
         self._listeners: list[Callable[[Event], None]] = []
         self.text = self._read()
+        self._document: Any = None
         self.graph = self._validate(self.text)
         self.stamp = _stamp(self.path)
         self._read_stamps = snapshot(self._read_files())
@@ -444,11 +445,15 @@ class Session:
 
     # ---------------------------------------------------------------- edits
     def _doc(self) -> Any:
-        if self.fmt == "toml":
-            import tomlkit
+        """The document of :attr:`text`, kept between accepted edits (parsing TOML with comments is slow)."""
+        if self._document is None:
+            if self.fmt == "toml":
+                import tomlkit
 
-            return tomlkit.parse(self.text)
-        return json.loads(self.text)
+                self._document = tomlkit.parse(self.text)
+            else:
+                self._document = json.loads(self.text)
+        return self._document
 
     def _dump(self, doc: Any) -> str:
         if self.fmt == "toml":
@@ -483,13 +488,19 @@ class Session:
                 text = self._dump(doc)
                 g = self._validate(text)
             except GraphError as exc:
+                self._document = None  # the change may have touched it: parse the file's text again next time
                 at = getattr(exc, "node_id", None) or node_id
                 if at is not None:
                     self.node_errors = {at: str(exc)}
                 self._emit({"type": "refused", "node": at, "error": str(exc), "revision": self.revision})
                 return EditResult(ok=False, error=str(exc), node=at, revision=self.revision)
             if text != self.text:
-                write_text_atomic(self.path, text)
+                try:
+                    write_text_atomic(self.path, text)
+                except (ExportError, OSError) as exc:
+                    self._document = None
+                    return EditResult(ok=False, error=f"cannot write {self.path.name}: {exc}", node=node_id,
+                                      revision=self.revision)
             self.text, self.graph, self.stamp = text, g, _stamp(self.path)
             self.node_errors = {}
             self.file_error = None
@@ -638,6 +649,7 @@ class Session:
                 self._emit({"type": "graph", "revision": self.revision})
                 return True
             self.text, self.graph, self.file_error, self.node_errors = text, g, None, {}
+            self._document = None
             self.revision += 1
             rev = self.revision
             self._read_stamps = snapshot(self._read_files())

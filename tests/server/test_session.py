@@ -259,3 +259,21 @@ def test_superseded_runs_stop_at_the_next_node(graph_file, reg, tmp_path, calls)
         s.run_once()
     info = _wait(s)
     assert info["state"] == "done" and s.output("up", "mesh").vertices[0, 2] == 9.0
+
+
+def test_a_graph_file_that_cannot_be_written_refuses_the_edit(graph_file, reg, tmp_path, monkeypatch):
+    from quadnodes.errors import ExportError
+    from quadnodes.server import session as mod
+
+    s = _session(graph_file, reg, tmp_path)
+    before = graph_file.read_bytes()
+
+    def fail(path, text):
+        raise ExportError(f"cannot write {path}: disk full")
+
+    monkeypatch.setattr(mod, "write_text_atomic", fail)
+    res = s.set_settings("up", {"dz": 4.0})
+    assert not res["ok"] and "disk full" in res["error"] and graph_file.read_bytes() == before
+    monkeypatch.undo()
+    assert s.graph.nodes["up"].params["dz"] == 2.0
+    assert s.set_settings("up", {"dz": 4.0})["ok"] and "dz = 4.0" in graph_file.read_text()
