@@ -186,7 +186,7 @@ def bench(name: str, text: str, repeat: int, rows: list[tuple[str, str, str]]) -
         sets = [_cli(graph, cli_out, "--set", f"fair.iterations={30 + k}") for k in range(min(repeat, 3))]
         rows.append((name, "`quadnodes run --set fair.iterations=N` (whole process, all writers): wall / CPU",
                      f"{statistics.median(w for w, _ in sets):.2f} s / {statistics.median(c for _, c in sets):.2f} s"))
-        for r in rows[-7:] if name.startswith("quick-start 22") else rows[-7:]:
+        for r in rows[-7:]:
             print(f"| {r[0]} | {r[1]} | {r[2]} |", file=sys.stderr, flush=True)
 
 
