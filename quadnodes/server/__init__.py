@@ -67,17 +67,25 @@ def serve(
     app = create_app(session, token=token)
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{shown}:{port}/?token={token}"
-    config = uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on", ws="websockets-sansio")
-    server = uvicorn.Server(config)
-    print(f"serving {path} (outputs in {os.path.relpath(session.out)}/); Ctrl-C to stop", file=stream, flush=True)
-    print(url, file=stream, flush=True)
-    if host not in ("127.0.0.1", "localhost", "::1"):
-        print(f"warning: listening on {host}: anyone who can reach this address and has the token can edit "
-              f"{Path(path).name}", file=stream, flush=True)
-    if browser:
-        import webbrowser
+    def ready() -> None:  # the socket listens: print the URL (one line), open the browser
+        print(url, file=stream, flush=True)
+        if host not in ("127.0.0.1", "localhost", "::1"):
+            print(f"warning: listening on {host}: anyone who can reach this address and has the token can edit "
+                  f"{Path(path).name}", file=stream, flush=True)
+        if browser:
+            import webbrowser
 
-        threading.Timer(0.8, lambda: webbrowser.open(url)).start()
+            threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
+
+    class _Server(uvicorn.Server):
+        async def startup(self, sockets: list | None = None) -> None:
+            await super().startup(sockets=sockets)
+            if self.started:
+                ready()
+
+    config = uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on", ws="websockets-sansio")
+    server = _Server(config)
+    print(f"serving {path} (outputs in {os.path.relpath(session.out)}/); Ctrl-C to stop", file=stream, flush=True)
     server.run()
     print("stopped", file=stream, flush=True)
     return 0 if server.started else 1
