@@ -70,7 +70,7 @@ class Server:
         while True:
             try:
                 self._conn = connect(f"ws://127.0.0.1:{self.base.rsplit(':', 1)[1]}/api/events?token={self.token}",
-                                     max_size=None)
+                                     max_size=None, ping_interval=None)
                 self.ws = self._conn.__enter__()
                 return
             except OSError:
