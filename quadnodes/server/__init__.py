@@ -83,9 +83,15 @@ def serve(
             if self.started:
                 ready()
 
-    config = uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on", ws="websockets-sansio")
+    config = uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on", ws="websockets-sansio",
+                            timeout_graceful_shutdown=3)
     server = _Server(config)
     print(f"serving {path} (outputs in {os.path.relpath(session.out)}/); Ctrl-C to stop", file=stream, flush=True)
-    server.run()
+    try:
+        server.run()
+    except KeyboardInterrupt:  # uvicorn shut down and passes Ctrl-C on: that is the normal way to stop
+        pass
+    finally:
+        session.close()
     print("stopped", file=stream, flush=True)
     return 0 if server.started else 1

@@ -266,8 +266,13 @@ def test_quadnodes_serve_runs_a_real_server_and_stops_on_ctrl_c(tmp_path):
         assert run["ran"] == ["fair", "obj"] and run["cached"] == ["mesh", "noisy"]
         status, mesh = _call(f"{base}/api/mesh/fair/mesh", token=token)
         assert status == 200 and mesh["n_vertices"] == 72
-        proc.send_signal(signal.SIGINT)  # Ctrl-C
-        out, err = proc.communicate(timeout=30)
+        from websockets.sync.client import connect
+
+        # Ctrl-C while a page is connected to the event socket
+        with connect(f"ws://127.0.0.1:{port}/api/events?token={token}", origin=base, ping_interval=None) as ws:
+            assert json.loads(ws.recv(timeout=30))["type"] == "hello"
+            proc.send_signal(signal.SIGINT)
+            out, err = proc.communicate(timeout=30)
         assert proc.returncode == 0, err
         assert "stopped" in out and "Traceback" not in err
     finally:
