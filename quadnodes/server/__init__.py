@@ -84,7 +84,7 @@ def serve(
                 ready()
 
     config = uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on", ws="websockets-sansio",
-                            timeout_graceful_shutdown=3)
+                            timeout_graceful_shutdown=3, ws_ping_interval=None)  # local: a long node may hold the GIL
     server = _Server(config)
     print(f"serving {path} (outputs in {os.path.relpath(session.out)}/); Ctrl-C to stop", file=stream, flush=True)
     try:
