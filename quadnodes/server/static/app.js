@@ -416,14 +416,49 @@
       sel.value = "";
       if (!op) return;
       const wrap = $("#canvas-wrap");
-      const pos = [wrap.scrollLeft + 40, wrap.scrollTop + 40];
-      const res = await edit("POST", "/api/nodes", { op, pos });
-      if (!res.ok && res.error) alert(res.error);
+      const pos = [Math.round((wrap.scrollLeft + 40) / state.scale), Math.round((wrap.scrollTop + 40) / state.scale)];
+      const t = state.palette.find(x => x.op === op);
+      const need = t.inputs.filter(p => p.required), must = t.settings.filter(f => f.required);
+      if (!need.length && !must.length) { await edit("POST", "/api/nodes", { op, pos }); return; }
+      addDialog(t, need, must, pos);
     });
     $("#relayout").addEventListener("click", async () => {
       const pos = columns(new Set());
       await api("POST", "/api/layout", { positions: pos });
     });
+  }
+
+  // A node with required inputs or settings is valid only with them: ask for them before adding it.
+  function addDialog(t, need, must, pos) {
+    const outs = [];
+    for (const id of state.graph.order)
+      for (const o of typeOf(state.graph.nodes[id].op).outputs) outs.push({ ref: id + "." + o.name, type: o.type });
+    const form = el("form", { class: "dialog-box" }, el("h3", { text: "Add " + t.name }),
+                    el("p", { class: "muted", text: t.summary }));
+    for (const p of need) {
+      const s = el("select", { name: "in:" + p.name, required: true });
+      const fits = outs.filter(o => o.type === p.type || p.type === "any" || o.type === "any" || p.type.includes(o.type));
+      for (const o of (fits.length ? fits : outs)) s.append(el("option", { value: o.ref, text: o.ref }));
+      if (fits.length) s.value = fits[fits.length - 1].ref;
+      form.append(el("label", { text: `${p.name} (${p.type})` }), s);
+    }
+    for (const f of must) form.append(el("label", { text: `${f.name} (${f.type})` }),
+                                      el("input", { name: "set:" + f.name, required: true, spellcheck: "false" }));
+    const cancel = el("button", { type: "button", text: "Cancel" });
+    form.append(el("div", { class: "buttons" }, cancel, el("button", { type: "submit", class: "primary", text: "Add" })));
+    const back = el("div", { class: "dialog", "data-dialog": t.op }, form);
+    cancel.addEventListener("click", () => back.remove());
+    form.addEventListener("submit", async (e) => {
+      e.preventDefault();
+      const inputs = {}, params = {};
+      for (const p of need) inputs[p.name] = form.elements["in:" + p.name].value;
+      for (const f of must) params[f.name] = parseField(f, form.elements["set:" + f.name]);
+      back.remove();
+      await edit("POST", "/api/nodes", { op: t.op, inputs, params, pos });
+    });
+    document.body.append(back);
+    const first = form.querySelector("select, input");
+    if (first) first.focus();
   }
 
   // Columns by topological depth (as the server's auto_layout, with the real heights of the cards);
