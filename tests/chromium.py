@@ -75,6 +75,10 @@ class Browser:
             data = json.loads(self.ws.recv(timeout=max(0.1, deadline - time.monotonic())))
             if data.get("method") == "Runtime.exceptionThrown":
                 self.console.append(json.dumps(data["params"]["exceptionDetails"])[:2000])
+            if data.get("method") == "Page.javascriptDialogOpening":  # an alert would block the page: note, dismiss
+                self.console.append("dialog: " + data["params"].get("message", ""))
+                self.ws.send(json.dumps({"id": next(self.ids), "method": "Page.handleJavaScriptDialog",
+                                         "params": {"accept": True}, "sessionId": self.session}))
             if data.get("method") == "Runtime.consoleAPICalled":
                 self.console.append(" ".join(str(a.get("value", a.get("description", ""))) for a in data["params"]["args"]))
             if data.get("id") == mid:
