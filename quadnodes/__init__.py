@@ -25,20 +25,16 @@ import importlib  # noqa: E402
 from typing import Any  # noqa: E402
 
 from .errors import ExportError, GraphError, InputError, NodeError, QuadnodesError
-from .fairing import fair
-from .mesh import QuadMesh, from_grid_points, grid
-from .metrics import compare
-from .noise import perturb
-from .flatness import planarity
-from .planarization import planarize
-from .smoothing import laplacian, taubin
-from .topology import structure_lines, windows
-from .zigzag import detect
-from .discrete_curvature import curvature
-from .fourier_descriptors import fourier
-from .pde_fairing import schneider_kobbelt
-from .spring_model import spring
-from .webs import fair_web
+
+# The functions load their modules (NumPy, SciPy) on first use, so `quadnodes run` of a graph whose results
+# are all cached starts fast; `from quadnodes import fair` and `qn.fair` work as before.
+_FUNCTIONS = {
+    "fair": "fairing", "QuadMesh": "mesh", "from_grid_points": "mesh", "grid": "mesh", "compare": "metrics",
+    "perturb": "noise", "planarity": "flatness", "planarize": "planarization", "laplacian": "smoothing",
+    "taubin": "smoothing", "structure_lines": "topology", "windows": "topology", "detect": "zigzag",
+    "curvature": "discrete_curvature", "fourier": "fourier_descriptors", "schneider_kobbelt": "pde_fairing",
+    "spring": "spring_model", "fair_web": "webs",
+}
 
 __all__ = [
     "__version__",
@@ -73,4 +69,12 @@ _LAZY = {"surfaces", "io", "viz", "html", "report", "reference"}
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
         return importlib.import_module(f".{name}", __name__)
+    if name in _FUNCTIONS:
+        value = getattr(importlib.import_module(f".{_FUNCTIONS[name]}", __name__), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module 'quadnodes' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_FUNCTIONS) | _LAZY)

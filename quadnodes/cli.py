@@ -1,4 +1,4 @@
-"""The ``quadnodes`` command line: run, watch, sweep, check, nodes, new, compare.
+"""The ``quadnodes`` command line: run, watch, serve, sweep, check, nodes, new, compare.
 
 Examples
 --------
@@ -6,6 +6,7 @@ Examples
 
     quadnodes run examples/e3_wavy.toml --out out/e3 --set fair.iterations=5
     quadnodes watch examples/e3_wavy.toml
+    quadnodes serve examples/quickstart.toml
     quadnodes sweep examples/quickstart.toml --vary fair.weight=0.1,0.3,1 --vary noisy.seed=1:5
     quadnodes nodes fair
     quadnodes compare --out out/thesis-comparison --examples E1 E3
@@ -203,12 +204,56 @@ def _run(args: argparse.Namespace, cache: Any, stream: TextIO) -> Any:
     result = g.run(cache=cache, progress=_Printer(stream), out=out, allow_read=allow)
     print(f"done in {time.perf_counter() - t0:.2f} s: {len(result.ran)} ran, {len(result.cached)} from cache",
           file=stream)
+    written = []
     for r in result.records:
         for f in r.files:
             print(f"  {'wrote' if r.status == 'ran' else 'unchanged':9s} {_shown(f)}", file=stream)
-    for line in _notes(result):
+            written.append(f)
+    notes = _notes(result)
+    for line in notes:
         print(f"  note: {line}", file=stream)
+    if cache.directory is not None:  # lets the next run of the unchanged graph skip loading the nodes
+        from .graph import runlog
+        from .graph.watch import watched_files
+
+        runlog.note(cache.directory, _signature(args, path, out),
+                    records=result.records, files=[*watched_files(path, graph), *written], written=written,
+                    notes=notes)
     return graph
+
+
+def _signature(args: argparse.Namespace, path: Path, out: Path) -> str | None:
+    """What a run depends on besides its files: the graph file, --out, --set and --allow-read."""
+    from .graph import runlog
+
+    allow = sorted(str(Path(a).resolve()) for a in (getattr(args, "allow_read", None) or []))
+    return runlog.signature(path, out=out, overrides={**_parse_sets(args.set or []), "--allow-read": allow})
+
+
+def _replay(args: argparse.Namespace, cache: Any, stream: TextIO) -> bool:
+    """Print the run and return True when the graph, its files and the cache are as the last run left them."""
+    from .graph import runlog
+
+    if cache.directory is None:
+        return False
+    t0 = time.perf_counter()
+    path = Path(args.graph)
+    out = Path(args.out) if args.out else _default_out(path)
+    sig = _signature(args, path, out)
+    hit = runlog.replay(cache.directory, sig)
+    if hit is None:
+        return False
+    records, written = hit
+    print(f"running {path} -> {out}/", file=stream, flush=True)
+    for i, (node_id, op, _) in enumerate(records):
+        print(f"  [{i + 1}/{len(records)}] {'cached':6s} {node_id:16s} {op:22s} {0.0:8.3f} s", file=stream)
+    print(f"done in {time.perf_counter() - t0:.2f} s: 0 ran, {len(records)} from cache "
+          "(graph, input files and outputs unchanged since the last run)", file=stream)
+    for w in written:
+        print(f"  unchanged {_shown(Path(w))}", file=stream)
+    for line in runlog.replay_notes(cache.directory, sig):
+        print(f"  note: {line}", file=stream)
+    return True
 
 
 def _cache(args: argparse.Namespace) -> Any:
@@ -223,7 +268,9 @@ def _cache(args: argparse.Namespace) -> Any:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    _run(args, _cache(args), sys.stdout)
+    cache = _cache(args)
+    if not _replay(args, cache, sys.stdout):
+        _run(args, cache, sys.stdout)
     return 0
 
 
@@ -243,6 +290,13 @@ def cmd_watch(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("stopped", flush=True)
     return 0
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from .server import serve
+
+    return serve(args.graph, host=args.host, port=args.port, out=args.out, cache=args.cache,
+                 browser=not args.no_browser)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -455,6 +509,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-runs", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--timeout", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_watch)
+    p = sub.add_parser("serve", help="edit a graph in the browser: nodes, wires, settings, live 3-D views; "
+                                     "every edit is saved to the file and re-runs only what it affects")
+    p.add_argument("graph", help="graph file (.toml or .json)")
+    p.add_argument("--port", type=int, default=8765, help="port (default 8765)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--out", help="folder for the outputs (default out/<graph name>/)")
+    p.add_argument("--cache", help="disk cache folder (default <out>/.cache)")
+    p.add_argument("--no-browser", action="store_true", help="do not open the page in a browser")
+    p.set_defaults(func=cmd_serve)
     p = sub.add_parser("sweep", help="run variants of a graph on Dask (shared nodes once): one folder per "
                                      "variant, sweep.csv, a manifest, a Pareto plot")
     graph_args(p)

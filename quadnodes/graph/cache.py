@@ -16,6 +16,12 @@ the quadnodes package and the :mod:`pathlib` path classes — checked on the nam
 *before* any module is imported; an entry naming anything else is unreadable (a
 miss). Values of other classes are kept in memory only.
 
+build123d shapes (the faces of the surface nodes) are stored as OCCT BREP text
+(``BRepTools.Write``), read back with ``BRepTools.Read`` — a parser, no code —
+so an unchanged surface is never rebuilt, also across processes. Outputs of an
+entry read from disk are decoded when first used, so a run whose nodes all come
+from the cache does not even import build123d to decode a face nobody reads.
+
 Writes are atomic (temporary file in the same folder, then ``os.replace``), so
 concurrent runs sharing a folder never see half an entry. A corrupt or
 unreadable entry is a miss (with a :class:`CacheWarning`), never an error.
@@ -25,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import hashlib
 import importlib
 import io
 import json
@@ -213,8 +220,86 @@ def _read_entry(path: Path, key: str) -> CacheEntry:
         if meta.get("format") != _DISK_FORMAT or meta.get("version") != _DISK_VERSION or meta.get("key") != key:
             raise ValueError("not an entry of this cache version")
         arrays = [z[f"a{i}"] for i in range(len(z.files) - 1)]
-    outputs = decode(meta["outputs"], arrays)
+    tree = meta["outputs"]
+    if not (isinstance(tree, dict) and isinstance(tree.get("$dict"), list)):
+        raise ValueError("malformed entry: outputs are not a table")
+    outputs = _LazyOutputs(tree["$dict"], arrays)
     return CacheEntry(outputs, {k: list(v) for k, v in meta["files"].items()})
+
+
+class _LazyOutputs(Mapping):
+    """Outputs by port of an entry read from disk.
+
+    Ports holding a build123d shape are decoded when first read (that needs
+    build123d); the others at once, so a corrupt entry is a miss when it is read.
+    The BREP text is checked against its sha256 when the entry is read.
+    """
+
+    def __init__(self, items: list[Any], arrays: list[np.ndarray]) -> None:
+        if not all(isinstance(kv, list) and len(kv) == 2 and isinstance(kv[0], str) for kv in items):
+            raise ValueError("malformed entry: output names are not strings")
+        self._trees = {k: v for k, v in items}
+        self._arrays = arrays
+        self._values: dict[str, Any] = {}
+        for port, tree in self._trees.items():
+            breps = _breps(tree)
+            for node in breps:
+                data = arrays[node["$brep"]]
+                if hashlib.sha256(np.asarray(data, dtype=np.uint8).tobytes()).hexdigest() != node.get("sha256"):
+                    raise ValueError("malformed entry: BREP text does not match its checksum")
+            if not breps:
+                self._values[port] = decode(tree, arrays)
+
+    def __getitem__(self, port: str) -> Any:
+        if port not in self._values:
+            self._values[port] = decode(self._trees[port], self._arrays)
+        return self._values[port]
+
+    def __iter__(self) -> Any:
+        return iter(self._trees)
+
+    def __len__(self) -> int:
+        return len(self._trees)
+
+    def __repr__(self) -> str:
+        return f"_LazyOutputs({list(self._trees)})"
+
+
+def _breps(tree: Any) -> list[dict[str, Any]]:
+    """The ``$brep`` nodes of an encoded tree."""
+    if isinstance(tree, list):
+        return [b for v in tree for b in _breps(v)]
+    if isinstance(tree, dict):
+        if "$brep" in tree:
+            return [tree]
+        return [b for v in tree.values() for b in _breps(v)]
+    return []
+
+
+def _brep_bytes(value: Any) -> bytes | None:
+    """OCCT BREP text of a build123d shape, or None for any other value (build123d is not imported)."""
+    bd = sys.modules.get("build123d")
+    if bd is None or not isinstance(value, bd.Shape) or value.wrapped is None:
+        return None
+    from OCP.BRepTools import BRepTools
+
+    buf = io.BytesIO()
+    BRepTools.Write_s(value.wrapped, buf)
+    return buf.getvalue()
+
+
+def _brep_shape(data: np.ndarray) -> Any:
+    """The build123d shape (Face, Shell, …, by its OCCT type) of BREP text."""
+    import build123d as bd
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepTools import BRepTools
+    from OCP.TopoDS import TopoDS_Shape
+
+    shape = TopoDS_Shape()
+    BRepTools.Read_s(shape, io.BytesIO(np.asarray(data, dtype=np.uint8).tobytes()), BRep_Builder())
+    if shape.IsNull():
+        raise ValueError("malformed entry: empty BREP shape")
+    return bd.Compound.cast(shape)
 
 
 def _cls_name(cls: type) -> str:
@@ -260,6 +345,10 @@ def encode(value: Any, arrays: list[np.ndarray]) -> Any:
         return {"$set" if type(value) is set else "$frozenset": [encode(v, arrays) for v in value]}
     if isinstance(value, pathlib.PurePath):
         return {"$path": str(value), "cls": _cls_name(type(value))}
+    brep = _brep_bytes(value)
+    if brep is not None:
+        arrays.append(np.frombuffer(brep, dtype=np.uint8).copy())
+        return {"$brep": len(arrays) - 1, "sha256": hashlib.sha256(brep).hexdigest()}
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         fields = dataclasses.fields(value)
         if any(not f.init for f in fields):
@@ -330,6 +419,8 @@ def decode(tree: Any, arrays: list[np.ndarray]) -> Any:
         a = arrays[tree["$array"]]
         a.setflags(write=False)  # cached values are shared between runs
         return a
+    if "$brep" in tree:
+        return _brep_shape(arrays[tree["$brep"]])
     if "$scalar" in tree:
         return arrays[tree["$scalar"]][()]
     if "$tuple" in tree:

@@ -120,7 +120,7 @@ VERSION = 1
 #: Graph-wide settings: set once at the top of a graph file, inherited by every node that has a
 #: setting of that name and does not set it itself (e.g. ``planar_tolerance = "2 mm"``).
 GRAPH_SETTINGS = ("planar_tolerance",)
-_TOP_KEYS = ("format", "version", "nodes") + GRAPH_SETTINGS
+_TOP_KEYS = ("format", "version", "nodes", "layout") + GRAPH_SETTINGS
 _NODE_KEYS = ("op", "inputs", "params")
 _SUFFIXES = {".toml": "toml", ".json": "json"}
 
@@ -174,7 +174,40 @@ def to_dict(graph: Graph, *, base_dir: str | os.PathLike[str] | None = None) -> 
         if params:
             body["params"] = params
         nodes[node_id] = _sorted(body)
-    return {"format": FORMAT, "version": VERSION, **{k: shared[k] for k in sorted(shared)}, "nodes": nodes}
+    data: dict[str, Any] = {"format": FORMAT, "version": VERSION, **{k: shared[k] for k in sorted(shared)},
+                            "nodes": nodes}
+    if graph.layout:
+        data["layout"] = {k: [float(x) for x in graph.layout[k]] for k in sorted(graph.layout)}
+    return data
+
+
+def _layout(value: Any) -> dict[str, list[float]]:
+    """The ``[layout]`` table: node id -> ``[x, y]`` position on the page of ``quadnodes serve``.
+
+    Raises
+    ------
+    GraphError
+        For a value that is not a table of ``[x, y]`` pairs of finite numbers (names the node).
+
+    Examples
+    --------
+    >>> _layout({"fair": [120, 40.5]})
+    {'fair': [120.0, 40.5]}
+    >>> _layout({"fair": [1]})
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.GraphError: layout.fair: expected a position [x, y] of two numbers, got [1]
+    """
+    if not isinstance(value, Mapping):
+        raise GraphError(f"layout: expected a table of node positions [x, y] by node id, got {value!r}")
+    out: dict[str, list[float]] = {}
+    for node_id, pos in value.items():
+        ok = (isinstance(pos, (list, tuple)) and len(pos) == 2
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in pos))
+        if not ok:
+            raise GraphError(f"layout.{node_id}: expected a position [x, y] of two numbers, got {pos!r}")
+        out[str(node_id)] = [float(pos[0]), float(pos[1])]
+    return out
 
 
 def _rebase(value: Any, src: Path, dst: Path) -> Any:
@@ -282,6 +315,9 @@ def from_dict(
         g._check_new_id(node_id, nt.op)
         g._insert(node_id, nt, conns, {**params, **inherited}, check_refs=False)
     g.validate()
+    if "layout" in data:
+        g.layout = _layout(data["layout"])
+
     from .paths import output_path_errors
 
     for err in output_path_errors(g):  # a graph file writes only inside the output folder
@@ -496,7 +532,7 @@ def toml_dumps(data: Mapping[str, Any]) -> str:
     """
     lines = []
     for k, v in data.items():
-        if k != "nodes":
+        if k not in ("nodes", "layout"):
             lines.append(f"{_toml_key(k)} = {_toml_value(v, k)}")
     nodes = data.get("nodes", {})
     for node_id in sorted(nodes):
@@ -512,6 +548,10 @@ def toml_dumps(data: Mapping[str, Any]) -> str:
                 lines += ["", f"[{head}.{_toml_key(k)}]"]
                 for kk, vv in v.items():
                     lines.append(f"{_toml_key(kk)} = {_toml_value(vv, f'{where}: {k}.{kk}')}")
+    layout = data.get("layout") or {}
+    if layout:
+        lines += ["", "[layout]  # node positions on the page of quadnodes serve"]
+        lines += [f"{_toml_key(k)} = {_toml_value(layout[k], f'layout.{k}')}" for k in sorted(layout)]
     return "\n".join(lines) + "\n"
 
 

@@ -237,6 +237,8 @@ class Graph:
         self._registry = REGISTRY if registry is None else registry
         self._nodes: dict[str, NodeSpec] = {}
         self.base_dir: Path | None = None if base_dir is None else Path(base_dir)
+        #: Node positions ``[x, y]`` by id on the page of ``quadnodes serve`` (the file's ``[layout]`` table).
+        self.layout: dict[str, list[float]] = {}
 
     # ----------------------------------------------------------------- access
     @property
@@ -280,6 +282,7 @@ class Graph:
         """A shallow copy (specs are immutable, so this is a full copy of the model)."""
         g = Graph(registry=self._registry, base_dir=self.base_dir)
         g._nodes = dict(self._nodes)
+        g.layout = {k: list(v) for k, v in self.layout.items()}
         return g
 
     # --------------------------------------------------------------- building

@@ -186,6 +186,7 @@ class _Prepared:
     settings: dict[str, Any]  # as passed to the function (paths resolved)
     inputs: dict[str, Any]
     key: str | None
+    links: dict[str, PortRef] | None = None  # read from upstream outputs only when the node executes
 
 
 def _prepare(
@@ -205,6 +206,7 @@ def _prepare(
                      for k, v in settings.items()}
     cacheable = nt.code_fingerprint is not None
     inputs: dict[str, Any] = {}
+    links: dict[str, PortRef] = {}
     parts: list[list[Any]] = []
     for p in nt.inputs:
         conn = spec.inputs.get(p.name)
@@ -217,7 +219,7 @@ def _prepare(
             parts.append([p.name, "const", fp])
         else:
             if outputs is not None:
-                inputs[p.name] = outputs[conn.node][conn.port]
+                links[p.name] = conn
             up = keys.get(conn.node)
             cacheable &= up is not None
             parts.append([p.name, "node", up, conn.port])
@@ -240,7 +242,7 @@ def _prepare(
             "files": files,
         }
         key = hashlib.sha256(canonical_json(payload).encode()).hexdigest()
-    return _Prepared(node_id, nt, call_settings, inputs, key)
+    return _Prepared(node_id, nt, call_settings, inputs, key, links)
 
 
 def _stamp(path: Any) -> tuple[int, int, int] | None:
@@ -389,10 +391,12 @@ def run(
             if any(now.get(s) != list(entry.files.get(s, ())) for s in nt.writes):
                 entry = None  # an output file is gone or was changed: write it again
         if entry is not None:
-            outputs[node_id] = dict(entry.outputs)
+            outputs[node_id] = entry.outputs  # type: ignore[assignment]  # read from disk: decoded on first use
             status: Literal["ran", "cached"] = "cached"
         else:
             before = {p: _stamp(p) for s in nt.writes for p in _path_values(prep.settings[s])}
+            for port, conn in (prep.links or {}).items():
+                prep.inputs[port] = outputs[conn.node][conn.port]
             outputs[node_id] = _execute(prep, op, index, total, progress)
             status = "ran"
             now = _written(nt, prep.settings) if nt.writes else {}
