@@ -177,7 +177,10 @@ def _notes(result: Any) -> list[str]:
     """``node: note`` lines from every output that has a ``notes()`` method (e.g. a fairing report)."""
     lines = []
     for r in result.records:
-        for value in result.outputs.get(r.id, {}).values():
+        outs = result.outputs.get(r.id, {})
+        ready = getattr(outs, "decoded_ports", None)  # a cached face stays undecoded (no build123d import)
+        for port in (ready() if callable(ready) else list(outs)):
+            value = outs[port]
             notes = getattr(value, "notes", None)
             if callable(notes) and not isinstance(value, type):
                 lines += [f"{r.id}: {n}" for n in notes()]

@@ -261,6 +261,10 @@ class _LazyOutputs(Mapping):
     def __len__(self) -> int:
         return len(self._trees)
 
+    def decoded_ports(self) -> list[str]:
+        """Ports whose values are decoded already (reading them imports nothing, e.g. not build123d)."""
+        return list(self._values)
+
     def __repr__(self) -> str:
         return f"_LazyOutputs({list(self._trees)})"
 

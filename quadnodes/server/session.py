@@ -123,7 +123,7 @@ def setting_field(s: Setting, nt: NodeType) -> dict[str, Any]:
     >>> f = setting_field(nt.setting("solver"), nt)
     >>> f["kind"], f["options"], f["default"]
     ('choice', ['auto', 'direct', 'cg'], 'auto')
-    >>> setting_field(nt.setting("deviation"), nt)["kind"]
+    >>> setting_field(nt.setting("threshold"), nt)["kind"]
     'number_or_list'
     """
     d: dict[str, Any] = {"name": s.name, "type": s.type_name, "required": s.required, "file": s.file}
