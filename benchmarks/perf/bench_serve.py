@@ -17,7 +17,7 @@ Peers in the same run: the fair node's own time inside the server, and `quadnode
 (imports included) — with a warm cache and nothing changed, and after ``--set fair.iterations=N`` (what a
 user of the CLI waits for instead).
 
-Run:  python benchmarks/bench_serve.py [--repeat 5]
+Run:  python benchmarks/perf/bench_serve.py [--repeat 5]
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _free_port() -> int:
@@ -201,7 +201,7 @@ def main() -> None:
     bench("quick-start 22×41", text, args.repeat, rows)
     if not args.skip_100:
         bench("quick-start 100×100, no STEP/PNG/HTML", _variant_100(text), args.repeat, rows)
-    print(f"median of {args.repeat}; `python benchmarks/bench_serve.py --repeat {args.repeat}`; "
+    print(f"median of {args.repeat}; `python benchmarks/perf/bench_serve.py --repeat {args.repeat}`; "
           f"{os.cpu_count()} cores, load average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end\n")
     print("| graph | measure | value |")
     print("|---|---|---:|")
