@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import _validate
+from . import _occt, _validate
 from .errors import InputError
 from .mesh import QuadMesh, grid_faces
 
@@ -83,35 +83,6 @@ _TRIM_RTOL = 1e-6
 # ----------------------------------------------------------------------------
 
 
-def _arrays() -> tuple[Any, Any, Any, Any]:
-    """OCCT array classes: (Array2 of gp_Pnt, Array1 of double, Array1 of int, Array2 of double)."""
-    try:  # OCP >= 7.9 exposes NCollection arrays here
-        from OCP.collections import Array1_double, Array1_int, Array2_double, Array2_gp_Pnt
-
-        return Array2_gp_Pnt, Array1_double, Array1_int, Array2_double
-    except ImportError:  # older OCP
-        from OCP.TColgp import TColgp_Array2OfPnt
-        from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal, TColStd_Array2OfReal
-
-        return TColgp_Array2OfPnt, TColStd_Array1OfReal, TColStd_Array1OfInteger, TColStd_Array2OfReal
-
-
-def _face_from_geom(surface: Any, bounds: tuple[float, float, float, float] | None = None) -> Face:
-    """A build123d Face on a Geom_Surface, over its natural bounds or ``(u0, u1, v0, v1)``."""
-    from build123d import Face
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
-    from OCP.Precision import Precision
-
-    tol = Precision.Confusion_s()
-    if bounds is None:
-        maker = BRepBuilderAPI_MakeFace(surface, tol)
-    else:
-        maker = BRepBuilderAPI_MakeFace(surface, *bounds, tol)
-    if not maker.IsDone():  # pragma: no cover - OCCT refuses only broken geometry
-        raise InputError(f"OCCT could not make a face on the surface (error {maker.Error()})")
-    return Face(maker.Face())
-
-
 def _bspline_face(
     poles: np.ndarray, knots_u: np.ndarray, knots_v: np.ndarray, deg_u: int, deg_v: int
 ) -> Face:
@@ -119,24 +90,16 @@ def _bspline_face(
     from OCP.Geom import Geom_BSplineSurface
     from OCP.gp import gp_Pnt
 
-    Pnt2, Real1, Int1, _ = _arrays()
-
-    def knots_mults(t: np.ndarray) -> tuple[Any, Any]:
-        k, m = np.unique(t, return_counts=True)
-        ka, ma = Real1(1, len(k)), Int1(1, len(m))
-        for i, (x, n) in enumerate(zip(k.tolist(), m.tolist(), strict=True)):
-            ka.SetValue(i + 1, x)
-            ma.SetValue(i + 1, n)
-        return ka, ma
+    Pnt2, _, _, _ = _occt.arrays()
 
     nu, nv = poles.shape[:2]
     arr = Pnt2(1, nu, 1, nv)
     for i, row in enumerate(poles.tolist()):
         for j, p in enumerate(row):
             arr.SetValue(i + 1, j + 1, gp_Pnt(*p))
-    ku, mu = knots_mults(knots_u)
-    kv, mv = knots_mults(knots_v)
-    return _face_from_geom(Geom_BSplineSurface(arr, ku, kv, mu, mv, deg_u, deg_v))
+    ku, mu = _occt.knots_mults(knots_u)
+    kv, mv = _occt.knots_mults(knots_v)
+    return _occt.face_from_geom(Geom_BSplineSurface(arr, ku, kv, mu, mv, deg_u, deg_v))
 
 
 def _as_face(face: Any) -> Face:
@@ -410,7 +373,7 @@ def dome(span: float = 6000.0, depth: float = 6000.0, rise: float = 1200.0) -> F
     ax = gp_Ax3(gp_Pnt(0.0, 0.0, h - radius), gp_Dir(0.0, 1.0, 0.0), gp_Dir(0.0, 0.0, 1.0))
     # right-handed, so its y-direction is +y × +z = +x: the latitude v tilts towards +y,
     # and Su × Sv (the face normal) points outwards, up at the crown
-    return _face_from_geom(Geom_SphericalSurface(ax, radius), (-half_u, half_u, -half_v, half_v))
+    return _occt.face_from_geom(Geom_SphericalSurface(ax, radius), (-half_u, half_u, -half_v, half_v))
 
 
 def cylinder_segment(radius: float = 5000.0, length: float = 8000.0, angle: float = 90.0) -> Face:
@@ -456,7 +419,7 @@ def cylinder_segment(radius: float = 5000.0, length: float = 8000.0, angle: floa
         raise InputError(f"angle: must be in (0, 360) degrees, got {angle!r}")
     half = math.radians(a) / 2
     ax = gp_Ax3(gp_Pnt(0.0, 0.0, -r * math.cos(half)), gp_Dir(0.0, 1.0, 0.0), gp_Dir(0.0, 0.0, 1.0))
-    return _face_from_geom(Geom_CylindricalSurface(ax, r), (-half, half, -ln / 2, ln / 2))
+    return _occt.face_from_geom(Geom_CylindricalSurface(ax, r), (-half, half, -ln / 2, ln / 2))
 
 
 def torus_patch(
@@ -514,7 +477,7 @@ def torus_patch(
         if not a0 < a1 <= a0 + 360.0:
             raise InputError(f"{name}: expected start < end <= start + 360 degrees, got {rng!r}")
         bounds += [math.radians(a0), math.radians(a1)]
-    return _face_from_geom(Geom_ToroidalSurface(gp_Ax3(), big, small), tuple(bounds))  # type: ignore[arg-type]
+    return _occt.face_from_geom(Geom_ToroidalSurface(gp_Ax3(), big, small), tuple(bounds))  # type: ignore[arg-type]
 
 
 # ----------------------------------------------------------------------------
@@ -894,7 +857,7 @@ def _bspline_data(surf: Any) -> tuple[np.ndarray, np.ndarray | None, np.ndarray,
             surf.SetUNotPeriodic()
         if surf.IsVPeriodic():
             surf.SetVNotPeriodic()
-    Pnt2, Real1, _, Real2 = _arrays()
+    Pnt2, Real1, _, Real2 = _occt.arrays()
     nu, nv = surf.NbUPoles(), surf.NbVPoles()
     arr = Pnt2(1, nu, 1, nv)
     surf.Poles(arr)  # the filling overloads copy; the returning ones hand out internals
@@ -1013,7 +976,7 @@ def _check_untrimmed(face: Face, surf: Any, bounds: tuple[float, float, float, f
             f"outside it, {advice}"
         )
     face_area = _area(face.wrapped)
-    patch_area = _area(_face_from_geom(surf, bounds).wrapped)
+    patch_area = _area(_occt.face_from_geom(surf, bounds).wrapped)
     if abs(face_area - patch_area) > _TRIM_RTOL * max(patch_area, 1e-300):
         raise InputError(
             "face: the face is trimmed (not the whole (u, v) rectangle of its surface): its area "

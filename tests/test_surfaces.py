@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from quadnodes import surfaces
+from quadnodes import _occt, surfaces
 from quadnodes.errors import InputError
 
 build123d = pytest.importorskip("build123d")
@@ -44,7 +44,7 @@ def rational_face():
     patch = Geom_RectangularTrimmedSurface(Geom_SphericalSurface(gp_Ax3(), 1000.0), 0.2, 1.5, -0.5, 0.7)
     bs = GeomConvert.SurfaceToBSplineSurface_s(patch)
     assert bs.IsURational()
-    return surfaces._face_from_geom(bs)
+    return _occt.face_from_geom(bs)
 
 
 def periodic_face():
@@ -56,7 +56,7 @@ def periodic_face():
     cyl = Geom_RectangularTrimmedSurface(Geom_CylindricalSurface(gp_Ax3(), 500.0), 0.0, 2 * math.pi, 0.0, 800.0)
     bs = GeomConvert.SurfaceToBSplineSurface_s(cyl)
     assert bs.IsUPeriodic()
-    return surfaces._face_from_geom(bs)
+    return _occt.face_from_geom(bs)
 
 
 def bezier_face():
@@ -64,12 +64,12 @@ def bezier_face():
     from OCP.Geom import Geom_BezierSurface
     from OCP.gp import gp_Pnt
 
-    Pnt2 = surfaces._arrays()[0]
+    Pnt2 = _occt.arrays()[0]
     arr = Pnt2(1, 3, 1, 4)
     for i in range(3):
         for j in range(4):
             arr.SetValue(i + 1, j + 1, gp_Pnt(10.0 * i, 7.0 * j, 3.0 * ((i - 1) ** 2 - (j - 1.5) ** 2)))
-    return surfaces._face_from_geom(Geom_BezierSurface(arr))
+    return _occt.face_from_geom(Geom_BezierSurface(arr))
 
 
 def quad_normals(mesh) -> np.ndarray:
@@ -311,7 +311,7 @@ def test_rectangular_sub_patch_is_not_trimmed():
 
     whole = surfaces.wavy()
     surf = surfaces._geom_surface(whole)
-    part = surfaces._face_from_geom(surf, (0.2, 0.7, 0.1, 0.4))
+    part = _occt.face_from_geom(surf, (0.2, 0.7, 0.1, 0.4))
     assert BRepTools.UVBounds_s(part.wrapped) == pytest.approx((0.2, 0.7, 0.1, 0.4))
     m = surfaces.sample(part, 4, 4)
     np.testing.assert_allclose(m.vertices[0], tuple(whole.position_at(0.2, 0.1)), atol=1e-9)

@@ -25,7 +25,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .. import __version__, _validate
+from .. import __version__, _occt, _validate
 from ..errors import ExportError, InputError
 from ..flatness import diagonal_distance, planar_panels, resolve_planar_tolerance
 from ..mesh import QuadMesh
@@ -404,7 +404,6 @@ def nurbs_face(surface: Any, *, scale: float = 1.0) -> Any:
     from OCP.gp import gp_Pnt
     from OCP.Standard import Standard_Failure
 
-    from ..surfaces import _arrays, _face_from_geom
 
     ns = surface if isinstance(surface, rhino3dm.NurbsSurface) else surface.ToNurbsSurface()
     if ns is None:
@@ -417,15 +416,8 @@ def nurbs_face(surface: Any, *, scale: float = 1.0) -> Any:
     if rational and not (weights > 0).all():
         raise InputError(f"face: the Rhino surface has a weight <= 0 ({weights.min():g}); OCCT needs positive weights")
     poles = h[..., :3] / (weights[..., None] if rational else 1.0) * scale
-    Pnt2, Real1, Int1, Real2 = _arrays()
-
-    def knots_mults(t: np.ndarray) -> tuple[Any, Any]:
-        k, m = np.unique(t, return_counts=True)
-        ka, ma = Real1(1, len(k)), Int1(1, len(m))
-        for i, (x, n) in enumerate(zip(k.tolist(), m.tolist(), strict=True)):
-            ka.SetValue(i + 1, x)
-            ma.SetValue(i + 1, n)
-        return ka, ma
+    Pnt2, Real1, Int1, Real2 = _occt.arrays()
+    knots_mults = _occt.knots_mults
 
     arr = Pnt2(1, cu, 1, cv)
     for i, row in enumerate(poles.tolist()):
@@ -444,7 +436,7 @@ def nurbs_face(surface: Any, *, scale: float = 1.0) -> Any:
             geom = Geom_BSplineSurface(arr, ku, kv, mu, mv, deg_u, deg_v)
     except Standard_Failure as exc:
         raise InputError(f"face: OCCT refuses the Rhino surface's NURBS data ({exc})") from None
-    return _face_from_geom(geom)
+    return _occt.face_from_geom(geom)
 
 
 def _xyzw(p: Any) -> tuple[float, float, float, float]:
