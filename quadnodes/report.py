@@ -327,6 +327,17 @@ def _check_seed(seed: Any, name: str = "seed") -> int:
     return int(seed)
 
 
+def _noisy_example(name: str, seed: int, fix: str) -> tuple[ThesisExample, QuadMesh, QuadMesh, QuadMesh, int, str]:
+    """An example's settings, clean and finely sampled meshes, and its seeded noisy mesh (arguments checked)."""
+    name = _check_names([name])[0]
+    seed = _check_seed(seed)
+    fix = _validate.choice(fix, ("corners", "boundary"), "fix")
+    ex = THESIS_EXAMPLES[name]
+    clean, fine = _geometry(name)
+    noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=seed, fix=fix)
+    return ex, clean, fine, noisy, seed, fix
+
+
 @_validate.renamed(noise_fix="fix")
 def run_example(name: str, *, seed: int = 7, fix: Literal["corners", "boundary"] = "corners") -> ExampleResult:
     """Run Laplacian, Taubin, the new method and the variants on one noisy example.
@@ -362,13 +373,8 @@ def run_example(name: str, *, seed: int = 7, fix: Literal["corners", "boundary"]
     >>> [row["method"] for row in r.rows][:4]
     ['original', 'laplacian', 'taubin', 'new']
     """
-    name = _check_names([name])[0]
-    seed = _check_seed(seed)
-    fix = _validate.choice(fix, ("corners", "boundary"), "fix")  # type: ignore[assignment]
-    ex = THESIS_EXAMPLES[name]
-    clean, fine = _geometry(name)
     t0 = time.perf_counter()
-    noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=seed, fix=fix)
+    ex, clean, fine, noisy, seed, fix = _noisy_example(name, seed, fix)
     topo = noisy.topology
     boundary = topo.boundary_vertices
     none = np.zeros(noisy.n_vertices, dtype=bool)
@@ -403,7 +409,7 @@ def run_example(name: str, *, seed: int = 7, fix: Literal["corners", "boundary"]
     frame = _boundary_frame(clean)
     h = clean.mean_edge_length
     for key in METHODS:
-        row: dict[str, Any] = {"example": name, "seed": seed, "fix": fix, "method": key,
+        row: dict[str, Any] = {"example": ex.name, "seed": seed, "fix": fix, "method": key,
                                "label": res.labels[key], "edge_length_mm": h}
         row.update(measure(noisy, res.meshes[key], clean, fine, boundary_frame=frame))
         res.rows.append(row)
@@ -824,12 +830,7 @@ def run_chapter3(name: str, *, seed: int = 7, fix: Literal["corners", "boundary"
     from .spring_model import spring
     from .webs import fair_web
 
-    name = _check_names([name])[0]
-    seed = _check_seed(seed)
-    fix = _validate.choice(fix, ("corners", "boundary"), "fix")  # type: ignore[assignment]
-    ex = THESIS_EXAMPLES[name]
-    clean, fine = _geometry(name)
-    noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=seed, fix=fix)
+    ex, clean, fine, noisy, seed, fix = _noisy_example(name, seed, fix)
     h = clean.mean_edge_length
     fp = dict(ex.fair)
     r, hc = CYLINDER_FACTOR * ex.noise[0] * h, CYLINDER_FACTOR * ex.noise[1] * h
