@@ -29,7 +29,8 @@ from numpy.typing import ArrayLike
 from . import _validate
 from .errors import InputError
 from .linalg import factorize
-from .linalg.cg import HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner, block_cg, permuted
+from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner, SymmetricDiagonalBlocks,
+                        block_cg, permuted)
 from .linalg.grid import GridPattern
 from .linalg.threads import RowBlocks
 from .progress import report_progress
@@ -62,6 +63,13 @@ BLOCK_SIZE = 16
 #: (``benchmarks/studies/cg_weights.py``).
 BLOCK_JACOBI_RATIO = 50.0
 GRID_BLOCK_JACOBI_RATIO = 500.0
+#: On the grid path, precondition by exact solves along the grid lines
+#: (:class:`~quadnodes.linalg.cg.LinePreconditioner`) when the largest Gershgorin bound of
+#: ``AᵀA + ωI`` exceeds this many times ω: stiff spots (short edges of broadband noise:
+#: 1,200–16,000 ω at 300²–1000²) make plain CG need 220–470 steps, the line solves about
+#: 60 whatever the noise; even rows (zigzag noise: about 130 ω) keep plain CG, whose step
+#: costs a third of a preconditioned one (``benchmarks/studies/line_blocks.py``).
+LINES_CONTRAST = 1000.0
 #: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
 #: (13 diagonals, 1.3-1.7x faster products than CSR) when at least this share of the
 #: vertices is free (fixed vertices become identity rows there, so their rows cost too).
@@ -258,6 +266,12 @@ def grid_pattern(topology: object) -> GridPattern | None:
     return pattern
 
 
+def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
+    """Largest Gershgorin bound (absolute row sum) over ``rows`` (a mask) of a symmetric matrix
+    in diagonal storage (a column sum there: ``data[d, j] = M[j - offset_d, j]``)."""
+    return float(np.abs(data).sum(axis=0)[rows].max())
+
+
 def _line_preconditioner(data: np.ndarray, cols: int) -> LinePreconditioner:
     """Row-line and column-line blocks of a grid's 13 diagonals (offsets ±1..3 come only from row
     windows, ±cols.. only from column windows), each with the whole diagonal, in banded form."""
@@ -344,12 +358,14 @@ class FairingSystem:
     rtol : float
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
-    preconditioner : {"auto", "lines"}
-        ``"auto"``: block Jacobi at small weights, else none. ``"lines"`` (on the
-        grid's diagonal storage only; experimental, issue 15): the additive
-        row-line + column-line block preconditioner
+    preconditioner : {"auto", "lines", "none"}
+        ``"auto"``: block Jacobi at small weights; on a grid's diagonal storage the
+        line preconditioner where the matrix has stiff spots (:data:`LINES_CONTRAST`);
+        else none. ``"lines"`` (on the grid's diagonal storage; elsewhere ``"auto"``):
+        the additive row-line + column-line block preconditioner
         (:class:`~quadnodes.linalg.cg.LinePreconditioner`), whose step count barely
-        depends on the noise (59 steps on 200² broadband noise against 222).
+        depends on the noise or the size (59–60 steps on 300² and 1000² broadband
+        noise against 222 and 473). ``"none"``: plain CG on the grid's storage.
 
     Attributes
     ----------
@@ -377,7 +393,7 @@ class FairingSystem:
         *,
         solver: Literal["auto", "direct", "cg"] = "auto",
         rtol: float = 1e-9,
-        preconditioner: Literal["auto", "lines"] = "auto",
+        preconditioner: Literal["auto", "lines", "none"] = "auto",
         _inverse_lengths: np.ndarray | None = None,
         _topology: object | None = None,
     ) -> None:
@@ -448,7 +464,7 @@ class FairingSystem:
         if solver not in ("auto", "direct", "cg"):
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
         self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
-        self.preconditioner = _validate.choice(preconditioner, ("auto", "lines"), "preconditioner")
+        self.preconditioner = _validate.choice(preconditioner, ("auto", "lines", "none"), "preconditioner")
         self._grid_cols = None if _topology is None or _topology.grid_shape is None else _topology.grid_shape[1]
         self.rtol = _validate.positive_number(rtol, "rtol")
         self.iterations = 0
@@ -495,25 +511,28 @@ class FairingSystem:
         When the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
-        preconditioned by :class:`BlockJacobi`; otherwise plain CG on ``AᵀA + ωI``:
+        preconditioned by :class:`BlockJacobi`; otherwise CG on ``AᵀA + ωI``:
         on a mostly free complete vertex grid (``_topology`` given) in the grid's
-        numbering with diagonal storage (:class:`~quadnodes.linalg.grid.GridPattern`), else in
-        ``free_index`` order.
+        numbering with symmetric diagonal storage (:class:`~quadnodes.linalg.grid.GridPattern`),
+        preconditioned by line solves where the matrix has stiff spots
+        (:data:`LINES_CONTRAST`), else plain in ``free_index`` order.
         """
         if self._cg is None:
             A, k = self.A, self.n_free
             mean_diag = float(np.einsum("i,i->", A.data, A.data)) / k
             grid = self._grid is not None and HAS_DIAGONAL_KERNEL and k >= GRID_MIN_FREE * self._grid[2].size
             ratio = GRID_BLOCK_JACOBI_RATIO if grid else BLOCK_JACOBI_RATIO
-            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight:
+            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and not (grid and self.preconditioner != "auto"):
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = permuted(self.matrix, order)
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
-                precond = _line_preconditioner(data, self._grid_cols) if self.preconditioner == "lines" else None
-                self._cg = (DiagonalBlocks(offsets, data), precond, None)
+                lines = self.preconditioner == "lines" or (
+                    self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
+                precond = _line_preconditioner(data, self._grid_cols) if lines else None
+                self._cg = (SymmetricDiagonalBlocks(offsets, data), precond, None)
             else:
                 self._cg = (RowBlocks(self.matrix), None, None)
         return self._cg

@@ -608,8 +608,12 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     w = 0.3 / m.mean_edge_length**2
     s = _grid_system(m, free, w, preconditioner="lines")
     x = s.solve(m.vertices[free])
-    plain = _grid_system(m, free, w)
+    plain = _grid_system(m, free, w, preconditioner="none")
     plain.solve(m.vertices[free])
+    assert plain._cg[1] is None
+    auto = _grid_system(m, free, w)  # "auto" takes the line solves where the matrix has stiff spots
+    auto._cg_setup()
+    assert isinstance(auto._cg[1], LinePreconditioner) == (noise == "broadband")
     assert isinstance(s._cg[1], LinePreconditioner) and len(s._cg[0].ranges) == threads
     assert s.residual <= 1e-9 and s.iterations < plain.iterations
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])

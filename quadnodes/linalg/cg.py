@@ -20,7 +20,8 @@ try:  # SciPy's diagonal-storage kernel (y += A x, one contiguous pass per diago
 except ImportError:  # pragma: no cover - then callers use CSR
     _dia_matvec = None
 
-__all__ = ["HAS_DIAGONAL_KERNEL", "DiagonalBlocks", "BlockJacobi", "LinePreconditioner", "block_cg", "permuted"]
+__all__ = ["HAS_DIAGONAL_KERNEL", "DiagonalBlocks", "SymmetricDiagonalBlocks", "BlockJacobi", "LinePreconditioner",
+           "block_cg", "permuted"]
 
 #: Whether SciPy's diagonal-storage kernel is available (else use :class:`RowBlocks`).
 HAS_DIAGONAL_KERNEL = _dia_matvec is not None
@@ -323,26 +324,68 @@ def block_cg(
         return _run_cg(blocks, B, X0, rtol=rtol, maxiter=maxiter, precond=precond)
 
 
-class LinePreconditioner:
-    """Additive line-block preconditioner: exact solves along two families of lines, added.
+class SymmetricDiagonalBlocks(DiagonalBlocks):
+    """A symmetric matrix in diagonal storage, applied by a compiled kernel from its upper diagonals.
 
-    ``M``'s entries that couple nodes of the same line of the first family form
-    a band of half-width ``b`` in the nodes' order; those of the second family
-    a band after the permutation ``order``. Each family's band (with ``M``'s
-    whole diagonal) is factorized once by banded Cholesky over all its lines at
-    once (LAPACK ``pbtrf``: the lines are independent blocks of one band), and
-    ``P⁻¹ = B₁⁻¹ + B₂⁻¹`` — a sum of SPD inverses, so SPD by construction. It is
-    applied to all columns at once (``whole = True``: :func:`block_cg` calls it
-    once per step on every row).
+    Same interface and input as :class:`DiagonalBlocks` (``data[d, j] = M[j - offsets[d], j]``,
+    offsets symmetric about 0); the product reads each of the ``(d + 1) / 2`` upper
+    diagonals once for all columns' passes from cache, about half the memory
+    traffic of the full storage (:func:`~quadnodes.linalg._kernels.symmetric_diagonal_product`).
+    """
+
+    def __init__(self, offsets: np.ndarray, data: np.ndarray, *, threads: int | None = None) -> None:
+        super().__init__(offsets, data, threads=threads)
+        n = data.shape[1]
+        offsets = np.asarray(offsets)
+        up = np.flatnonzero(offsets >= 0)
+        if offsets[up[0]] != 0 or not np.array_equal(np.sort(-offsets[offsets < 0]), offsets[up[1:]]):
+            raise ValueError("offsets: expected a main diagonal and symmetric pairs")
+        self.upper_offsets = offsets[up].astype(np.int64)
+        U = np.zeros((up.size, n))
+        for d, o in zip(range(up.size), self.upper_offsets):  # M[i, i + o] = data[d, i + o]
+            U[d, : n - o] = data[up[d], o:]
+        self.upper = U
+
+    def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
+               accumulate: bool = False) -> None:
+        if data is not None or accumulate:  # (not used by block_cg; the general kernel)
+            return super().matvec(X, Y, lo, hi, data=data, accumulate=accumulate)
+        from ._kernels import symmetric_diagonal_product
+
+        n = self.upper.shape[1]
+        if X.flags.c_contiguous and Y.flags.c_contiguous:
+            symmetric_diagonal_product(self.upper, self.upper_offsets, X, Y, lo, min(hi, n))
+        else:  # pragma: no cover - block_cg's vectors are contiguous
+            return super().matvec(X, Y, lo, hi)
+
+
+class LinePreconditioner:
+    """Additive line-block preconditioner on a ``rows × cols`` grid: exact solves along its rows
+    and along its columns, added.
+
+    ``M``'s entries that couple nodes of the same grid row (offsets ±1 … ±b) form a
+    band ``B₁`` (with ``M``'s whole diagonal), those of the same grid column
+    (offsets ±cols … ±b·cols) a band ``B₂`` in column-major order. Each is factorized
+    once by banded Cholesky over all its lines at once (LAPACK ``pbtrf``: the lines
+    are independent blocks of one band), and ``P⁻¹ = B₁⁻¹ + B₂⁻¹`` — a sum of SPD
+    inverses, so SPD by construction. It is applied to all columns at once
+    (``whole = True``: :func:`block_cg` calls it once per step on every row), by
+    compiled substitutions along the lines on the solver's threads
+    (:mod:`quadnodes.linalg._kernels`); the column solves run across the columns
+    in the nodes' own row-major order, without a transpose.
 
     Parameters
     ----------
     first : (b + 1, n) float64
-        Upper banded form of the first family's block (``first[b - k, j] = M[j - k, j]``).
+        Upper banded form of the row lines' block (``first[b - k, j] = M[j - k, j]``).
     second : (b + 1, n) float64
-        The same for the second family, in the permuted order.
+        The same for the column lines, in column-major order
+        (``second[b - k, p] = M[order[p - k], order[p]]``).
     order : (n,) int64
-        ``order[i]`` is the node at position ``i`` of the second family's order.
+        ``order[p]`` is the node at position ``p`` in column-major order
+        (``np.arange(n).reshape(rows, cols).T.reshape(-1)``).
+    cols : int, optional
+        Nodes per grid row; by default ``n // (n // order[1])`` from ``order``.
 
     Raises
     ------
@@ -366,27 +409,78 @@ class LinePreconditioner:
 
     whole = True
 
-    def __init__(self, first: np.ndarray, second: np.ndarray, order: np.ndarray) -> None:
+    def __init__(self, first: np.ndarray, second: np.ndarray, order: np.ndarray, *, cols: int | None = None) -> None:
         from scipy.linalg import cholesky_banded
 
-        self.n = first.shape[1]
-        self._first = cholesky_banded(first, lower=False, check_finite=False)
-        self._second = cholesky_banded(second, lower=False, check_finite=False)
-        self.order = np.asarray(order)
+        self.n = n = first.shape[1]
+        self.order = order = np.asarray(order)
+        self.cols = cols = int(order[1]) if cols is None else int(cols)  # order[1] = cols (column-major)
+        if n % cols:
+            raise ValueError(f"order: {n} nodes do not make rows of {cols}")
+        self.rows = rows = n // cols
+        kd = first.shape[0] - 1
+        # the row lines in blocks of LANES lines side by side, the column lines across the
+        # columns in the nodes' own order (both: the inner loops vectorize)
+        from ._kernels import LANES, blocked_lines
+
+        F1 = cholesky_banded(first, lower=False, check_finite=False)
+        dinv1 = np.zeros((1, n))
+        dinv1[0] = 1.0 / F1[kd]
+        self._first = blocked_lines(F1, cols, 0.0)
+        self._dinv1 = blocked_lines(dinv1, cols, 1.0)[0]
+        F2 = cholesky_banded(second, lower=False, check_finite=False)
+        self._second = np.empty_like(F2)
+        self._second[:, order] = F2  # back to the nodes' order: row kd - k couples i - k·cols and i
+        self._dinv2 = 1.0 / self._second[kd]
+        self._scratch: np.ndarray | None = None
+        t = _threads.thread_count() if n >= _threads.PARALLEL_MIN_ROWS else 1
+        self._row_ranges = [(a * LANES, b * LANES) for a, b in _split(-(-rows // LANES), t)]
+        self._col_ranges = _split(cols, t)
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
         """``Z = P⁻¹ R`` on every row (``lo``, ``hi`` are ignored: the solves run along whole lines)."""
-        from scipy.linalg import cho_solve_banded
+        from ._kernels import LANES, row_line_solve, strided_line_solve
 
-        n = self.n
-        r = R[:, :n].T if columns else R[:n]  # (n, c); Fortran-ordered when columns (LAPACK's layout)
-        z = cho_solve_banded((self._first, False), r, check_finite=False, overwrite_b=False)
-        z2 = cho_solve_banded((self._second, False), np.take(r, self.order, axis=0), check_finite=False,
-                              overwrite_b=True)
-        z[self.order] += z2
-        if columns:
-            Z[:, :n] = z.T
+        n, rows, cols = self.n, self.rows, self.cols
+        if not columns or not (R.flags.c_contiguous and Z.flags.c_contiguous):
+            Rc = np.ascontiguousarray(R[:n].T if not columns else R[:, :n])
+            Zc = np.empty(Rc.shape)
+        else:
+            Rc, Zc = R, Z  # (c, kp): the kernels use the first n of every row
+        c = Rc.shape[0]
+        if self._scratch is None or self._scratch.shape[0] != Zc.size:
+            self._scratch = np.empty(Zc.size + len(self._row_ranges) * c * cols * LANES)
+        Y = self._scratch[: Zc.size].reshape(Zc.shape)
+        F1, d1, F2, d2 = self._first, self._dinv1, self._second, self._dinv2
+        blocks = [self._scratch[Zc.size + i * c * cols * LANES : Zc.size + (i + 1) * c * cols * LANES]
+                  .reshape(c, cols, LANES) for i in range(len(self._row_ranges))]
+        _run(list(zip(self._row_ranges, blocks)),
+             lambda ab, B: row_line_solve(F1, d1, cols, rows, Rc, B, Zc, ab[0], ab[1]))
+        _run([((a, b), None) for a, b in self._col_ranges],
+             lambda ab, _: strided_line_solve(F2, d2, cols, Rc, Y, Zc, ab[0], ab[1], True))
+        if Zc is Z:
+            Z[:, n:] = 0.0
+        elif columns:
+            Z[:, :n] = Zc
             Z[:, n:] = 0.0
         else:
-            Z[:n] = z
+            Z[:n] = Zc.T
             Z[n:] = 0.0
+
+
+def _split(count: int, parts: int) -> list[tuple[int, int]]:
+    """``parts`` about equal consecutive ranges of ``range(count)`` (fewer if ``count`` is small)."""
+    parts = max(1, min(parts, count))
+    cuts = np.linspace(0, count, parts + 1).round().astype(int).tolist()
+    return list(zip(cuts[:-1], cuts[1:]))
+
+
+def _run(tasks: list[tuple], fn: object) -> None:
+    """``fn(*task)`` for every task, on the solver's pool (the caller takes the first)."""
+    if len(tasks) == 1:
+        fn(*tasks[0])  # type: ignore[operator]
+        return
+    futures = [_threads.pool().submit(fn, *task) for task in tasks[1:]]  # type: ignore[arg-type]
+    fn(*tasks[0])  # type: ignore[operator]
+    for f in futures:
+        f.result()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from quadnodes.linalg import threads as linalg_threads
 from quadnodes.linalg.cg import BlockJacobi, DiagonalBlocks, block_cg, permuted
@@ -92,10 +94,15 @@ def test_the_pool_works_in_a_forked_child(monkeypatch):
     assert ranges == 2 and residual <= 1e-10
 
 
-def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses():
+@pytest.mark.parametrize("rows, cols, threads", [(7, 9, 1), (19, 11, 1), (19, 11, 2), (33, 5, 2), (4, 40, 2)])
+def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses(monkeypatch, rows, cols, threads):
+    """Against dense solves, for line counts that do and do not fill the kernels' blocks of 8
+    lines, on one and two threads."""
     from quadnodes.linalg.cg import LinePreconditioner
 
-    rows, cols = 7, 9
+    if threads > 1:
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
     n = rows * cols
     rng = np.random.default_rng(3)
     # random SPD bands along rows (offsets 1..3) and along columns (offsets cols..3 cols)
@@ -110,18 +117,49 @@ def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses():
             A[np.ix_(idx, idx)] += B.T @ B * np.tri(length, length, 3) * np.tri(length, length, 3).T
         return A
     Ar, Ac = band(1, cols, rows), band(cols, rows, cols)
-    D = np.diag(0.5 + rng.random(n))
+    D = np.diag(np.abs(Ar).sum(1) + np.abs(Ac).sum(1) + 0.5 + rng.random(n))  # (masking a band loses definiteness)
     B1, B2 = Ar + D, Ac + D
     ab = lambda A: np.vstack([np.r_[np.zeros(k), np.diag(A, k)] for k in (3, 2, 1, 0)])
     order = np.arange(n).reshape(rows, cols).T.reshape(-1)
     P = LinePreconditioner(ab(B1), ab(B2[np.ix_(order, order)]), order)
-    R = np.zeros((3, 128))
+    kp = -(-n // 64) * 64
+    R = np.zeros((3, kp))
     R[:, :n] = rng.normal(size=(3, n))
     Z = np.full_like(R, np.nan)
-    P.apply(R, Z, 0, 128, True)
+    P.apply(R, Z, 0, kp, True)
     ref = np.linalg.solve(B1, R[:, :n].T) + np.linalg.solve(B2, R[:, :n].T)
     np.testing.assert_allclose(Z[:, :n].T, ref, atol=1e-10)
     assert not Z[:, n:].any()
-    Zr = np.full((128, 3), np.nan)
-    P.apply(np.ascontiguousarray(R.T), Zr, 0, 128, False)  # (n, c) layout
+    Zr = np.full((kp, 3), np.nan)
+    P.apply(np.ascontiguousarray(R.T), Zr, 0, kp, False)  # (n, c) layout
     np.testing.assert_allclose(Zr, Z.T, atol=1e-12)
+    Z2 = np.full_like(R, np.nan)
+    P.apply(R, Z2, 0, kp, True)  # the same operator every time (CG needs a fixed one)
+    np.testing.assert_array_equal(Z2, Z)
+
+
+@settings(max_examples=30, deadline=None)
+@given(rows=st.integers(1, 12), cols=st.integers(4, 12), c=st.integers(1, 3), seed=st.integers(0, 2**31))
+def test_symmetric_diagonal_storage_equals_the_full_product(rows, cols, c, seed):
+    from quadnodes.linalg.cg import SymmetricDiagonalBlocks
+
+    n = rows * cols
+    rng = np.random.default_rng(seed)
+    offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
+    A = sp.random(n, n, density=0.5, random_state=rng.integers(2**31)).toarray()
+    keep = np.zeros((n, n), bool)
+    for o in offsets:
+        keep |= np.eye(n, k=o, dtype=bool)
+    A = np.where(keep, A + A.T, 0.0)
+    M = sp.dia_matrix(A)
+    data = np.zeros((13, n))
+    for d, o in enumerate(offsets):  # data[d, j] = A[j - o, j]
+        j = np.arange(max(o, 0), min(n, n + o))
+        data[d, j] = A[j - o, j]
+    blocks = SymmetricDiagonalBlocks(offsets, data)
+    kp = -(-n // 64) * 64
+    X = np.zeros((c, kp))
+    X[:, :n] = rng.normal(size=(c, n))
+    Y = np.full_like(X, np.nan)
+    blocks.run(lambda lo, hi: blocks.matvec(X, Y, lo, hi))
+    np.testing.assert_allclose(Y[:, :n], (M @ X[:, :n].T).T, rtol=1e-12, atol=1e-12)

@@ -1,0 +1,194 @@
+"""Compiled kernels (Numba) for the structured-grid solver: a symmetric diagonal-storage
+product and banded solves along grid lines.
+
+Every kernel works on a range of rows (or lines) so that the solver's own thread pool
+can run ranges side by side (``nogil``); inner loops run over contiguous memory so
+that they vectorize. Compiled on first use and cached on disk.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+__all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines"]
+
+#: Rows of the product computed per chunk (the chunk's slices of every diagonal stay in cache).
+_CHUNK = 1024
+
+
+# The loops below index 1-D slices from 0: Numba then knows no index is negative and
+# LLVM vectorizes them (with ``range(a, b)`` on the whole array it does not).
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _axpy_into(y: np.ndarray, u: np.ndarray, x: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``y += u · x`` elementwise (equal lengths)."""
+    for i in range(y.size):
+        y[i] += u[i] * x[i]
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _axmy_into(y: np.ndarray, u: np.ndarray, x: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``y -= u · x`` elementwise (equal lengths)."""
+    for i in range(y.size):
+        y[i] -= u[i] * x[i]
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def symmetric_diagonal_product(U: np.ndarray, offsets: np.ndarray, X: np.ndarray, Y: np.ndarray,
+                               lo: int, hi: int) -> None:  # pragma: no cover - compiled
+    """``Y[:, lo:hi] = (M X)[:, lo:hi]`` for a symmetric ``M`` stored by its upper diagonals.
+
+    ``U[d, i] = M[i, i + offsets[d]]`` (``(d, n)``, entries past the end zero) with
+    ``offsets[0] = 0`` and positive offsets after it; ``X``, ``Y`` are C-contiguous
+    ``(c, m)`` with ``m ≥ n`` (columns past ``n`` are neither read nor written).
+    """
+    n = U.shape[1]
+    c = X.shape[0]
+    nd = offsets.size
+    for a in range(lo, hi, _CHUNK):
+        b = min(a + _CHUNK, hi)
+        for q in range(c):
+            x = X[q]
+            y = Y[q]
+            ys = y[a:b]
+            u0 = U[0, a:b]
+            xs = x[a:b]
+            for i in range(b - a):
+                ys[i] = u0[i] * xs[i]
+            for d in range(1, nd):
+                o = offsets[d]
+                s = min(b, n - o)  # above the diagonal: i + o < n
+                if s > a:
+                    _axpy_into(y[a:s], U[d, a:s], x[a + o : s + o])
+                t = max(a, o)  # below: i - o ≥ 0
+                if b > t:
+                    _axpy_into(y[t:b], U[d, t - o : b - o], x[t - o : b - o])
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def strided_line_solve(F: np.ndarray, dinv: np.ndarray, stride: int, R: np.ndarray, Y: np.ndarray,
+                       Z: np.ndarray, first: int, last: int, add: bool) -> None:  # pragma: no cover - compiled
+    """Banded solves along the strided lines ``first:last`` of a grid: ``Z (+)= B⁻¹ R``.
+
+    The nodes are ``n = rows · stride`` in row-major order; line ``s`` is the column
+    ``s, s + stride, s + 2·stride, …``. ``F[kd - k, i] = U[i - k·stride, i]`` is the
+    upper Cholesky factor of the lines' band ``B = UᵀU`` in the nodes' own order,
+    ``dinv`` the reciprocals of its diagonal. ``R``, ``Z`` and the scratch space
+    ``Y`` are C-contiguous ``(c, m)``, ``m ≥ n``; ``add`` adds the solution to ``Z``
+    instead of writing it. The inner loops run across lines (contiguous nodes,
+    independent of one another).
+    """
+    kd = F.shape[0] - 1
+    c = R.shape[0]
+    rows = F.shape[1] // stride
+    w = last - first
+    for j in range(rows):  # Uᵀ y = r, one grid row of all lines at a time (F's slices stay in cache)
+        a = j * stride + first
+        b = a + w
+        ds = dinv[a:b]
+        for q in range(c):
+            ys = Y[q, a:b]
+            rs = R[q, a:b]
+            for i in range(w):
+                ys[i] = rs[i]
+            for k in range(1, min(kd, j) + 1):
+                o = k * stride
+                _axmy_into(ys, F[kd - k, a:b], Y[q, a - o : b - o])
+            for i in range(w):
+                ys[i] *= ds[i]
+    for j in range(rows - 1, -1, -1):  # U z = y
+        a = j * stride + first
+        b = a + w
+        ds = dinv[a:b]
+        for q in range(c):
+            ys = Y[q, a:b]
+            for k in range(1, min(kd, rows - 1 - j) + 1):
+                o = k * stride
+                _axmy_into(ys, F[kd - k, a + o : b + o], Y[q, a + o : b + o])
+            zs = Z[q, a:b]
+            if add:
+                for i in range(w):
+                    ys[i] *= ds[i]
+                    zs[i] += ys[i]
+            else:
+                for i in range(w):
+                    ys[i] *= ds[i]
+                    zs[i] = ys[i]
+
+
+#: Lines solved side by side by :func:`row_line_solve` (two AVX2 vectors of float64).
+LANES = 8
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def row_line_solve(F: np.ndarray, dinv: np.ndarray, length: int, nlines: int, R: np.ndarray, B: np.ndarray,
+                   Z: np.ndarray, first: int, last: int) -> None:  # pragma: no cover - compiled
+    """Banded solves along the contiguous lines (grid rows) ``first:last``: ``Z = B⁻¹ R``.
+
+    Line ``s`` holds the nodes ``s·length … (s + 1)·length − 1``. The lines are taken
+    :data:`LANES` at a time (``first`` a multiple of it): their ``R`` goes into the
+    scratch block ``B`` (``(c, length, LANES)``, transposed, so the recurrence runs
+    along ``length`` with the lanes as a vector), is solved there and written back.
+    ``F`` and ``dinv`` are the factor and reciprocal diagonal in that blocked layout
+    (:func:`blocked_lines`): entry ``(s − s % LANES)·length + j·LANES + s % LANES`` belongs to
+    node ``j`` of line ``s``, for ``nlines`` lines padded to a multiple of :data:`LANES`.
+    """
+    kd = F.shape[0] - 1
+    c = R.shape[0]
+    L = LANES
+    for s0 in range(first, last, L):
+        t = min(L, nlines - s0)
+        base = s0 * length
+        for q in range(c):
+            r = R[q]
+            bq = B[q]
+            if t < L:
+                bq[:, t:] = 0.0
+            for u in range(t):  # gather: node j of line s0 + u -> bq[j, u]
+                src = r[base + u * length : base + (u + 1) * length]
+                for j in range(length):
+                    bq[j, u] = src[j]
+            for j in range(length):  # Uᵀ y = r
+                bj = bq[j]
+                for k in range(1, min(kd, j) + 1):
+                    fk = F[kd - k, base + j * L : base + j * L + L]
+                    bk = bq[j - k]
+                    for u in range(L):
+                        bj[u] -= fk[u] * bk[u]
+                dj = dinv[base + j * L : base + j * L + L]
+                for u in range(L):
+                    bj[u] *= dj[u]
+            for j in range(length - 1, -1, -1):  # U z = y
+                bj = bq[j]
+                for k in range(1, min(kd, length - 1 - j) + 1):
+                    fk = F[kd - k, base + (j + k) * L : base + (j + k) * L + L]
+                    bk = bq[j + k]
+                    for u in range(L):
+                        bj[u] -= fk[u] * bk[u]
+                dj = dinv[base + j * L : base + j * L + L]
+                for u in range(L):
+                    bj[u] *= dj[u]
+            z = Z[q]
+            for u in range(t):  # scatter back
+                dst = z[base + u * length : base + (u + 1) * length]
+                for j in range(length):
+                    dst[j] = bq[j, u]
+
+
+def blocked_lines(F: np.ndarray, length: int, pad: float) -> np.ndarray:
+    """``F`` (``(k, n)``, rows of the lines ``s·length …`` one after another) in the blocked
+    layout of :func:`row_line_solve`, the lines padded to a multiple of :data:`LANES` with ``pad``.
+
+    Examples
+    --------
+    >>> blocked_lines(np.arange(6.0)[None], 3, -1.0)[0, :8].tolist()  # two lines of 3
+    [0.0, 3.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0]
+    """
+    k, n = F.shape
+    lines = n // length
+    padded = -(-lines // LANES) * LANES
+    out = np.full((k, padded, length), pad)
+    out[:, :lines] = F.reshape(k, lines, length)
+    return np.ascontiguousarray(out.reshape(k, padded // LANES, LANES, length).transpose(0, 1, 3, 2)).reshape(k, -1)
