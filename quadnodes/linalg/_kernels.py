@@ -11,7 +11,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines"]
+__all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines",
+           "cg_update", "cg_direction", "row_dots"]
 
 #: Rows of the product computed per chunk (the chunk's slices of every diagonal stay in cache).
 _CHUNK = 1024
@@ -192,3 +193,46 @@ def blocked_lines(F: np.ndarray, length: int, pad: float) -> np.ndarray:
     out = np.full((k, padded, length), pad)
     out[:, :lines] = F.reshape(k, lines, length)
     return np.ascontiguousarray(out.reshape(k, padded // LANES, LANES, length).transpose(0, 1, 3, 2)).reshape(k, -1)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def cg_update(X: np.ndarray, R: np.ndarray, P: np.ndarray, Q: np.ndarray, alpha: np.ndarray, lo: int,
+              hi: int, rr: np.ndarray) -> None:  # pragma: no cover - compiled
+    """One pass of a CG step on columns ``lo:hi`` of ``(c, m)`` arrays: ``x += α p``, ``r −= α q``,
+    and ``rr[q] = r·r`` over the range."""
+    for q in range(X.shape[0]):
+        a = alpha[q]
+        x = X[q, lo:hi]
+        r = R[q, lo:hi]
+        p = P[q, lo:hi]
+        v = Q[q, lo:hi]
+        acc = 0.0
+        for i in range(hi - lo):
+            x[i] += a * p[i]
+            t = r[i] - a * v[i]
+            r[i] = t
+            acc += t * t
+        rr[q] = acc
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def cg_direction(P: np.ndarray, Z: np.ndarray, beta: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover - compiled
+    """``p = z + β p`` on columns ``lo:hi`` of ``(c, m)`` arrays."""
+    for q in range(P.shape[0]):
+        b = beta[q]
+        p = P[q, lo:hi]
+        z = Z[q, lo:hi]
+        for i in range(hi - lo):
+            p[i] = z[i] + b * p[i]
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def row_dots(U: np.ndarray, V: np.ndarray, lo: int, hi: int, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``out[q] = U[q, lo:hi] · V[q, lo:hi]``."""
+    for q in range(U.shape[0]):
+        u = U[q, lo:hi]
+        v = V[q, lo:hi]
+        acc = 0.0
+        for i in range(hi - lo):
+            acc += u[i] * v[i]
+        out[q] = acc

@@ -258,6 +258,37 @@ def _run_cg(
         p *= beta
         p += part(Z, lo, hi)
 
+    if columns and isinstance(blocks, SymmetricDiagonalBlocks):  # compiled passes: one read of each vector
+        from ._kernels import cg_direction, cg_update, row_dots
+
+        def product(lo: int, hi: int) -> np.ndarray:
+            blocks.matvec(P, Q, lo, hi)
+            out = np.empty(c)
+            row_dots(P, Q, lo, kp if hi == k else hi, out)
+            return out
+
+        def update(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray | None]:
+            hi = kp if hi == k else hi
+            rr = np.empty(c)
+            cg_update(X, R, P, Q, alpha[:, 0], lo, hi, rr)
+            precondition(lo, hi)
+            if precond is None or whole:
+                return rr, None
+            rz = np.empty(c)
+            row_dots(R, Z, lo, hi, rz)
+            return rr, rz
+
+        def direction(lo: int, hi: int) -> None:
+            cg_direction(P, Z, beta[:, 0], lo, kp if hi == k else hi)
+
+        def dot(U: np.ndarray, V: np.ndarray) -> np.ndarray:  # type: ignore[no-redef]
+            return sum(blocks.run(lambda lo, hi: _row_dots(U, V, lo, kp if hi == k else hi)))
+
+        def _row_dots(U: np.ndarray, V: np.ndarray, lo: int, hi: int) -> np.ndarray:
+            out = np.empty(c)
+            row_dots(U, V, lo, hi, out)
+            return out
+
     it = 0
     while it < maxiter and (rr > tol2).any():
         pq = sum(blocks.run(product))
