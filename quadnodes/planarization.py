@@ -49,7 +49,7 @@ from .mesh import QuadMesh
 from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
-from .linalg import QuadraticProblem, factorize, regularization
+from .linalg import QuadraticProblem, regularization
 from .topology import adjacency, fixed_vertices
 from .flatness import DEFAULT_PLANAR_TOLERANCE, resolve_planar_tolerance
 
@@ -280,7 +280,6 @@ def _newton(
     rr = np.broadcast_to(np.arange(m)[:, None, None], (m, 4, 3))
     cc = 3 * ca[:, :, None] + np.arange(3)
     use = np.broadcast_to((ca >= 0)[:, :, None], (m, 4, 3))
-    reg = 1e-9 * sp.identity(m, format="csr")
     X = X0.copy()
     history: list[float] = []
     steps = 0
@@ -290,13 +289,12 @@ def _newton(
         grad_e = H @ X[fi].reshape(-1) - b
         c, grad = _planarity_constraints(X, fa)
         G = sp.csr_matrix((grad[use], (rr[use], cc[use])), shape=(m, 3 * k))
-        K = sp.bmat([[H, G.T], [G, -reg]], format="csc")
-        # quasi-definite (H positive definite, −εI negative definite): factorizable in any symmetric
-        # order without pivoting, so the fill-reducing symmetric ordering can be used (4× faster than
-        # COLAMD with pivoting at 100 × 100)
-        rhs = np.concatenate([-grad_e, -c])
-        sol = factorize(K, kind="quasi-definite", negative=m, what="planarize (Newton step)").solve(rhs)
-        D = sol[: 3 * k].reshape(k, 3)
+        # min ½ ΔᵀHΔ + ∇eᵀΔ subject to c + GΔ = 0, the constraint block regularized by −εI: the
+        # KKT matrix is quasi-definite (H positive definite), factorized without pivoting in a
+        # fill-reducing symmetric order (4× faster than COLAMD with pivoting at 100 × 100)
+        step = QuadraticProblem(H, Aeq=G, method="direct", constraint_shift=1e-9, what="planarize (Newton step)")
+        sol = step.solve(grad_e, Beq=-c)
+        D = sol.reshape(k, 3)
         norm0 = float(np.linalg.norm(c))
         t = 1.0
         for _ in range(7):

@@ -20,7 +20,8 @@ Rows
   conjugate gradients from the anchor); includes structure lines, detection,
   assembly and solve; the note gives CG steps and the relative residual;
 - peers on the same system (assembly excluded): SciPy SuperLU with its default
-  ordering and with MMD(AᵀA+A), and CG preconditioned by pyamg smoothed
+  ordering and with MMD(AᵀA+A), quadnodes' own CG with ``preconditioner="none"`` (what the
+  default does where the matrix has no stiff spots), and CG preconditioned by pyamg smoothed
   aggregation when pyamg is installed. SuperLU at 1000² takes minutes and
   ~12 GB, so those rows run only with ``--slow``;
 - taubin, 10 steps: ``quadnodes.taubin(iterations=5)`` (5 λ|μ pairs = 10 steps) on the
@@ -78,7 +79,7 @@ def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
         _, rep = fair(m, iterations=1, threshold=0.0)
         r = rep.iterations[0]
         extra = f"{r.n_free} free, {r.solver} {r.cg_iterations} steps, residual {r.residual:.0e}"
-    elif kind in ("superlu", "superlu_mmd", "pyamg"):
+    elif kind in ("superlu", "superlu_mmd", "pyamg", "plain"):
         wall, extra = _peer(kind, m)
         return {"wall_s": wall, "peak_mb": _common.peak_mb() - base,
                 "note": extra}
@@ -98,6 +99,12 @@ def _peer(kind: str, m) -> tuple[float, str]:
     from quadnodes.zigzag import detect
 
     free = detect(m, 0.0).free
+    if kind == "plain":  # quadnodes' own CG on the grid's storage, without the line preconditioner
+        s = FairingSystem(m.vertices, m.topology.windows, free, DEFAULT_WEIGHT / m.mean_edge_length**2,
+                          solver="cg", preconditioner="none", _topology=m.topology)
+        t = time.perf_counter()
+        s.solve(m.vertices[free])
+        return time.perf_counter() - t, f"cg {s.iterations} steps, residual {s.residual:.0e}"
     s = FairingSystem(m.vertices, m.topology.windows, free, DEFAULT_WEIGHT / m.mean_edge_length**2, solver="cg")
     M = s.matrix
     rhs = s._rhs + s.weight * m.vertices[free]
@@ -118,6 +125,7 @@ def _peer(kind: str, m) -> tuple[float, str]:
 LABELS = {
     "lines": "quadnodes structure lines + windows",
     "fair": "quadnodes fair, 1 iteration, all free (block CG)",
+    "plain": "quadnodes CG without the line preconditioner (solve only)",
     "superlu": "peer: SciPy SuperLU, default ordering (solve only)",
     "superlu_mmd": "peer: SciPy SuperLU, MMD(AᵀA+A) (solve only)",
     "pyamg": "peer: CG + pyamg smoothed aggregation (solve only)",
@@ -126,7 +134,7 @@ LABELS = {
 }
 
 
-FAIR_KINDS = ("fair", "superlu", "superlu_mmd", "pyamg")
+FAIR_KINDS = ("fair", "plain", "superlu", "superlu_mmd", "pyamg")
 
 
 def main() -> None:

@@ -112,3 +112,25 @@ def test_refusals_name_the_problem():
     # a singular KKT system (dependent constraints) is an error, never a crash
     with pytest.raises(InputError, match="singular"):
         QuadraticProblem(sp.identity(3), Aeq=sp.csr_matrix(np.ones((2, 3))))
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(6, 50), st.integers(1, 4), st.integers(0, 2**31))
+def test_constraint_shift_is_the_regularized_kkt_system(n, m, seed):
+    """``constraint_shift=ε`` solves [[Q, Aᵀ], [A, −εI]] (quasi-definite, unpivoted): equal to a dense
+    solve of that system, and to the exact constraints as ε → 0."""
+    rng = np.random.default_rng(seed)
+    Q = _spd(n, seed)
+    A = sp.csr_matrix(rng.normal(size=(m, n)))
+    B = rng.normal(size=(n, 2))
+    Beq = rng.normal(size=(m, 2))
+    eps = 1e-3  # (a well-conditioned system for the comparison; the Newton step uses 1e-9)
+    z = QuadraticProblem(Q, Aeq=A, method="direct", constraint_shift=eps).solve(B, Beq=Beq)
+    K = np.block([[Q.toarray(), A.toarray().T], [A.toarray(), -eps * np.eye(m)]])
+    ref = np.linalg.solve(K, np.vstack([-B, Beq]))[:n]
+    np.testing.assert_allclose(z, ref, rtol=1e-9, atol=1e-10 * (1 + np.abs(ref).max()))
+    z = QuadraticProblem(Q, Aeq=A, method="direct", constraint_shift=1e-9).solve(B, Beq=Beq)
+    exact = QuadraticProblem(Q, Aeq=A, method="direct").solve(B, Beq=Beq)
+    assert np.abs(A @ z - Beq).max() <= 1e-6 * (1 + np.abs(Beq).max() + np.abs(exact).max())
+    with pytest.raises(InputError, match="constraint_shift"):
+        QuadraticProblem(Q, Aeq=A, constraint_shift=-1.0)
