@@ -6,6 +6,7 @@ from hypothesis import given, settings, strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.fairing import FairingSystem, fair, fairing_energy, fairing_matrix
+from quadnodes.linalg import cg as linalg_cg
 from quadnodes.linalg import threads as linalg_threads
 from quadnodes.linalg.cg import BlockJacobi, DiagonalBlocks, permuted
 from quadnodes.linalg.threads import RowBlocks
@@ -603,6 +604,7 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
     free = m.topology.window_middle & ~m.topology.boundary_vertices
     if threads > 1:
+        monkeypatch.setattr(linalg_cg, "LINES_PARALLEL_MIN_ROWS", 10)
         monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
         monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
     w = 0.3 / m.mean_edge_length**2

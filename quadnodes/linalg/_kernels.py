@@ -78,7 +78,7 @@ def strided_line_solve(F: np.ndarray, dinv: np.ndarray, stride: int, R: np.ndarr
     upper Cholesky factor of the lines' band ``B = UᵀU`` in the nodes' own order,
     ``dinv`` the reciprocals of its diagonal. ``R``, ``Z`` and the scratch space
     ``Y`` are C-contiguous ``(c, m)``, ``m ≥ n``; ``add`` adds the solution to ``Z``
-    instead of writing it. The inner loops run across lines (contiguous nodes,
+    instead of writing it (without ``add``, ``Y`` may be ``Z`` itself). The inner loops run across lines (contiguous nodes,
     independent of one another).
     """
     kd = F.shape[0] - 1
@@ -125,8 +125,8 @@ LANES = 8
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def row_line_solve(F: np.ndarray, dinv: np.ndarray, length: int, nlines: int, R: np.ndarray, B: np.ndarray,
-                   Z: np.ndarray, first: int, last: int) -> None:  # pragma: no cover - compiled
-    """Banded solves along the contiguous lines (grid rows) ``first:last``: ``Z = B⁻¹ R``.
+                   Z: np.ndarray, first: int, last: int, add: bool) -> None:  # pragma: no cover - compiled
+    """Banded solves along the contiguous lines (grid rows) ``first:last``: ``Z (+)= B⁻¹ R``.
 
     Line ``s`` holds the nodes ``s·length … (s + 1)·length − 1``. The lines are taken
     :data:`LANES` at a time (``first`` a multiple of it): their ``R`` goes into the
@@ -174,8 +174,12 @@ def row_line_solve(F: np.ndarray, dinv: np.ndarray, length: int, nlines: int, R:
             z = Z[q]
             for u in range(t):  # scatter back
                 dst = z[base + u * length : base + (u + 1) * length]
-                for j in range(length):
-                    dst[j] = bq[j, u]
+                if add:
+                    for j in range(length):
+                        dst[j] += bq[j, u]
+                else:
+                    for j in range(length):
+                        dst[j] = bq[j, u]
 
 
 def blocked_lines(F: np.ndarray, length: int, pad: float) -> np.ndarray:

@@ -8,6 +8,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from quadnodes.linalg import cg as linalg_cg
 from quadnodes.linalg import threads as linalg_threads
 from quadnodes.linalg.cg import BlockJacobi, DiagonalBlocks, block_cg, permuted
 from quadnodes.linalg.threads import RowBlocks, blas_pinned
@@ -102,6 +103,7 @@ def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses(monke
 
     if threads > 1:
         monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_cg, "LINES_PARALLEL_MIN_ROWS", 10)
         monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
     n = rows * cols
     rng = np.random.default_rng(3)
@@ -122,6 +124,7 @@ def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses(monke
     ab = lambda A: np.vstack([np.r_[np.zeros(k), np.diag(A, k)] for k in (3, 2, 1, 0)])
     order = np.arange(n).reshape(rows, cols).T.reshape(-1)
     P = LinePreconditioner(ab(B1), ab(B2[np.ix_(order, order)]), order)
+    assert len(P._col_ranges) == threads  # the column lines split over the threads
     kp = -(-n // 64) * 64
     R = np.zeros((3, kp))
     R[:, :n] = rng.normal(size=(3, n))
