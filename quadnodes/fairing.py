@@ -273,20 +273,15 @@ def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
 
 
 def _line_preconditioner(data: np.ndarray, cols: int) -> LinePreconditioner:
-    """Row-line and column-line blocks of a grid's 13 diagonals (offsets ±1..3 come only from row
-    windows, ±cols.. only from column windows), each with the whole diagonal, in banded form."""
+    """Row-line and column-line bands of a grid's 13 diagonals (offsets ±1..3 come only from row
+    windows, ±cols.. only from column windows), each with the whole diagonal, in the nodes' order."""
     n = data.shape[1]
-    rows = n // cols
-    first = np.zeros((4, n))
-    first[3] = data[6]
-    for k in (1, 2, 3):
-        first[3 - k, k:] = data[6 + k, k:]  # data[6 + k, j] = M[j - k, j]
-    order = np.arange(n).reshape(rows, cols).T.reshape(-1)  # column-major: the columns are contiguous
-    second = np.zeros((4, n))
-    second[3] = data[6][order]
-    for k in (1, 2, 3):
-        second[3 - k, k:] = data[9 + k][order][k:]  # data[9 + k, j] = M[j - k·cols, j]
-    return LinePreconditioner(first, second, order)
+    rows = np.zeros((4, n))
+    cols_ = np.zeros((4, n))
+    rows[3] = cols_[3] = data[6]
+    rows[:3] = data[9:6:-1]  # data[6 + k, j] = M[j - k, j] -> row 3 - k
+    cols_[:3] = data[12:9:-1]  # data[9 + k, j] = M[j - k·cols, j]
+    return LinePreconditioner(rows, cols_, cols)
 
 
 def _with_weight(AtA: sp.csr_matrix, weight: float) -> sp.csr_matrix:

@@ -12,7 +12,7 @@ import numba as nb
 import numpy as np
 
 __all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines",
-           "cg_update", "cg_direction", "row_dots"]
+           "cg_update", "cg_direction", "row_dots", "strided_band_cholesky"]
 
 #: Rows of the product computed per chunk (the chunk's slices of every diagonal stay in cache).
 _CHUNK = 1024
@@ -240,3 +240,54 @@ def row_dots(U: np.ndarray, V: np.ndarray, lo: int, hi: int, out: np.ndarray) ->
         for i in range(hi - lo):
             acc += u[i] * v[i]
         out[q] = acc
+
+
+@nb.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
+def strided_band_cholesky(A: np.ndarray, F: np.ndarray, stride: int, length: int, base: int, first: int,
+                          last: int) -> int:  # pragma: no cover - compiled
+    """Upper banded Cholesky factors (LAPACK ``pbtrf`` 'U' layout) of strided lines, side by side.
+
+    Line ``s`` (``first ≤ s < last``) holds the nodes ``base + s + j·stride``, ``j < length``;
+    ``A[kd - k, i]`` is the band entry coupling node ``i`` with ``i − k·stride`` (zero
+    across line starts is implied: entries before a line's start are never read).
+    Writes ``F`` (same layout, ``F[kd - k, i] = U[i − k·stride, i]``) for those nodes.
+    Returns −1, or the first node whose pivot is not positive (the block is not
+    positive definite).
+    """
+    kd = A.shape[0] - 1
+    w = last - first
+    for j in range(length):
+        a = base + j * stride + first
+        b = a + w
+        top = min(kd, j)
+        for m in range(top, 0, -1):  # U[j - m, j], nearest row last
+            f = F[kd - m, a:b]
+            src = A[kd - m, a:b]
+            for i in range(w):
+                f[i] = src[i]
+            o = m * stride
+            for p in range(m + 1, top + 1):
+                g1 = F[kd - p, a:b]
+                g2 = F[kd - p + m, a - o : b - o]
+                for i in range(w):
+                    f[i] -= g1[i] * g2[i]
+            d = F[kd, a - o : b - o]
+            for i in range(w):
+                f[i] /= d[i]
+        for m in range(top + 1, kd + 1):
+            f = F[kd - m, a:b]
+            for i in range(w):
+                f[i] = 0.0
+        f = F[kd, a:b]
+        src = A[kd, a:b]
+        for i in range(w):
+            f[i] = src[i]
+        for p in range(1, top + 1):
+            g = F[kd - p, a:b]
+            for i in range(w):
+                f[i] -= g[i] * g[i]
+        for i in range(w):
+            if not f[i] > 0.0:
+                return a + i
+            f[i] = np.sqrt(f[i])
+    return -1

@@ -402,32 +402,31 @@ class LinePreconditioner:
 
     ``M``'s entries that couple nodes of the same grid row (offsets ±1 … ±b) form a
     band ``B₁`` (with ``M``'s whole diagonal), those of the same grid column
-    (offsets ±cols … ±b·cols) a band ``B₂`` in column-major order. Each is factorized
-    once by banded Cholesky over all its lines at once (LAPACK ``pbtrf``: the lines
-    are independent blocks of one band), and ``P⁻¹ = B₁⁻¹ + B₂⁻¹`` — a sum of SPD
-    inverses, so SPD by construction. It is applied to all columns at once
-    (``whole = True``: :func:`block_cg` calls it once per step on every row), by
-    compiled substitutions along the lines on the solver's threads
-    (:mod:`quadnodes.linalg._kernels`); the column solves run across the columns
-    in the nodes' own row-major order, without a transpose.
+    (offsets ±cols … ±b·cols) a band ``B₂``; every line is an independent block of
+    its band. ``P⁻¹ = B₁⁻¹ + B₂⁻¹`` — a sum of SPD inverses, so SPD by construction.
+    Both are factorized once by banded Cholesky and applied to all columns of the
+    residual at once (``whole = True``: :func:`block_cg` calls it once per step on
+    every row), by compiled kernels (:mod:`quadnodes.linalg._kernels`) whose inner
+    loops run across lines — the column lines across the columns in the nodes' own
+    row-major order, the row lines :data:`~quadnodes.linalg._kernels.LANES` at a time
+    in a blocked copy — on the solver's threads from :data:`LINES_PARALLEL_MIN_ROWS` nodes.
 
     Parameters
     ----------
-    first : (b + 1, n) float64
-        Upper banded form of the row lines' block (``first[b - k, j] = M[j - k, j]``).
-    second : (b + 1, n) float64
-        The same for the column lines, in column-major order
-        (``second[b - k, p] = M[order[p - k], order[p]]``).
-    order : (n,) int64
-        ``order[p]`` is the node at position ``p`` in column-major order
-        (``np.arange(n).reshape(rows, cols).T.reshape(-1)``).
-    cols : int, optional
-        Nodes per grid row; by default ``n // (n // order[1])`` from ``order``.
+    row_band : (b + 1, n) float64
+        ``row_band[b - k, j] = M[j − k, j]`` (zero where ``j − k`` is in another row);
+        ``row_band[b]`` is ``M``'s diagonal.
+    column_band : (b + 1, n) float64
+        ``column_band[b - k, j] = M[j − k·cols, j]`` (zero for ``j < k·cols``), the same diagonal.
+    cols : int
+        Nodes per grid row (the nodes are in row-major order).
 
     Raises
     ------
     numpy.linalg.LinAlgError
         If a block is not positive definite.
+    ValueError
+        If the bands' shapes do not make a grid of ``cols`` columns.
 
     Examples
     --------
@@ -435,9 +434,9 @@ class LinePreconditioner:
 
     >>> T = sp.diags([-1.0, 2.2, -1.0], [-1, 0, 1], shape=(4, 4))
     >>> M = sp.kronsum(T, T).tocsr()
-    >>> ab = lambda A: np.vstack([np.r_[0, A.diagonal(1)], A.diagonal()])
-    >>> order = np.arange(16).reshape(4, 4).T.reshape(-1)
-    >>> P = LinePreconditioner(ab(M), ab(M[order][:, order]), order)
+    >>> rows = np.vstack([np.r_[0, M.diagonal(1)], M.diagonal()])
+    >>> cols = np.vstack([np.r_[np.zeros(4), M.diagonal(4)], M.diagonal()])
+    >>> P = LinePreconditioner(rows, cols, 4)
     >>> R = np.zeros((1, 64)); R[0, :16] = 1.0; Z = np.empty_like(R)
     >>> P.apply(R, Z, 0, 64, True)
     >>> bool(np.all(Z[0, :16] > 0)), bool(np.all(Z[0, 16:] == 0))
@@ -446,29 +445,29 @@ class LinePreconditioner:
 
     whole = True
 
-    def __init__(self, first: np.ndarray, second: np.ndarray, order: np.ndarray, *, cols: int | None = None) -> None:
-        from scipy.linalg import cholesky_banded
+    def __init__(self, row_band: np.ndarray, column_band: np.ndarray, cols: int) -> None:
+        from ._kernels import LANES, blocked_lines, strided_band_cholesky
 
-        self.n = n = first.shape[1]
-        self.order = order = np.asarray(order)
-        self.cols = cols = int(order[1]) if cols is None else int(cols)  # order[1] = cols (column-major)
-        if n % cols:
-            raise ValueError(f"order: {n} nodes do not make rows of {cols}")
+        self.n = n = row_band.shape[1]
+        self.cols = cols = int(cols)
+        if cols < 1 or n % cols or column_band.shape != row_band.shape:
+            raise ValueError(f"bands of shapes {row_band.shape} and {column_band.shape} do not make rows of {cols}")
         self.rows = rows = n // cols
-        kd = first.shape[0] - 1
-        # the row lines in blocks of LANES lines side by side, the column lines across the
-        # columns in the nodes' own order (both: the inner loops vectorize)
-        from ._kernels import LANES, blocked_lines
-
-        F1 = cholesky_banded(first, lower=False, check_finite=False)
-        dinv1 = np.zeros((1, n))
-        dinv1[0] = 1.0 / F1[kd]
-        self._first = blocked_lines(F1, cols, 0.0)
-        self._dinv1 = blocked_lines(dinv1, cols, 1.0)[0]
-        F2 = cholesky_banded(second, lower=False, check_finite=False)
-        self._second = np.empty_like(F2)
-        self._second[:, order] = F2  # back to the nodes' order: row kd - k couples i - k·cols and i
-        self._dinv2 = 1.0 / self._second[kd]
+        kd = row_band.shape[0] - 1
+        # the row lines in blocks of LANES lines side by side (padded with identity lines)
+        A1 = np.concatenate([blocked_lines(row_band[:kd], cols, 0.0), blocked_lines(row_band[kd:], cols, 1.0)])
+        F1 = np.empty_like(A1)
+        per_block = cols * LANES
+        for blk in range(A1.shape[1] // per_block):
+            bad = strided_band_cholesky(A1, F1, LANES, cols, blk * per_block, 0, LANES)
+            if bad >= 0:
+                raise np.linalg.LinAlgError(f"the row lines' block is not positive definite (blocked node {bad})")
+        F2 = np.empty_like(column_band)
+        bad = strided_band_cholesky(np.ascontiguousarray(column_band), F2, cols, rows, 0, 0, cols)
+        if bad >= 0:
+            raise np.linalg.LinAlgError(f"the column lines' block is not positive definite (node {bad})")
+        self._first, self._dinv1 = F1, 1.0 / F1[kd]
+        self._second, self._dinv2 = F2, 1.0 / F2[kd]
         self._scratch: np.ndarray | None = None
         t = _threads.thread_count() if n >= LINES_PARALLEL_MIN_ROWS else 1
         self._row_ranges = [(a * LANES, b * LANES) for a, b in _split(-(-rows // LANES), t)]

@@ -121,9 +121,9 @@ def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses(monke
     Ar, Ac = band(1, cols, rows), band(cols, rows, cols)
     D = np.diag(np.abs(Ar).sum(1) + np.abs(Ac).sum(1) + 0.5 + rng.random(n))  # (masking a band loses definiteness)
     B1, B2 = Ar + D, Ac + D
-    ab = lambda A: np.vstack([np.r_[np.zeros(k), np.diag(A, k)] for k in (3, 2, 1, 0)])
-    order = np.arange(n).reshape(rows, cols).T.reshape(-1)
-    P = LinePreconditioner(ab(B1), ab(B2[np.ix_(order, order)]), order)
+    def ab(A, step):  # upper banded form in the nodes' order: row 3 - k holds A[j - k·step, j]
+        return np.vstack([np.r_[np.zeros(k * step), np.diag(A, k * step)] for k in (3, 2, 1, 0)])
+    P = LinePreconditioner(ab(B1, 1), ab(B2, cols), cols)
     assert len(P._col_ranges) == threads  # the column lines split over the threads
     kp = -(-n // 64) * 64
     R = np.zeros((3, kp))
@@ -166,3 +166,17 @@ def test_symmetric_diagonal_storage_equals_the_full_product(rows, cols, c, seed)
     Y = np.full_like(X, np.nan)
     blocks.run(lambda lo, hi: blocks.matvec(X, Y, lo, hi))
     np.testing.assert_allclose(Y[:, :n], (M @ X[:, :n].T).T, rtol=1e-12, atol=1e-12)
+
+
+def test_line_preconditioner_refuses_a_block_that_is_not_positive_definite():
+    from quadnodes.linalg.cg import LinePreconditioner
+
+    band = np.vstack([np.zeros((3, 12)), np.ones((1, 12))])
+    bad = band.copy()
+    bad[2, 5] = 3.0  # |M[4, 5]| > 1: the 2 × 2 block is indefinite
+    with pytest.raises(np.linalg.LinAlgError, match="row lines"):
+        LinePreconditioner(bad, band, 4)
+    with pytest.raises(np.linalg.LinAlgError, match="column lines"):
+        LinePreconditioner(band, np.vstack([np.zeros((2, 12)), np.r_[np.zeros(4), 3.0 * np.ones(8)], np.ones(12)]), 4)
+    with pytest.raises(ValueError, match="rows of 5"):
+        LinePreconditioner(band, band, 5)
