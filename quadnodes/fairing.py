@@ -70,6 +70,12 @@ GRID_BLOCK_JACOBI_RATIO = 500.0
 #: 60 whatever the noise; even rows (zigzag noise: about 130 ω) keep plain CG, whose step
 #: costs a third of a preconditioned one (``benchmarks/studies/line_blocks.py``).
 LINES_CONTRAST = 1000.0
+#: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
+#: fused CG passes and the line preconditioner) from this many unknowns on. Below, SciPy's
+#: diagonal kernel and NumPy: loading Numba and its cached kernels costs about a second per
+#: process, more than the whole solve of a 300² grid (0.6 s zigzag, 1.2 s broadband) and far
+#: less than what the kernels save at 1000² (36 s -> 10 s broadband, ``benchmarks/perf/bench_core.py``).
+COMPILED_MIN_UNKNOWNS = 250_000
 #: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
 #: (13 diagonals, 1.3-1.7x faster products than CSR) when at least this share of the
 #: vertices is free (fixed vertices become identity rows there, so their rows cost too).
@@ -354,9 +360,9 @@ class FairingSystem:
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
     preconditioner : {"auto", "lines", "none"}
-        ``"auto"``: block Jacobi at small weights; on a grid's diagonal storage the
-        line preconditioner where the matrix has stiff spots (:data:`LINES_CONTRAST`);
-        else none. ``"lines"`` (on the grid's diagonal storage; elsewhere ``"auto"``):
+        ``"auto"``: block Jacobi at small weights; on a grid's diagonal storage of at
+        least :data:`COMPILED_MIN_UNKNOWNS` unknowns the line preconditioner where the
+        matrix has stiff spots (:data:`LINES_CONTRAST`); else none. ``"lines"`` (on the grid's diagonal storage; elsewhere ``"auto"``):
         the additive row-line + column-line block preconditioner
         (:class:`~quadnodes.linalg.cg.LinePreconditioner`), whose step count barely
         depends on the noise or the size (59–60 steps on 300² and 1000² broadband
@@ -508,9 +514,10 @@ class FairingSystem:
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
         preconditioned by :class:`BlockJacobi`; otherwise CG on ``AᵀA + ωI``:
         on a mostly free complete vertex grid (``_topology`` given) in the grid's
-        numbering with symmetric diagonal storage (:class:`~quadnodes.linalg.grid.GridPattern`),
-        preconditioned by line solves where the matrix has stiff spots
-        (:data:`LINES_CONTRAST`), else plain in ``free_index`` order.
+        numbering with diagonal storage (:class:`~quadnodes.linalg.grid.GridPattern`) — from
+        :data:`COMPILED_MIN_UNKNOWNS` unknowns on with the compiled kernels, preconditioned by
+        line solves where the matrix has stiff spots (:data:`LINES_CONTRAST`) — else plain in
+        ``free_index`` order.
         """
         if self._cg is None:
             A, k = self.A, self.n_free
@@ -524,10 +531,12 @@ class FairingSystem:
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
+                compiled = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines"
                 lines = self.preconditioner == "lines" or (
-                    self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
+                    compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
                 precond = _line_preconditioner(data, self._grid_cols) if lines else None
-                self._cg = (SymmetricDiagonalBlocks(offsets, data), precond, None)
+                blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
+                self._cg = (blocks, precond, None)
             else:
                 self._cg = (RowBlocks(self.matrix), None, None)
         return self._cg

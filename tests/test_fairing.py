@@ -595,7 +595,8 @@ def test_cg_on_closed_and_irregular_meshes_equals_the_direct_solve(monkeypatch, 
 @pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("noise", ["broadband", "zigzag"])
 def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, threads, noise):
-    from quadnodes.linalg.cg import LinePreconditioner
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.cg import LinePreconditioner, SymmetricDiagonalBlocks
 
     m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)[0] if noise == "zigzag" else \
         grid(40, 50, spacing=25.0)
@@ -613,9 +614,16 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     plain = _grid_system(m, free, w, preconditioner="none")
     plain.solve(m.vertices[free])
     assert plain._cg[1] is None
+    small = _grid_system(m, free, w)  # below COMPILED_MIN_UNKNOWNS: SciPy's kernel, no line solves
+    small._cg_setup()
+    assert small._cg[1] is None and not isinstance(small._cg[0], SymmetricDiagonalBlocks)
+    monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 100)
     auto = _grid_system(m, free, w)  # "auto" takes the line solves where the matrix has stiff spots
     auto._cg_setup()
+    assert isinstance(auto._cg[0], SymmetricDiagonalBlocks)
     assert isinstance(auto._cg[1], LinePreconditioner) == (noise == "broadband")
+    xa = auto.solve(m.vertices[free])
+    assert np.abs(xa - x).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     assert isinstance(s._cg[1], LinePreconditioner) and len(s._cg[0].ranges) == threads
     assert s.residual <= 1e-9 and s.iterations < plain.iterations
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])

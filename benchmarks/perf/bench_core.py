@@ -22,7 +22,7 @@ Rows
 - peers on the same system (assembly excluded): SciPy SuperLU with its default
   ordering and with MMD(AᵀA+A), quadnodes' own CG with ``preconditioner="none"`` (what the
   default does where the matrix has no stiff spots), and CG preconditioned by pyamg smoothed
-  aggregation when pyamg is installed. SuperLU at 1000² takes minutes and
+  aggregation when pyamg is installed, CHOLMOD when scikit-sparse is (``pip install -e .[bench]``). SuperLU at 1000² takes minutes and
   ~12 GB, so those rows run only with ``--slow``;
 - taubin, 10 steps: ``quadnodes.taubin(iterations=5)`` (5 λ|μ pairs = 10 steps) on the
   quad edge 1-ring, including building the operator;
@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import importlib
 import sys
 import time
 from pathlib import Path
@@ -79,7 +80,7 @@ def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
         _, rep = fair(m, iterations=1, threshold=0.0)
         r = rep.iterations[0]
         extra = f"{r.n_free} free, {r.solver} {r.cg_iterations} steps, residual {r.residual:.0e}"
-    elif kind in ("superlu", "superlu_mmd", "pyamg", "plain"):
+    elif kind in ("superlu", "superlu_mmd", "pyamg", "plain", "cholmod"):
         wall, extra = _peer(kind, m)
         return {"wall_s": wall, "peak_mb": _common.peak_mb() - base,
                 "note": extra}
@@ -109,7 +110,11 @@ def _peer(kind: str, m) -> tuple[float, str]:
     M = s.matrix
     rhs = s._rhs + s.weight * m.vertices[free]
     t = time.perf_counter()
-    if kind == "pyamg":
+    if kind == "cholmod":
+        from sksparse.cholmod import cholesky
+
+        x = cholesky(M.tocsc())(rhs)
+    elif kind == "pyamg":
         import pyamg
 
         P = pyamg.smoothed_aggregation_solver(M).aspreconditioner(cycle="V")
@@ -129,12 +134,13 @@ LABELS = {
     "superlu": "peer: SciPy SuperLU, default ordering (solve only)",
     "superlu_mmd": "peer: SciPy SuperLU, MMD(AᵀA+A) (solve only)",
     "pyamg": "peer: CG + pyamg smoothed aggregation (solve only)",
+    "cholmod": "peer: CHOLMOD (scikit-sparse), supernodal Cholesky (solve only)",
     "taubin": "quadnodes taubin, 10 steps (quad 1-ring)",
     "trimesh": "trimesh filter_taubin, 10 steps (triangulated)",
 }
 
 
-FAIR_KINDS = ("fair", "plain", "superlu", "superlu_mmd", "pyamg")
+FAIR_KINDS = ("fair", "plain", "superlu", "superlu_mmd", "pyamg", "cholmod")
 
 
 def main() -> None:
@@ -154,16 +160,18 @@ def main() -> None:
         return
     print("| mesh | noise | operation | wall time (s), median (range) | peak memory above baseline (MB) | note |")
     print("|---|---|---|---:|---:|---|")
-    try:
-        import pyamg  # noqa: F401
-        have_pyamg = True
-    except ImportError:
-        have_pyamg = False
+    have = {}
+    for kind, module in (("pyamg", "pyamg"), ("cholmod", "sksparse.cholmod")):
+        try:
+            importlib.import_module(module)
+            have[kind] = True
+        except ImportError:
+            have[kind] = False
     for n in args.sizes:
         for kind in args.only or LABELS:
             if kind.startswith("superlu") and n > 300 and not args.slow:
                 continue
-            if kind == "pyamg" and not have_pyamg:
+            if kind in have and not have[kind]:
                 continue
             noises = list(args.noise) if kind in FAIR_KINDS else ["zigzag"]
             if args.torus and kind in FAIR_KINDS:
