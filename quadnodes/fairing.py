@@ -534,7 +534,13 @@ class FairingSystem:
                 compiled = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines"
                 lines = self.preconditioner == "lines" or (
                     compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
-                precond = _line_preconditioner(data, self._grid_cols) if lines else None
+                precond = None
+                if lines:
+                    try:
+                        precond = _line_preconditioner(data, self._grid_cols)
+                    except np.linalg.LinAlgError as exc:  # a line block not positive definite: plain CG
+                        if self.preconditioner == "lines":
+                            raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:
