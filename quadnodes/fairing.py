@@ -42,6 +42,8 @@ __all__ = [
     "window_coefficients",
     "extraordinary_windows",
     "EXTRAORDINARY_MODES",
+    "SPACING_MODES",
+    "DEFAULT_SPACING",
     "fairing_matrix",
     "fairing_energy",
     "FairingSystem",
@@ -72,7 +74,7 @@ GRID_MIN_FREE = 0.6
 DEFAULT_WEIGHT = 0.3
 
 
-def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
+def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, spacing: str = "hold") -> np.ndarray:
     """Coefficients ``(a0, a1, a2, a3)`` of eq. 32 for every window.
 
     Lengths are taken from ``vertices`` (frozen). Each row sums to zero, so the
@@ -82,6 +84,9 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
     ----------
     vertices : (n, 3) float64
     windows : (w, 4) int64
+    spacing : {"hold", "fair"}
+        ``"hold"`` (default here: eq. 32 exactly): every edge's own length;
+        ``"fair"``: the window's mean edge length for all three (:func:`even_lengths`).
 
     Returns
     -------
@@ -92,9 +97,14 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
     >>> v = np.array([[0., 0, 0], [1, 0, 0], [3, 0, 0], [4, 0, 0]])
     >>> window_coefficients(v, np.array([[0, 1, 2, 3]])).tolist()
     [[-0.5, 1.0, -1.0, 0.5]]
+    >>> window_coefficients(v, np.array([[0, 1, 2, 3]]), spacing="fair").tolist()  # mean length 4/3
+    [[-0.375, 1.125, -1.125, 0.375]]
     """
-    i0, i1, i2 = (1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows))
-    return _coefficients(i0, i1, i2)
+    spacing = _validate.choice(spacing, SPACING_MODES, "spacing")
+    inv = np.stack([1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows)], axis=1)
+    if spacing == "fair":
+        inv = even_lengths(inv)
+    return _coefficients(inv[:, 0], inv[:, 1], inv[:, 2])
 
 
 #: Scale of the pseudo-windows' rows (:func:`extraordinary_windows`) relative to a window's (energy: its square);
@@ -102,6 +112,29 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
 EXTRAORDINARY_SCALE = 0.25
 #: The values of ``extraordinary`` in :func:`fair`.
 EXTRAORDINARY_MODES: tuple[str, ...] = ("fair", "hold")
+#: The values of ``spacing`` in :func:`fair` and :func:`window_coefficients`: ``"hold"`` freezes every edge's
+#: length (eq. 32 exactly), ``"fair"`` gives a window's three edges their mean length (:func:`even_lengths`).
+SPACING_MODES: tuple[str, ...] = ("fair", "hold")
+#: Measured on the real meshes and on E1–E4 (docs/fairing.md, "Spacing along the lines").
+DEFAULT_SPACING = "fair"
+
+
+def even_lengths(inverse: np.ndarray) -> np.ndarray:
+    """Inverse lengths ``(w, 3)`` with each window's three edges given their mean length.
+
+    With ``spacing="fair"`` the window term ``((d0 + d2)/2 − d1) / l̄`` is a third
+    difference along the line: it vanishes on a straight line whose vertices are
+    evenly spaced or whose spacing grows linearly, and sees a vertex slid along
+    the line (which frozen per-edge lengths hold, because ``d/l`` keeps its
+    direction). On a window with equal edges both rules are eq. 32.
+
+    Examples
+    --------
+    >>> even_lengths(np.array([[1.0, 0.5, 1.0]])).tolist()  # lengths 1, 2, 1: mean 4/3
+    [[0.75, 0.75, 0.75]]
+    """
+    m = 3.0 / (1.0 / inverse).sum(axis=1)
+    return np.repeat(m[:, None], 3, axis=1)
 
 
 def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
@@ -177,6 +210,15 @@ def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
     return out.astype(np.int64)
 
 
+def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """``||f_i||²`` of every window at ``vertices`` with the inverse lengths ``inverse`` ``(w, 3)``."""
+    d0, d1, d2 = window_edges(vertices, windows)
+    f = d0 * (0.5 * inverse[:, :1])
+    f += d2 * (0.5 * inverse[:, 2:])
+    f -= d1 * inverse[:, 1:2]
+    return np.einsum("ij,ij->i", f, f)
+
+
 def _coefficients(i0: np.ndarray, i1: np.ndarray, i2: np.ndarray) -> np.ndarray:
     """Eq. 32 coefficients from the inverse lengths of the windows' three edges."""
     c = np.empty((len(i0), 4))
@@ -205,12 +247,13 @@ def fairing_matrix(vertices: np.ndarray, windows: np.ndarray) -> sp.csr_matrix:
 
 
 def fairing_energy(
-    vertices: np.ndarray, windows: np.ndarray, *, lengths_from: np.ndarray | None = None
+    vertices: np.ndarray, windows: np.ndarray, *, lengths_from: np.ndarray | None = None, spacing: str = "hold"
 ) -> float:
     """Linearized fairness energy ``Σ ||f_i||²`` with lengths frozen at ``lengths_from``.
 
-    ``lengths_from`` defaults to ``vertices``; then ``||f_i||²`` equals the
-    window's deviation (eq. 30) exactly.
+    ``lengths_from`` defaults to ``vertices``; then, with ``spacing="hold"``,
+    ``||f_i||²`` equals the window's deviation (eq. 30) exactly. ``spacing="fair"``
+    is the energy :func:`fair` minimizes by default (see :func:`window_coefficients`).
 
     Examples
     --------
@@ -220,7 +263,7 @@ def fairing_energy(
     0.0
     """
     ref = vertices if lengths_from is None else lengths_from
-    c = window_coefficients(ref, windows)
+    c = window_coefficients(ref, windows, spacing=spacing)
     f = np.einsum("wk,wkj->wj", c, vertices[windows])
     return float(np.einsum("ij,ij->", f, f))
 
@@ -608,8 +651,8 @@ class IterationReport:
     """What one fairing iteration did.
 
     ``energy_before``/``energy_after`` are the linearized energy (eq. 32) of the
-    whole mesh with lengths frozen at the iterate's start; ``deviation_*`` the
-    exact eq. 30 sums.
+    whole mesh with lengths frozen at the iterate's start (each window's mean
+    length with ``spacing="fair"``); ``deviation_*`` the exact eq. 30 sums.
     """
 
     iteration: int
@@ -726,6 +769,7 @@ def fair(
     solver: Literal["auto", "direct", "cg"] = "auto",
     extraordinary: Literal["fair", "hold"] = "fair",
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
+    spacing: Literal["fair", "hold"] = DEFAULT_SPACING,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -778,6 +822,13 @@ def fair(
     detection : {"alternating", "thesis"}
         How zigzag vertices are found each iteration (:func:`quadnodes.zigzag.detect`):
         ``"thesis"`` is eq. 30; ``"alternating"`` (default) leaves steady bends alone.
+    spacing : {"fair", "hold"}
+        How edge lengths are frozen in eq. 32. ``"hold"``: the thesis exactly —
+        every edge keeps its own length, so a vertex slid along its line (the
+        along-line part of noise) costs nothing and stays. ``"fair"`` (default):
+        a window's three edges get their mean length (:func:`even_lengths`), so
+        uneven spacing along a line is faired too, while evenly or linearly graded
+        spacing costs nothing. Which vertices are free does not change.
 
     Returns
     -------
@@ -798,7 +849,7 @@ def fair(
     >>> z = np.zeros((5, 7)); z[2, 3] = 0.5
     >>> out, rep = fair(grid(5, 7, height=z), iterations=3, threshold=0.01)
     >>> [r.n_free for r in rep.iterations], round(float(out.vertices[17, 2]), 3)
-    ([5, 0], 0.032)
+    ([5, 0], 0.03)
     >>> [r.n_free for r in fair(grid(5, 7, height=z), iterations=3, threshold=0.01, detection="thesis")[1].iterations]
     [7, 0]
     >>> rep.notes()
@@ -813,6 +864,7 @@ def fair(
     solver = _validate.choice(solver, ("auto", "direct", "cg"), "solver")  # type: ignore[assignment]
     extraordinary = _validate.choice(extraordinary, EXTRAORDINARY_MODES, "extraordinary")  # type: ignore[assignment]
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
+    spacing = _validate.choice(spacing, SPACING_MODES, "spacing")  # type: ignore[assignment]
     held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
     xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "fair" else np.empty((0, 4), np.int64)
@@ -854,7 +906,13 @@ def fair(
         alt = _walk_alternation(x, walk) if detection == "alternating" else None
         zz = _detect(current, float(thresholds[it]), held, geometry[0], fix, alt)
         dev_before = float(zz.window_deviation.sum())
-        e_before = dev_before  # lengths frozen at x: each window's term is its eq. 30 deviation
+        if spacing == "hold":
+            inverse = geometry[1]
+            w_energy = zz.window_deviation  # lengths frozen at x: each window's term is its eq. 30 deviation
+        else:
+            inverse = even_lengths(geometry[1])
+            w_energy = _window_energy(x, w, inverse)
+        e_before = float(w_energy.sum())
         free = zz.free
         if xw.size:
             # the ring of an extraordinary vertex: the middle vertices of its pseudo-windows
@@ -875,12 +933,12 @@ def fair(
         w_eff = float(weights[it] * scale)
         if xw.size:
             system = FairingSystem(x, np.concatenate([w, xw]), free, w_eff, solver=solver,
-                                   _inverse_lengths=np.concatenate([geometry[1], EXTRAORDINARY_SCALE * x_geom[1]]))
-            all_dev = np.concatenate([zz.window_deviation, EXTRAORDINARY_SCALE**2 * x_geom[0]])
+                                   _inverse_lengths=np.concatenate([inverse, EXTRAORDINARY_SCALE * x_geom[1]]))
+            all_dev = np.concatenate([w_energy, EXTRAORDINARY_SCALE**2 * x_geom[0]])
         else:
-            system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=geometry[1],
+            system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=inverse,
                                    _topology=topo)
-            all_dev = zz.window_deviation
+            all_dev = w_energy
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
         else:

@@ -77,24 +77,25 @@ def test_fixed_vertices_never_move(mesh, fix):
     assert np.array_equal(out.vertices[still], mesh.vertices[still])
 
 
-@given(meshes(), st.sampled_from([0.001, 0.3, 10.0]))
-def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight):
-    out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight)
+@given(meshes(), st.sampled_from([0.001, 0.3, 10.0]), st.sampled_from(["fair", "hold"]))
+def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight, spacing):
+    out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, spacing=spacing)
     assert np.isfinite(out.vertices).all()
     for r in rep.iterations:
         assert r.energy_after <= r.energy_before * (1 + 1e-12) + 1e-15
-    # against the input's own (exact, eq. 30) energy with lengths frozen at the input
+    # against the input's own energy with lengths frozen at the input (eq. 30 exactly with spacing="hold")
     w = mesh.topology.windows
-    e_in = fairing_energy(mesh.vertices, w)
+    e_in = fairing_energy(mesh.vertices, w, spacing=spacing)
     if mesh.topology.extraordinary.any():  # the energy also holds the pseudo-windows' rows (scaled by s)
         from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
 
         xw = extraordinary_windows(mesh.vertices, mesh.topology)
         assert rep.iterations[0].energy_before == pytest.approx(
             e_in + EXTRAORDINARY_SCALE**2 * fairing_energy(mesh.vertices, xw))
-        out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, extraordinary="hold")
+        out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, extraordinary="hold", spacing=spacing)
     assert rep.iterations[0].energy_before == pytest.approx(e_in)
-    assert fairing_energy(out.vertices, w, lengths_from=mesh.vertices) <= e_in * (1 + 1e-9) + 1e-15 or len(rep.iterations) > 1
+    assert fairing_energy(out.vertices, w, lengths_from=mesh.vertices, spacing=spacing) <= e_in * (1 + 1e-9) + 1e-15 \
+        or len(rep.iterations) > 1
 
 
 def test_straight_lines_are_unchanged():
@@ -121,9 +122,10 @@ def test_anchor_input_vs_current():
     m, _ = perturb(grid(10, 10), tangential=0.4, seed=5)
     a, _ = fair(m, iterations=4, threshold=0.0, weight=0.05, anchor="current")
     b, _ = fair(m, iterations=4, threshold=0.0, weight=0.05, anchor="input")
-    da = np.linalg.norm(a.vertices - m.vertices, axis=1).max()
-    db = np.linalg.norm(b.vertices - m.vertices, axis=1).max()
-    assert db < da  # anchoring to the input holds vertices closer to it
+    da = np.linalg.norm(a.vertices - m.vertices, axis=1).mean()
+    db = np.linalg.norm(b.vertices - m.vertices, axis=1).mean()
+    assert db < da  # anchoring to the input holds vertices closer to it (on average: the first iteration,
+    # the same for both, may already make the largest move)
 
 
 def test_schedules():
@@ -238,18 +240,18 @@ def test_solver_choice_and_report():
         fair(m, solver="magic")
 
 
-@given(meshes())
-def test_reported_energies_equal_direct_evaluation(mesh):
-    out, rep = fair(mesh, iterations=1, threshold=0.0)
+@given(meshes(), st.sampled_from(["fair", "hold"]))
+def test_reported_energies_equal_direct_evaluation(mesh, spacing):
+    out, rep = fair(mesh, iterations=1, threshold=0.0, spacing=spacing)
     r = rep.iterations[0]
     w = mesh.topology.windows
     from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
 
     xw = extraordinary_windows(mesh.vertices, mesh.topology)  # empty without extraordinary vertices
-    s2 = EXTRAORDINARY_SCALE**2
-    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w) + s2 * fairing_energy(mesh.vertices, xw),
-                                            rel=1e-9, abs=1e-12)
-    assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices)
+    s2 = EXTRAORDINARY_SCALE**2  # (the pseudo-windows keep their own lengths)
+    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w, spacing=spacing)
+                                            + s2 * fairing_energy(mesh.vertices, xw), rel=1e-9, abs=1e-12)
+    assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices, spacing=spacing)
                                            + s2 * fairing_energy(out.vertices, xw, lengths_from=mesh.vertices),
                                            rel=1e-8, abs=1e-10)
 
