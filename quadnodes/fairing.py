@@ -35,7 +35,7 @@ from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
-from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _walk_alternation, _window_geometry, window_edges
+from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _threshold, _walk_alternation, _window_geometry, window_edges
 
 __all__ = [
     "DEFAULT_WEIGHT",
@@ -757,7 +757,7 @@ def fair(
     mesh: QuadMesh,
     *,
     iterations: int = 1,
-    threshold: float | Sequence[float] = 0.1,
+    threshold: float | Sequence[float] | None = None,
     threshold_decay: float = 1.0,
     weight: float | Sequence[float] = DEFAULT_WEIGHT,
     weight_decay: float = 1.0,
@@ -784,9 +784,11 @@ def fair(
         Number of iterations (1 … 100,000). Fairing stops early when no vertex is
         free and no later threshold is lower (nothing could change any more); the
         report says so.
-    threshold : float or sequence of float
+    threshold : float or sequence of float, optional
         Zigzag threshold (eq. 30) per iteration: one number, or one value per
-        iteration (the same name as in :func:`quadnodes.zigzag.detect`).
+        iteration (the same name as in :func:`quadnodes.zigzag.detect`). Default:
+        the ``detection``'s (:data:`quadnodes.zigzag.DEFAULT_THRESHOLDS`: 0.03 for
+        ``"alternating"``, the thesis's 0.1 for ``"thesis"``).
     threshold_decay : float
         Factor applied to a single ``threshold`` each iteration (the thesis's
         example 3 uses ``threshold=1, threshold_decay=0.5``).
@@ -857,7 +859,8 @@ def fair(
     """
     _validate.quad_mesh(mesh)
     iterations = _validate.iteration_count(iterations, "iterations")
-    thresholds = _validate.schedule(threshold, iterations, "threshold", decay=threshold_decay)
+    detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
+    thresholds = _validate.schedule(_threshold(threshold, detection), iterations, "threshold", decay=threshold_decay)
     weights = _validate.schedule(weight, iterations, "weight", decay=weight_decay, positive=True)
     weight_scale = _validate.choice(weight_scale, ("normalized", "raw"), "weight_scale")  # type: ignore[assignment]
     anchor = _validate.choice(anchor, ("current", "input"), "anchor")  # type: ignore[assignment]

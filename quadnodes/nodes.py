@@ -266,7 +266,7 @@ def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray 
 @node("detect", outputs=("report", "free"),
       ranges={"threshold": Range(min=0)})
 @_validate.renamed(fix_boundary="fix = \"boundary\"")
-def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float = 0.1,
+def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float | None = None,
            fix: FixMode = "corners",
            detection: Literal["alternating", "thesis"] = "alternating") -> tuple[ZigzagReport, np.ndarray]:
     """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask.
@@ -274,7 +274,7 @@ def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float 
     Parameters
     ----------
     threshold : float
-        Zigzag cut-off: a vertex whose deviation is strictly above it is freed.
+        Zigzag cut-off: a vertex whose deviation is strictly above it is freed (empty: 0.03 alternating, 0.1 thesis).
     fix : str
         Vertices never freed: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
     detection : str
@@ -340,7 +340,7 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
 @_validate.renamed(deviation="threshold", deviation_decay="threshold_decay", fix_boundary="fix = \"boundary\"")
 def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | Face | None = None, *,
          iterations: int = 1,
-         threshold: float | list[float] = 0.1, threshold_decay: float = 1.0,
+         threshold: float | list[float] | None = None, threshold_decay: float = 1.0,
          weight: float | list[float] = DEFAULT_WEIGHT, weight_decay: float = 1.0,
          weight_scale: Literal["normalized", "raw"] = "normalized",
          anchor: Literal["current", "input"] = "current",
@@ -357,7 +357,7 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
     iterations : int
         Rounds of detect-then-solve (each re-detects the zigzag vertices).
     threshold : float or list of float
-        Zigzag cut-off per round (eq. 30): vertices deviating more are freed.
+        Zigzag cut-off per round (eq. 30): vertices deviating more are freed (empty: 0.03 alternating, 0.1 thesis).
     threshold_decay : float
         Factor applied to the cut-off after each round (1: constant).
     weight : float or list of float

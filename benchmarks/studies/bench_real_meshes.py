@@ -13,7 +13,7 @@ best of its settings on that mesh and noise is shown (the setting beside it):
 
 - ``fair``: ``quadnodes.fair`` with its defaults (``detection="alternating"``,
   ``extraordinary="fair"``, ``spacing="fair"``), iterations 1, 3, 5;
-- ``fair (spacing hold)``: the defaults but ``spacing="hold"`` (fair's default before issue 16 item 6),
+- ``fair (before)``: fair's defaults before issue 16 item 6: ``spacing="hold", threshold=0.1``,
   iterations 1, 3, 5;
 - ``fair (thesis)``: ``extraordinary="hold", detection="thesis", spacing="hold"`` — the thesis's method,
   iterations 1, 3, 5;
@@ -68,9 +68,10 @@ def _trimesh_taubin(mesh, iterations):
 
 METHODS = {
     "fair": [(f"{k} it", lambda m, k=k: fair(m, iterations=k)[0]) for k in (1, 3, 5)],
-    "fair (spacing hold)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, spacing="hold")[0]) for k in (1, 3, 5)],
-    "fair (thesis)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, extraordinary="hold",
-                                                       detection="thesis", spacing="hold")[0]) for k in (1, 3, 5)],
+    "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, spacing="hold", threshold=0.1)[0])
+                      for k in (1, 3, 5)],
+    "fair (thesis)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, extraordinary="hold", detection="thesis",
+                                                       spacing="hold", threshold=0.1)[0]) for k in (1, 3, 5)],
     "laplacian": [(f"{k} it", lambda m, k=k: laplacian(m, iterations=k, fix="corners")[0]) for k in (1, 2, 4, 8)],
     "taubin": [(f"{k} it", lambda m, k=k: taubin(m, iterations=k, fix="corners")[0]) for k in (1, 2, 5, 10, 20)],
     "trimesh taubin": [(f"{k} it", lambda m, k=k: _trimesh_taubin(m, k)) for k in (2, 5, 10, 20, 50)],
@@ -82,18 +83,20 @@ def studies() -> None:
 
     import quadnodes.fairing as F
     from quadnodes.report import THESIS_EXAMPLES, _geometry
-    from quadnodes.zigzag import detect
+    from quadnodes.zigzag import _walk_alternation, detect
 
-    print("clean meshes: vertices freed by detect(threshold=0.1) / largest move of fair(iterations=3) in h")
+    print("clean meshes: vertices freed by detect() at the detection's default threshold (thesis 0.1, alternating "
+          "0.03) / largest move of fair(iterations=3) in h / largest alternating turning")
     for name in MESHES:
         m = load(DATA / name)
         h = m.mean_edge_length
         cells = []
         for det in ("thesis", "alternating"):
             out, _ = fair(m, iterations=3, detection=det)
-            cells.append(f"{det} {detect(m, 0.1, detection=det).n_free} / "
+            cells.append(f"{det} {detect(m, detection=det).n_free} / "
                          f"{np.linalg.norm(out.vertices - m.vertices, axis=1).max() / h:.3f}")
-        print(f"  {name:22s} " + " | ".join(cells))
+        alt = float(_walk_alternation(m.vertices, m.topology.window_walk).max())
+        print(f"  {name:22s} " + " | ".join(cells) + f" | {alt:.2g}")
     print("E1-E4 (seed 7): clean vertices freed, and mean vertex error / h after fair on the noisy model")
     for name in ("E1", "E2", "E3", "E4"):
         ex = THESIS_EXAMPLES[name]
