@@ -650,3 +650,50 @@ def test_closed_grids_renumbered_fair_as_the_general_path(monkeypatch, threads, 
         assert [r.n_free for r in ra.iterations] == [r.n_free for r in rb.iterations]
         assert rb.iterations[0].solver == solver
         assert np.abs(b.vertices - a.vertices[back]).max() <= 1e-8 * size
+
+
+# --- issue 16 item 6: spacing along the lines, thresholds for broadband noise ----------------------
+
+
+def test_a_vertex_slid_along_its_line_goes_back_with_spacing_fair():
+    """Frozen per-edge lengths (the thesis, ``spacing="hold"``) hold a vertex slid along its row; the window's
+    mean length (``spacing="fair"``) brings it back. The same vertices are free either way."""
+    g = grid(7, 9)
+    v = g.vertices.copy()
+    v[3 * 9 + 4, 0] += 0.3  # along row 3: its column now zigzags, its row is only unevenly spaced
+    m = g.with_vertices(v)
+    a, ra = fair(m, iterations=3, spacing="fair")
+    b, rb = fair(m, iterations=3, spacing="hold")
+    assert [r.n_free for r in ra.iterations] == [r.n_free for r in rb.iterations]
+    err_a = np.linalg.norm(a.vertices - g.vertices, axis=1).max()
+    err_b = np.linalg.norm(b.vertices - g.vertices, axis=1).max()
+    assert err_a < 0.05 < err_b and err_b > 0.15
+
+
+@given(st.floats(-0.3, 0.3), st.floats(0.5, 2.0), st.integers(0, 3))
+def test_spacing_fair_costs_nothing_on_evenly_or_linearly_graded_lines(grade, step, axis):
+    from quadnodes.fairing import even_lengths, window_coefficients
+
+    # a straight line whose edges grow linearly: edge k has length step * (1 + grade * k / 8)
+    lengths = step * (1 + grade * np.arange(8) / 8)
+    direction = np.roll([1.0, 0.5, -0.25], axis)
+    p = np.r_[0.0, np.cumsum(lengths)][:, None] * (direction / np.linalg.norm(direction)) + [3.0, -1.0, 2.0]
+    w = np.arange(6)[:, None] + np.arange(4)
+    c = window_coefficients(p, w, spacing="fair")
+    assert np.abs(np.einsum("wk,wkj->wj", c, p[w])).max() <= 1e-12 * (1 + np.abs(p).max())
+    np.testing.assert_allclose(c.sum(axis=1), 0.0, atol=1e-12)  # translation invariant
+    inv = 1 / lengths[w[:, :3]]
+    np.testing.assert_allclose(even_lengths(inv), np.repeat(3 / lengths[w[:, :3]].sum(axis=1), 3).reshape(-1, 3))
+
+
+def test_default_threshold_follows_the_detection():
+    from quadnodes.zigzag import DEFAULT_THRESHOLDS, detect
+
+    m, _ = perturb(grid(8, 8), tangential=0.2, seed=1)
+    assert detect(m).threshold == DEFAULT_THRESHOLDS["alternating"] == 0.03
+    assert detect(m, detection="thesis").threshold == DEFAULT_THRESHOLDS["thesis"] == 0.1
+    assert fair(m)[1].iterations[0].threshold == 0.03
+    assert fair(m, detection="thesis")[1].iterations[0].threshold == 0.1
+    assert fair(m, threshold=0.5, detection="thesis")[1].iterations[0].threshold == 0.5  # a given one is kept
+    with pytest.raises(InputError, match="spacing"):
+        fair(m, spacing="even")
