@@ -274,18 +274,22 @@ _GRID_PATTERNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def grid_pattern(topology: object) -> GridPattern | None:
     """The diagonal-storage pattern of a complete vertex grid's fairing matrix, or None.
 
-    Made from the topology alone (its :attr:`~quadnodes.topology.Topology.grid_shape`
-    and window walk) and kept in a declared cache keyed weakly by the topology,
-    so every iteration and weight on the same mesh reuses it and it goes with
-    the mesh.
+    Made from the topology alone (its :attr:`~quadnodes.topology.Topology.grid_shape`,
+    or :attr:`~quadnodes.topology.Topology.closed_grid` for a cylinder or torus grid
+    with at least 7 vertices around every closed direction, whose windows across
+    the seam get periodic diagonals, and the window walk) and kept in a declared
+    cache keyed weakly by the topology, so every iteration and weight on the same
+    mesh reuses it and it goes with the mesh.
 
     Examples
     --------
-    >>> from quadnodes.mesh import grid
+    >>> from quadnodes.mesh import cylinder, grid
     >>> t = grid(6, 7).topology
     >>> p = grid_pattern(t)
     >>> p.offsets.tolist(), grid_pattern(t) is p
     ([-21, -14, -7, -3, -2, -1, 0, 1, 2, 3, 7, 14, 21], True)
+    >>> grid_pattern(cylinder(5, 8).topology).offsets[13:].tolist()  # rings of 8: across the seam
+    [-7, 7, -6, 6, -5, 5]
     """
     try:
         return _GRID_PATTERNS[topology]
@@ -295,8 +299,14 @@ def grid_pattern(topology: object) -> GridPattern | None:
     pattern = None
     if shape is not None and shape[1] >= 4:  # narrower: no row windows, offsets would collide
         pattern = GridPattern(*topology.window_walk, topology.n_vertices, shape[1])  # type: ignore[attr-defined]
-        if not pattern.valid:
-            pattern = None
+    closed = topology.closed_grid if shape is None else None  # type: ignore[attr-defined]
+    if closed is not None and closed[1] >= (7 if closed[3] else 4) and (closed[0] >= 7 or not closed[2]):
+        # a cylinder or torus grid: periodic diagonals for the windows across the seam (at least 7 vertices
+        # around, so that no two diagonals share an offset)
+        pattern = GridPattern(*topology.window_walk, topology.n_vertices, closed[1],  # type: ignore[attr-defined]
+                              wrap_rows=closed[2], wrap_cols=closed[3])
+    if pattern is not None and not pattern.valid:
+        pattern = None
     _GRID_PATTERNS[topology] = pattern
     return pattern
 
@@ -492,6 +502,7 @@ class FairingSystem:
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
         self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
         self.preconditioner = _validate.choice(preconditioner, ("auto", "lines"), "preconditioner")
+        # the line preconditioner's bands hold an open grid's lines only
         self._grid_cols = None if _topology is None or _topology.grid_shape is None else _topology.grid_shape[1]
         self.rtol = _validate.positive_number(rtol, "rtol")
         self.iterations = 0
@@ -555,7 +566,8 @@ class FairingSystem:
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
-                precond = _line_preconditioner(data, self._grid_cols) if self.preconditioner == "lines" else None
+                precond = (_line_preconditioner(data, self._grid_cols)
+                           if self.preconditioner == "lines" and self._grid_cols is not None else None)
                 self._cg = (DiagonalBlocks(offsets, data), precond, None)
             else:
                 self._cg = (RowBlocks(self.matrix), None, None)

@@ -295,6 +295,24 @@ class Topology:
         return _grid_shape(self.faces, self.n_vertices)
 
     @cached_property
+    def closed_grid(self) -> tuple[int, int, bool, bool] | None:
+        """``(rows, cols, wrap_rows, wrap_cols)`` when the faces are every cell of a cylinder or torus grid.
+
+        Vertex ``i*cols + j`` sits at row ``i``, column ``j`` (as :func:`as_grid`
+        numbers them and :func:`quadnodes.mesh.cylinder` / ``torus`` make them);
+        ``wrap_cols``: the rows are closed (the last column joins column 0),
+        ``wrap_rows``: the columns are. None for open grids (:attr:`grid_shape`)
+        and everything else.
+
+        Examples
+        --------
+        >>> from quadnodes.mesh import cylinder, torus
+        >>> cylinder(3, 5).topology.closed_grid, torus(4, 6).topology.closed_grid
+        ((3, 5, False, True), (4, 6, True, True))
+        """
+        return _closed_grid(self.faces, self.n_vertices)
+
+    @cached_property
     def structure_lines(self) -> StructureLines:
         """All structure lines, canonically ordered and oriented.
 
@@ -346,6 +364,25 @@ def _grid_shape(faces: np.ndarray, n: int) -> tuple[int, int] | None:
     if grid_cells(faces, rows, cols) >= 0 or np.bincount(faces.min(axis=1), minlength=n).max() > 1:
         return None  # not all unit cells, or one cell twice
     return rows, cols
+
+
+def _closed_grid(faces: np.ndarray, n: int) -> tuple[int, int, bool, bool] | None:
+    """``(rows, cols, wrap_rows, wrap_cols)`` if ``faces`` are all cells, once each, of a closed vertex grid."""
+    if len(faces) == 0:
+        return None
+    span = np.bincount(faces.max(axis=1) - faces.min(axis=1))  # cols + 1 for every cell off the seams
+    cols = int(np.argmax(span)) - 1
+    if cols < 3 or n % cols:
+        return None
+    rows = n // cols
+    for wrap in ((False, True), (True, False), (True, True)):
+        count = (rows - (not wrap[0])) * (cols - (not wrap[1]))
+        if rows < (3 if wrap[0] else 2) or count != len(faces):
+            continue
+        base = grid_cell_base(faces, rows, cols, wrap_rows=wrap[0], wrap_cols=wrap[1])
+        if (base >= 0).all() and np.unique(base).size == len(faces):
+            return rows, cols, wrap[0], wrap[1]
+    return None
 
 
 def _grid_lines(rows: int, cols: int) -> StructureLines:

@@ -622,10 +622,11 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
 
 @pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("kind", ["cylinder", "torus"])
-def test_closed_grids_renumbered_fair_as_the_general_path(monkeypatch, threads, kind):
-    """A cylinder or torus renumbered row by row (``as_grid``, closed ``grid_wrap``) takes the general
-    path (no open-grid diagonal pattern: the windows wrap) and fairs exactly as the file's numbering:
-    within 1e-8 of the mesh's size, with CG (one or two threads) and direct."""
+def test_closed_grids_fair_on_the_grid_path_as_on_the_general_path(monkeypatch, threads, kind):
+    """A cylinder or torus renumbered row by row (``as_grid``, closed ``grid_wrap``) takes the grid's
+    diagonal storage with periodic diagonals for the windows across the seam, and fairs exactly as the
+    file's numbering on the general path: within 1e-8 of the mesh's size, with CG (one or two threads)
+    and direct."""
     from quadnodes.fairing import grid_pattern
     from quadnodes.mesh import torus
     from quadnodes.topology import as_grid
@@ -637,13 +638,23 @@ def test_closed_grids_renumbered_fair_as_the_general_path(monkeypatch, threads, 
     inv = np.argsort(p)
     shuffled = QuadMesh(noisy.vertices[p], inv[noisy.faces][rng.permutation(noisy.n_faces)])
     g = as_grid(shuffled)
-    assert g is not None and g.grid_wrap[1] and grid_pattern(g.topology) is None
+    assert g is not None and g.grid_wrap[1] and grid_pattern(shuffled.topology) is None
+    pattern = grid_pattern(g.topology)
+    assert pattern is not None and pattern.offsets.size == (19 if kind == "cylinder" else 25)
     if threads > 1:
         monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
         monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
     size = np.ptp(noisy.vertices, axis=0).max()
     where = {tuple(v): k for k, v in enumerate(shuffled.vertices.tolist())}
     back = np.array([where[tuple(v)] for v in g.vertices.tolist()])  # g's vertex k is shuffled's back[k]
+    # one system on the grid path (diagonal storage) against the direct solve
+    free = g.topology.window_middle & (rng.random(g.n_vertices) > 0.1)
+    w = 0.3 / g.mean_edge_length**2
+    s = FairingSystem(g.vertices, g.topology.windows, free, w, solver="cg", _topology=g.topology)
+    x = s.solve(g.vertices[free])
+    assert isinstance(s._cg[0], DiagonalBlocks) and len(s._cg[0].ranges) == threads and s.residual <= 1e-9
+    d = FairingSystem(g.vertices, g.topology.windows, free, w, solver="direct").solve(g.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * size
     a, ra = fair(shuffled, threshold=0.0, solver="direct")  # the general path in the file's numbering
     for solver in ("cg", "direct"):
         b, rb = fair(g, threshold=0.0, solver=solver)
@@ -697,3 +708,37 @@ def test_default_threshold_follows_the_detection():
     assert fair(m, threshold=0.5, detection="thesis")[1].iterations[0].threshold == 0.5  # a given one is kept
     with pytest.raises(InputError, match="spacing"):
         fair(m, spacing="even")
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=st.integers(2, 11), cols=st.integers(3, 11),
+       kind=st.sampled_from(["cylinder", "torus"]), fixed_share=st.sampled_from([0.0, 0.3]))
+def test_closed_grid_diagonal_storage_equals_the_normal_matrix(seed, rows, cols, kind, fixed_share):
+    """On a cylinder or torus grid the periodic diagonals hold exactly AᵀA + ωI of the free vertices
+    (windows across the seam included); grids with fewer than 7 vertices around a closed direction
+    have no pattern (their diagonals would share offsets) and take the general path."""
+    import scipy.sparse as sp
+    from quadnodes.fairing import grid_pattern
+    from quadnodes.mesh import torus
+
+    rows = max(rows, 3) if kind == "torus" else rows
+    base = cylinder(rows, cols) if kind == "cylinder" else torus(rows, cols)
+    rng = np.random.default_rng(seed)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.05 * base.mean_edge_length, size=base.vertices.shape))
+    t = m.topology
+    pattern = grid_pattern(t)
+    small = cols < 7 or (kind == "torus" and rows < 7)
+    assert (pattern is None) == small
+    if small:
+        return
+    free = t.window_middle & (rng.random(m.n_vertices) >= fixed_share)
+    if not free.any():
+        return
+    s = FairingSystem(m.vertices, t.windows, free, 0.7)
+    offsets, data = pattern.normal_matrix(window_coefficients_all(m), free, 0.7)
+    D = sp.dia_matrix((data, offsets), shape=(m.n_vertices,) * 2).toarray()
+    fi = s.free_index
+    np.testing.assert_allclose(D[np.ix_(fi, fi)], s.matrix.toarray(), rtol=1e-13, atol=1e-13 * np.abs(D).max())
+    fixed = np.flatnonzero(~free)
+    np.testing.assert_array_equal(D[fixed][:, fixed], np.eye(fixed.size))
+    assert not D[np.ix_(fixed, fi)].any() and not D[np.ix_(fi, fixed)].any()
