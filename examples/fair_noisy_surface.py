@@ -4,7 +4,7 @@ Like the thesis's example 3: a smooth 22×41 surface whose structure lines zigza
 The clean surface is a build123d face (``quadnodes.surfaces.wavy``); it is
 sampled, given seeded zigzag noise, then smoothed three ways — Laplacian (4 steps),
 Taubin (50 iterations) and the new method (3 iterations at the default threshold
-0.1 and weight) — and compared with the clean surface and the clean grid.
+and weight) — and compared with the clean surface and the clean grid.
 
 Writes into ``out/fair_noisy_surface/`` (or ``--out DIR``):
 

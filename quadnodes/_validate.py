@@ -16,6 +16,8 @@ from .errors import InputError
 
 __all__ = [
     "vertices_array",
+    "grid_cell_base",
+    "grid_wrap",
     "faces_array",
     "check_quad_mesh",
     "check_edge_lengths",
@@ -579,12 +581,13 @@ def renamed(**old_to_new: str) -> Any:
     return decorate
 
 
-def grid_cells(faces: np.ndarray, rows: int, cols: int) -> int:
+def grid_cells(faces: np.ndarray, rows: int, cols: int, *, wrap_rows: bool = False, wrap_cols: bool = False) -> int:
     """Index of the first face that is not a unit cell of a ``rows × cols`` vertex grid, or -1.
 
     A unit cell has its four vertices at ``(i, j), (i, j+1), (i+1, j+1), (i+1, j)``
     (vertex ``i*cols + j``), walked around the cell in either direction from any
-    corner.
+    corner. With ``wrap_cols`` (``wrap_rows``) the column (row) after the last is
+    column (row) 0: the cells of a cylinder or torus grid (see :func:`grid_cell_base`).
 
     Examples
     --------
@@ -592,10 +595,15 @@ def grid_cells(faces: np.ndarray, rows: int, cols: int) -> int:
     -1
     >>> grid_cells(np.array([[0, 1, 4, 3], [0, 2, 5, 3]]), 2, 3)
     1
+    >>> grid_cells(np.array([[0, 1, 4, 3], [0, 2, 5, 3]]), 2, 3, wrap_cols=True)  # around the seam
+    -1
     >>> grid_cells(np.array([[0, 1, 3, 4]]), 2, 3)  # the cell's corners, crossed
     0
     """
     faces = np.asarray(faces, dtype=np.int64)
+    if wrap_rows or wrap_cols:
+        bad = np.flatnonzero(grid_cell_base(faces, rows, cols, wrap_rows=wrap_rows, wrap_cols=wrap_cols) < 0)
+        return int(bad[0]) if bad.size else -1
     if len(faces) and (rows < 2 or cols < 2):
         return 0  # a grid of one row or column has no cells
     low = faces.min(axis=1)
@@ -606,3 +614,69 @@ def grid_cells(faces: np.ndarray, rows: int, cols: int) -> int:
     ok &= (low % cols != cols - 1) & (low + cols + 1 < rows * cols)
     bad = np.flatnonzero(~ok)
     return int(bad[0]) if bad.size else -1
+
+
+def grid_cell_base(faces: np.ndarray, rows: int, cols: int, *, wrap_rows: bool = False,
+                   wrap_cols: bool = False) -> np.ndarray:
+    """The vertex ``(i, j)`` of every face that is the cell ``(i, j)..(i+1, j+1)`` of a vertex grid, or -1.
+
+    Vertex ``i*cols + j`` sits at row ``i``, column ``j``; with ``wrap_cols``
+    (``wrap_rows``) column ``cols`` (row ``rows``) is column (row) 0 again, which
+    needs at least 3 columns (rows). The base of a cell across the seam is in the
+    last column (row), so ``divmod(base, cols)`` names the cell in every case.
+
+    Parameters
+    ----------
+    faces : (m, 4) int64
+    rows, cols : int
+    wrap_rows, wrap_cols : bool
+
+    Returns
+    -------
+    base : (m,) int64
+        -1 for a face that is no such cell.
+
+    Examples
+    --------
+    >>> grid_cell_base(np.array([[2, 0, 3, 5], [0, 1, 4, 3], [0, 2, 4, 1]]), 2, 3, wrap_cols=True).tolist()
+    [2, 0, -1]
+    """
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 4)
+    base = np.full(len(faces), -1, dtype=np.int64)
+    if rows < (3 if wrap_rows else 2) or cols < (3 if wrap_cols else 2) or not len(faces):
+        return base
+    if faces.min() < 0 or faces.max() >= rows * cols:
+        return base
+    i, j = np.divmod(faces, cols)
+    right_j, down_i = j + 1, i + 1
+    ok_r = np.ones(faces.shape, dtype=bool) if wrap_cols else right_j < cols
+    ok_d = np.ones(faces.shape, dtype=bool) if wrap_rows else down_i < rows
+    right_j %= cols
+    down_i %= rows
+    right = i * cols + right_j
+    down = down_i * cols + j
+    diag = down_i * cols + right_j
+    nxt, opp, prv = (np.roll(faces, -k, axis=1) for k in (1, 2, 3))
+    hit = ok_r & ok_d & (opp == diag) & (((nxt == right) & (prv == down)) | ((nxt == down) & (prv == right)))
+    found = hit.any(axis=1)
+    base[found] = faces[found, np.argmax(hit[found], axis=1)]
+    return base
+
+
+def grid_wrap(faces: np.ndarray, rows: int, cols: int) -> tuple[bool, bool] | None:
+    """``(wrap_rows, wrap_cols)`` of the least closed vertex grid whose cells the faces all are, or None.
+
+    An open grid first, then closed across the columns (a cylinder whose rows are
+    rings), across the rows, and both (a torus): see :func:`grid_cell_base`.
+
+    Examples
+    --------
+    >>> grid_wrap(np.array([[0, 1, 4, 3], [2, 0, 3, 5]]), 2, 3)
+    (False, True)
+    >>> grid_wrap(np.array([[0, 1, 3, 4]]), 2, 3) is None
+    True
+    """
+    for wrap in ((False, False), (False, True), (True, False), (True, True)):
+        if grid_cells(faces, rows, cols, wrap_rows=wrap[0], wrap_cols=wrap[1]) < 0:
+            return wrap
+    return None

@@ -36,13 +36,15 @@ from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
-from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _walk_alternation, _window_geometry, window_edges
+from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _threshold, _walk_alternation, _window_geometry, window_edges
 
 __all__ = [
     "DEFAULT_WEIGHT",
     "window_coefficients",
     "extraordinary_windows",
     "EXTRAORDINARY_MODES",
+    "SPACING_MODES",
+    "DEFAULT_SPACING",
     "fairing_matrix",
     "fairing_energy",
     "FairingSystem",
@@ -86,7 +88,7 @@ GRID_MIN_FREE = 0.6
 DEFAULT_WEIGHT = 0.3
 
 
-def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
+def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, spacing: str = "hold") -> np.ndarray:
     """Coefficients ``(a0, a1, a2, a3)`` of eq. 32 for every window.
 
     Lengths are taken from ``vertices`` (frozen). Each row sums to zero, so the
@@ -96,6 +98,9 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
     ----------
     vertices : (n, 3) float64
     windows : (w, 4) int64
+    spacing : {"hold", "fair"}
+        ``"hold"`` (default here: eq. 32 exactly): every edge's own length;
+        ``"fair"``: the window's mean edge length for all three (:func:`even_lengths`).
 
     Returns
     -------
@@ -106,9 +111,14 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
     >>> v = np.array([[0., 0, 0], [1, 0, 0], [3, 0, 0], [4, 0, 0]])
     >>> window_coefficients(v, np.array([[0, 1, 2, 3]])).tolist()
     [[-0.5, 1.0, -1.0, 0.5]]
+    >>> window_coefficients(v, np.array([[0, 1, 2, 3]]), spacing="fair").tolist()  # mean length 4/3
+    [[-0.375, 1.125, -1.125, 0.375]]
     """
-    i0, i1, i2 = (1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows))
-    return _coefficients(i0, i1, i2)
+    spacing = _validate.choice(spacing, SPACING_MODES, "spacing")
+    inv = np.stack([1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows)], axis=1)
+    if spacing == "fair":
+        inv = even_lengths(inv)
+    return _coefficients(inv[:, 0], inv[:, 1], inv[:, 2])
 
 
 #: Scale of the pseudo-windows' rows (:func:`extraordinary_windows`) relative to a window's (energy: its square);
@@ -116,6 +126,29 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray
 EXTRAORDINARY_SCALE = 0.25
 #: The values of ``extraordinary`` in :func:`fair`.
 EXTRAORDINARY_MODES: tuple[str, ...] = ("fair", "hold")
+#: The values of ``spacing`` in :func:`fair` and :func:`window_coefficients`: ``"hold"`` freezes every edge's
+#: length (eq. 32 exactly), ``"fair"`` gives a window's three edges their mean length (:func:`even_lengths`).
+SPACING_MODES: tuple[str, ...] = ("fair", "hold")
+#: Measured on the real meshes and on E1–E4 (docs/fairing.md, "Spacing along the lines").
+DEFAULT_SPACING = "fair"
+
+
+def even_lengths(inverse: np.ndarray) -> np.ndarray:
+    """Inverse lengths ``(w, 3)`` with each window's three edges given their mean length.
+
+    With ``spacing="fair"`` the window term ``((d0 + d2)/2 − d1) / l̄`` is a third
+    difference along the line: it vanishes on a straight line whose vertices are
+    evenly spaced or whose spacing grows linearly, and sees a vertex slid along
+    the line (which frozen per-edge lengths hold, because ``d/l`` keeps its
+    direction). On a window with equal edges both rules are eq. 32.
+
+    Examples
+    --------
+    >>> even_lengths(np.array([[1.0, 0.5, 1.0]])).tolist()  # lengths 1, 2, 1: mean 4/3
+    [[0.75, 0.75, 0.75]]
+    """
+    m = 3.0 / (1.0 / inverse).sum(axis=1)
+    return np.repeat(m[:, None], 3, axis=1)
 
 
 def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
@@ -191,6 +224,15 @@ def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
     return out.astype(np.int64)
 
 
+def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """``||f_i||²`` of every window at ``vertices`` with the inverse lengths ``inverse`` ``(w, 3)``."""
+    d0, d1, d2 = window_edges(vertices, windows)
+    f = d0 * (0.5 * inverse[:, :1])
+    f += d2 * (0.5 * inverse[:, 2:])
+    f -= d1 * inverse[:, 1:2]
+    return np.einsum("ij,ij->i", f, f)
+
+
 def _coefficients(i0: np.ndarray, i1: np.ndarray, i2: np.ndarray) -> np.ndarray:
     """Eq. 32 coefficients from the inverse lengths of the windows' three edges."""
     c = np.empty((len(i0), 4))
@@ -219,12 +261,13 @@ def fairing_matrix(vertices: np.ndarray, windows: np.ndarray) -> sp.csr_matrix:
 
 
 def fairing_energy(
-    vertices: np.ndarray, windows: np.ndarray, *, lengths_from: np.ndarray | None = None
+    vertices: np.ndarray, windows: np.ndarray, *, lengths_from: np.ndarray | None = None, spacing: str = "hold"
 ) -> float:
     """Linearized fairness energy ``Σ ||f_i||²`` with lengths frozen at ``lengths_from``.
 
-    ``lengths_from`` defaults to ``vertices``; then ``||f_i||²`` equals the
-    window's deviation (eq. 30) exactly.
+    ``lengths_from`` defaults to ``vertices``; then, with ``spacing="hold"``,
+    ``||f_i||²`` equals the window's deviation (eq. 30) exactly. ``spacing="fair"``
+    is the energy :func:`fair` minimizes by default (see :func:`window_coefficients`).
 
     Examples
     --------
@@ -234,7 +277,7 @@ def fairing_energy(
     0.0
     """
     ref = vertices if lengths_from is None else lengths_from
-    c = window_coefficients(ref, windows)
+    c = window_coefficients(ref, windows, spacing=spacing)
     f = np.einsum("wk,wkj->wj", c, vertices[windows])
     return float(np.einsum("ij,ij->", f, f))
 
@@ -245,18 +288,22 @@ _GRID_PATTERNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def grid_pattern(topology: object) -> GridPattern | None:
     """The diagonal-storage pattern of a complete vertex grid's fairing matrix, or None.
 
-    Made from the topology alone (its :attr:`~quadnodes.topology.Topology.grid_shape`
-    and window walk) and kept in a declared cache keyed weakly by the topology,
-    so every iteration and weight on the same mesh reuses it and it goes with
-    the mesh.
+    Made from the topology alone (its :attr:`~quadnodes.topology.Topology.grid_shape`,
+    or :attr:`~quadnodes.topology.Topology.closed_grid` for a cylinder or torus grid
+    with at least 7 vertices around every closed direction, whose windows across
+    the seam get periodic diagonals, and the window walk) and kept in a declared
+    cache keyed weakly by the topology, so every iteration and weight on the same
+    mesh reuses it and it goes with the mesh.
 
     Examples
     --------
-    >>> from quadnodes.mesh import grid
+    >>> from quadnodes.mesh import cylinder, grid
     >>> t = grid(6, 7).topology
     >>> p = grid_pattern(t)
     >>> p.offsets.tolist(), grid_pattern(t) is p
     ([-21, -14, -7, -3, -2, -1, 0, 1, 2, 3, 7, 14, 21], True)
+    >>> grid_pattern(cylinder(5, 8).topology).offsets[13:].tolist()  # rings of 8: across the seam
+    [-7, 7, -6, 6, -5, 5]
     """
     try:
         return _GRID_PATTERNS[topology]
@@ -266,8 +313,14 @@ def grid_pattern(topology: object) -> GridPattern | None:
     pattern = None
     if shape is not None and shape[1] >= 4:  # narrower: no row windows, offsets would collide
         pattern = GridPattern(*topology.window_walk, topology.n_vertices, shape[1])  # type: ignore[attr-defined]
-        if not pattern.valid:
-            pattern = None
+    closed = topology.closed_grid if shape is None else None  # type: ignore[attr-defined]
+    if closed is not None and closed[1] >= (7 if closed[3] else 4) and (closed[0] >= 7 or not closed[2]):
+        # a cylinder or torus grid: periodic diagonals for the windows across the seam (at least 7 vertices
+        # around, so that no two diagonals share an offset)
+        pattern = GridPattern(*topology.window_walk, topology.n_vertices, closed[1],  # type: ignore[attr-defined]
+                              wrap_rows=closed[2], wrap_cols=closed[3])
+    if pattern is not None and not pattern.valid:
+        pattern = None
     _GRID_PATTERNS[topology] = pattern
     return pattern
 
@@ -466,6 +519,7 @@ class FairingSystem:
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
         self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
         self.preconditioner = _validate.choice(preconditioner, ("auto", "lines", "none"), "preconditioner")
+        # the line preconditioner's bands hold an open grid's lines only
         self._grid_cols = None if _topology is None or _topology.grid_shape is None else _topology.grid_shape[1]
         self.rtol = _validate.positive_number(rtol, "rtol")
         self.iterations = 0
@@ -531,9 +585,12 @@ class FairingSystem:
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
+                # the line solves hold an open grid's lines only (a cylinder's or torus's windows
+                # across the seam add periodic diagonals: plain CG there)
+                open_grid = self._grid_cols is not None and offsets.size == 13
                 compiled = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines"
-                lines = self.preconditioner == "lines" or (
-                    compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
+                lines = open_grid and (self.preconditioner == "lines" or (
+                    compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight))
                 precond = None
                 if lines:
                     try:
@@ -637,8 +694,8 @@ class IterationReport:
     """What one fairing iteration did.
 
     ``energy_before``/``energy_after`` are the linearized energy (eq. 32) of the
-    whole mesh with lengths frozen at the iterate's start; ``deviation_*`` the
-    exact eq. 30 sums.
+    whole mesh with lengths frozen at the iterate's start (each window's mean
+    length with ``spacing="fair"``); ``deviation_*`` the exact eq. 30 sums.
     """
 
     iteration: int
@@ -743,7 +800,7 @@ def fair(
     mesh: QuadMesh,
     *,
     iterations: int = 1,
-    threshold: float | Sequence[float] = 0.1,
+    threshold: float | Sequence[float] | None = None,
     threshold_decay: float = 1.0,
     weight: float | Sequence[float] = DEFAULT_WEIGHT,
     weight_decay: float = 1.0,
@@ -755,6 +812,7 @@ def fair(
     solver: Literal["auto", "direct", "cg"] = "auto",
     extraordinary: Literal["fair", "hold"] = "fair",
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
+    spacing: Literal["fair", "hold"] = DEFAULT_SPACING,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -769,9 +827,11 @@ def fair(
         Number of iterations (1 … 100,000). Fairing stops early when no vertex is
         free and no later threshold is lower (nothing could change any more); the
         report says so.
-    threshold : float or sequence of float
+    threshold : float or sequence of float, optional
         Zigzag threshold (eq. 30) per iteration: one number, or one value per
-        iteration (the same name as in :func:`quadnodes.zigzag.detect`).
+        iteration (the same name as in :func:`quadnodes.zigzag.detect`). Default:
+        the ``detection``'s (:data:`quadnodes.zigzag.DEFAULT_THRESHOLDS`: 0.03 for
+        ``"alternating"``, the thesis's 0.1 for ``"thesis"``).
     threshold_decay : float
         Factor applied to a single ``threshold`` each iteration (the thesis's
         example 3 uses ``threshold=1, threshold_decay=0.5``).
@@ -807,6 +867,13 @@ def fair(
     detection : {"alternating", "thesis"}
         How zigzag vertices are found each iteration (:func:`quadnodes.zigzag.detect`):
         ``"thesis"`` is eq. 30; ``"alternating"`` (default) leaves steady bends alone.
+    spacing : {"fair", "hold"}
+        How edge lengths are frozen in eq. 32. ``"hold"``: the thesis exactly —
+        every edge keeps its own length, so a vertex slid along its line (the
+        along-line part of noise) costs nothing and stays. ``"fair"`` (default):
+        a window's three edges get their mean length (:func:`even_lengths`), so
+        uneven spacing along a line is faired too, while evenly or linearly graded
+        spacing costs nothing. Which vertices are free does not change.
 
     Returns
     -------
@@ -827,7 +894,7 @@ def fair(
     >>> z = np.zeros((5, 7)); z[2, 3] = 0.5
     >>> out, rep = fair(grid(5, 7, height=z), iterations=3, threshold=0.01)
     >>> [r.n_free for r in rep.iterations], round(float(out.vertices[17, 2]), 3)
-    ([5, 0], 0.032)
+    ([5, 0], 0.03)
     >>> [r.n_free for r in fair(grid(5, 7, height=z), iterations=3, threshold=0.01, detection="thesis")[1].iterations]
     [7, 0]
     >>> rep.notes()
@@ -835,13 +902,15 @@ def fair(
     """
     _validate.quad_mesh(mesh)
     iterations = _validate.iteration_count(iterations, "iterations")
-    thresholds = _validate.schedule(threshold, iterations, "threshold", decay=threshold_decay)
+    detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
+    thresholds = _validate.schedule(_threshold(threshold, detection), iterations, "threshold", decay=threshold_decay)
     weights = _validate.schedule(weight, iterations, "weight", decay=weight_decay, positive=True)
     weight_scale = _validate.choice(weight_scale, ("normalized", "raw"), "weight_scale")  # type: ignore[assignment]
     anchor = _validate.choice(anchor, ("current", "input"), "anchor")  # type: ignore[assignment]
     solver = _validate.choice(solver, ("auto", "direct", "cg"), "solver")  # type: ignore[assignment]
     extraordinary = _validate.choice(extraordinary, EXTRAORDINARY_MODES, "extraordinary")  # type: ignore[assignment]
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
+    spacing = _validate.choice(spacing, SPACING_MODES, "spacing")  # type: ignore[assignment]
     held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
     xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "fair" else np.empty((0, 4), np.int64)
@@ -883,7 +952,13 @@ def fair(
         alt = _walk_alternation(x, walk) if detection == "alternating" else None
         zz = _detect(current, float(thresholds[it]), held, geometry[0], fix, alt)
         dev_before = float(zz.window_deviation.sum())
-        e_before = dev_before  # lengths frozen at x: each window's term is its eq. 30 deviation
+        if spacing == "hold":
+            inverse = geometry[1]
+            w_energy = zz.window_deviation  # lengths frozen at x: each window's term is its eq. 30 deviation
+        else:
+            inverse = even_lengths(geometry[1])
+            w_energy = _window_energy(x, w, inverse)
+        e_before = float(w_energy.sum())
         free = zz.free
         if xw.size:
             # the ring of an extraordinary vertex: the middle vertices of its pseudo-windows
@@ -904,12 +979,12 @@ def fair(
         w_eff = float(weights[it] * scale)
         if xw.size:
             system = FairingSystem(x, np.concatenate([w, xw]), free, w_eff, solver=solver,
-                                   _inverse_lengths=np.concatenate([geometry[1], EXTRAORDINARY_SCALE * x_geom[1]]))
-            all_dev = np.concatenate([zz.window_deviation, EXTRAORDINARY_SCALE**2 * x_geom[0]])
+                                   _inverse_lengths=np.concatenate([inverse, EXTRAORDINARY_SCALE * x_geom[1]]))
+            all_dev = np.concatenate([w_energy, EXTRAORDINARY_SCALE**2 * x_geom[0]])
         else:
-            system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=geometry[1],
+            system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=inverse,
                                    _topology=topo)
-            all_dev = zz.window_deviation
+            all_dev = w_energy
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
         else:

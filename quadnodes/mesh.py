@@ -32,7 +32,9 @@ class QuadMesh:
         Copied and made read-only.
     grid_shape : (rows, cols) or None
         Set when the mesh is a regular grid whose vertex ``i*cols + j`` sits in
-        row ``i`` and column ``j``.
+        row ``i`` and column ``j``. The grid may close around (a cylinder or torus
+        grid: faces across the seam join the last column or row to the first); see
+        :attr:`grid_wrap`.
     unit : str
         Unit of the coordinates, one of :data:`quadnodes.units.UNITS` (default
         ``"mm"``); exporters write it into every file that can carry it.
@@ -68,11 +70,14 @@ class QuadMesh:
                 raise InputError(
                     f"grid_shape: {gs} holds {gs[0] * gs[1]} vertices, the mesh has {v.shape[0]}"
                 )
-            bad = _validate.grid_cells(f, *gs)
-            if bad >= 0:
+            wrap = _validate.grid_wrap(f, *gs)
+            if wrap is None:
+                bad = _validate.grid_cells(f, *gs)
                 raise InputError(
                     f"grid_shape: face {bad} {f[bad].tolist()} is not a cell of a {gs[0]} x {gs[1]} vertex grid"
+                    " (open, or closed around like a cylinder or torus)"
                 )
+            self.__dict__["grid_wrap"] = wrap
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
         object.__setattr__(self, "grid_shape", gs)
@@ -88,6 +93,25 @@ class QuadMesh:
     def n_faces(self) -> int:
         """Number of quads."""
         return int(self.faces.shape[0])
+
+    @cached_property
+    def grid_wrap(self) -> tuple[bool, bool]:
+        """``(wrap_rows, wrap_cols)``: whether the grid closes across its rows / columns.
+
+        ``(False, True)`` is a cylinder grid whose rows are rings, ``(True, True)``
+        a torus grid; ``(False, False)`` an open grid and every mesh without
+        ``grid_shape``.
+
+        Examples
+        --------
+        >>> from quadnodes.topology import as_grid
+        >>> grid(3, 4).grid_wrap, as_grid(cylinder(3, 5)).grid_wrap, as_grid(torus(3, 4)).grid_wrap
+        ((False, False), (False, True), (True, True))
+        """
+        if self.grid_shape is None:
+            return (False, False)
+        wrap = _validate.grid_wrap(self.faces, *self.grid_shape)
+        return (False, False) if wrap is None else wrap
 
     @cached_property
     def topology(self) -> Topology:
@@ -137,6 +161,8 @@ class QuadMesh:
         object.__setattr__(new, "faces", self.faces)
         object.__setattr__(new, "grid_shape", self.grid_shape)
         object.__setattr__(new, "unit", self.unit)
+        if "grid_wrap" in self.__dict__:
+            new.__dict__["grid_wrap"] = self.grid_wrap
         topo = self.__dict__.get("topology")
         if topo is not None:
             new.__dict__["topology"] = topo

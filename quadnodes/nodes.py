@@ -266,7 +266,7 @@ def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray 
 @node("detect", outputs=("report", "free"),
       ranges={"threshold": Range(min=0)})
 @_validate.renamed(fix_boundary="fix = \"boundary\"")
-def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float = 0.1,
+def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float | None = None,
            fix: FixMode = "corners",
            detection: Literal["alternating", "thesis"] = "alternating") -> tuple[ZigzagReport, np.ndarray]:
     """Find zigzag vertices (deviation strictly above threshold); outputs the report and the free mask.
@@ -274,7 +274,7 @@ def detect(mesh: QuadMesh, fixed: np.ndarray | None = None, *, threshold: float 
     Parameters
     ----------
     threshold : float
-        Zigzag cut-off: a vertex whose deviation is strictly above it is freed.
+        Zigzag cut-off: a vertex whose deviation is strictly above it is freed (empty: 0.03 alternating, 0.1 thesis).
     fix : str
         Vertices never freed: none, the corners, or the whole boundary (plus a connected ``fixed`` mask).
     detection : str
@@ -340,14 +340,15 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
 @_validate.renamed(deviation="threshold", deviation_decay="threshold_decay", fix_boundary="fix = \"boundary\"")
 def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | Face | None = None, *,
          iterations: int = 1,
-         threshold: float | list[float] = 0.1, threshold_decay: float = 1.0,
+         threshold: float | list[float] | None = None, threshold_decay: float = 1.0,
          weight: float | list[float] = DEFAULT_WEIGHT, weight_decay: float = 1.0,
          weight_scale: Literal["normalized", "raw"] = "normalized",
          anchor: Literal["current", "input"] = "current",
          fix: FixMode = "corners",
          solver: Literal["auto", "direct", "cg"] = "auto",
          extraordinary: Literal["fair", "hold"] = "fair",
-         detection: Literal["alternating", "thesis"] = "alternating") -> tuple[QuadMesh, FairingReport]:
+         detection: Literal["alternating", "thesis"] = "alternating",
+         spacing: Literal["fair", "hold"] = "fair") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
     with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
 
@@ -356,7 +357,7 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
     iterations : int
         Rounds of detect-then-solve (each re-detects the zigzag vertices).
     threshold : float or list of float
-        Zigzag cut-off per round (eq. 30): vertices deviating more are freed.
+        Zigzag cut-off per round (eq. 30): vertices deviating more are freed (empty: 0.03 alternating, 0.1 thesis).
     threshold_decay : float
         Factor applied to the cut-off after each round (1: constant).
     weight : float or list of float
@@ -375,11 +376,13 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
         fair (default: vertices where lines end get a fairness term of their own) or hold (the thesis).
     detection : str
         alternating (default: steady bends are no zigzag) or thesis (eq. 30 exactly).
+    spacing : str
+        fair (default: uneven spacing along a line is faired too) or hold (the thesis: every edge keeps its length).
     """
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
                  fix=fix, fixed=fixed, solver=solver, reference=reference, extraordinary=extraordinary,
-                 detection=detection)
+                 detection=detection, spacing=spacing)
 
 
 @node("planarize", outputs=("mesh", "report"),

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, depth_first_order
 
-from ._validate import grid_cells
+from ._validate import grid_cell_base, grid_cells
 
 if TYPE_CHECKING:
     from .mesh import QuadMesh
@@ -295,6 +295,24 @@ class Topology:
         return _grid_shape(self.faces, self.n_vertices)
 
     @cached_property
+    def closed_grid(self) -> tuple[int, int, bool, bool] | None:
+        """``(rows, cols, wrap_rows, wrap_cols)`` when the faces are every cell of a cylinder or torus grid.
+
+        Vertex ``i*cols + j`` sits at row ``i``, column ``j`` (as :func:`as_grid`
+        numbers them and :func:`quadnodes.mesh.cylinder` / ``torus`` make them);
+        ``wrap_cols``: the rows are closed (the last column joins column 0),
+        ``wrap_rows``: the columns are. None for open grids (:attr:`grid_shape`)
+        and everything else.
+
+        Examples
+        --------
+        >>> from quadnodes.mesh import cylinder, torus
+        >>> cylinder(3, 5).topology.closed_grid, torus(4, 6).topology.closed_grid
+        ((3, 5, False, True), (4, 6, True, True))
+        """
+        return _closed_grid(self.faces, self.n_vertices)
+
+    @cached_property
     def structure_lines(self) -> StructureLines:
         """All structure lines, canonically ordered and oriented.
 
@@ -346,6 +364,25 @@ def _grid_shape(faces: np.ndarray, n: int) -> tuple[int, int] | None:
     if grid_cells(faces, rows, cols) >= 0 or np.bincount(faces.min(axis=1), minlength=n).max() > 1:
         return None  # not all unit cells, or one cell twice
     return rows, cols
+
+
+def _closed_grid(faces: np.ndarray, n: int) -> tuple[int, int, bool, bool] | None:
+    """``(rows, cols, wrap_rows, wrap_cols)`` if ``faces`` are all cells, once each, of a closed vertex grid."""
+    if len(faces) == 0:
+        return None
+    span = np.bincount(faces.max(axis=1) - faces.min(axis=1))  # cols + 1 for every cell off the seams
+    cols = int(np.argmax(span)) - 1
+    if cols < 3 or n % cols:
+        return None
+    rows = n // cols
+    for wrap in ((False, True), (True, False), (True, True)):
+        count = (rows - (not wrap[0])) * (cols - (not wrap[1]))
+        if rows < (3 if wrap[0] else 2) or count != len(faces):
+            continue
+        base = grid_cell_base(faces, rows, cols, wrap_rows=wrap[0], wrap_cols=wrap[1])
+        if (base >= 0).all() and np.unique(base).size == len(faces):
+            return rows, cols, wrap[0], wrap[1]
+    return None
 
 
 def _grid_lines(rows: int, cols: int) -> StructureLines:
@@ -723,7 +760,23 @@ def as_grid(mesh: QuadMesh) -> QuadMesh | None:
     listed row by row (orientation kept) and ``grid_shape`` is set, so panels are
     labelled ``P_<row>_<col>`` and fairing takes its grid path. Vertex numbers
     change (a ``fixed`` list in the file's numbering must be mapped by position).
-    Cylinder and torus grids (closed structure lines) are not renumbered: None.
+
+    A cylinder grid (every interior vertex of valence 4, two boundary loops of
+    valence-3 vertices) and a torus grid (every vertex of valence 4, no boundary)
+    are recognized too, by their structure lines: the rows are closed lines, the
+    columns the lines of the other family, each crossing every row once.
+    Row 0 is, on a cylinder, the boundary loop holding the smallest boundary
+    vertex, on a torus the closed line through the smallest vertex whose next
+    vertex has the smaller index; it starts at that vertex (column 0) and runs
+    towards that smaller neighbour; column 0 runs from it towards row 1 in the
+    direction of its smaller neighbour (on a cylinder: away from the boundary).
+    The seam lies between the last column (row) and column (row) 0, and
+    ``grid_wrap`` says which way the grid closes: ``(False, True)`` for a
+    cylinder, ``(True, True)`` for a torus. A line that runs around more than
+    once (a torus glued with a shift, whose columns are helices) is no grid: None.
+    On a torus grid whose rows and columns have the same length the two
+    families are interchangeable; the rule above picks one, from the vertex
+    numbering.
 
     Parameters
     ----------
@@ -755,6 +808,9 @@ def as_grid(mesh: QuadMesh) -> QuadMesh | None:
     if topo.grid_shape is not None:
         return _QuadMesh(mesh.vertices, mesh.faces, grid_shape=topo.grid_shape, unit=mesh.unit)
     bnd = topo.boundary_vertices
+    if not (topo.valence == 2).any() and np.array_equal(bnd, topo.regular_boundary) \
+            and np.array_equal(~bnd, topo.regular_interior):
+        return _as_closed_grid(mesh)
     corner = bnd & (topo.valence == 2) & (topo.vertex_face_count == 1)
     if (int(corner.sum()) != 4 or not np.array_equal(bnd, corner | topo.regular_boundary)
             or not np.array_equal(~bnd, topo.regular_interior)):
@@ -804,3 +860,93 @@ def as_grid(mesh: QuadMesh) -> QuadMesh | None:
     if _grid_shape(faces, n) != (rows, cols):
         return None
     return _QuadMesh(mesh.vertices[order], faces, grid_shape=(rows, cols), unit=mesh.unit)
+
+
+def _as_closed_grid(mesh: QuadMesh) -> QuadMesh | None:
+    """:func:`as_grid` for a cylinder or torus grid (every line through a regular vertex), else None."""
+    from .mesh import QuadMesh as _QuadMesh
+
+    topo = mesh.topology
+    n = mesh.n_vertices
+    used = topo.vertex_face_count > 0
+    if not used.all():
+        return None
+    lines = topo.structure_lines
+    bnd = topo.boundary_vertices
+    ln = lines.lengths
+    L = len(ln)
+    line_of = np.repeat(np.arange(L), ln)
+    pos = np.arange(lines.indices.size) - lines.offsets[:-1][line_of]
+    # every vertex on exactly two lines (one of each family), never twice on one
+    per_vertex = np.bincount(lines.indices, minlength=n)
+    if (per_vertex != 2).any() or np.unique(lines.indices * L + line_of).size != lines.indices.size:
+        return None
+    # the two lines at every vertex, and the vertex's place on each
+    by_vertex = np.argsort(lines.indices, kind="stable").reshape(n, 2)
+    at_line, at_pos = line_of[by_vertex], pos[by_vertex]
+    is_cylinder = bool(bnd.any())
+    if is_cylinder:  # the rows are the closed lines, two of them the boundary loops
+        v0 = int(np.flatnonzero(bnd)[0])
+        if int(lines.closed[np.unique(line_of[lines.indices == v0])].sum()) != 1:
+            return None
+        k = int(np.flatnonzero(lines.closed[at_line[v0]])[0])
+    else:  # torus: of the two lines through the smallest vertex, row 0 turns to the smaller neighbour
+        v0 = 0
+        if not lines.closed.all():
+            return None
+        k = int(np.argmin([lines[int(li)][1] for li in at_line[v0]]))
+    row0_line = int(at_line[v0, k])
+    row0 = np.roll(lines[row0_line], -int(at_pos[v0, k]))  # canonical: starts at v0 when v0 is its smallest
+    if row0[0] != v0:
+        return None
+    if row0.size > 2 and lines.closed[row0_line] and row0[1] > row0[-1]:
+        row0 = np.r_[row0[:1], row0[:0:-1]]
+    cols = row0.size
+    # the other line through every vertex of row 0 is its column
+    other = np.where(at_line[row0, 0] == row0_line, 1, 0)
+    col_line = at_line[row0, other]
+    col_pos = at_pos[row0, other]
+    if np.unique(col_line).size != cols or (col_line == row0_line).any():
+        return None
+    rows = int(ln[col_line[0]])
+    if (ln[col_line] != rows).any() or rows * cols != n or rows < 2 or cols < 3:
+        return None
+    closed_cols = lines.closed[col_line]
+    if is_cylinder:  # columns: open lines from one boundary loop to the other
+        if closed_cols.any() or int(lines.closed.sum()) != rows:
+            return None
+        step = np.where(col_pos == 0, 1, -1)
+    else:
+        if not closed_cols.all() or L != rows + cols or rows < 3:
+            return None
+        # column 0 runs towards its smaller neighbour; the others keep to the same side of row 0:
+        # their next vertex lies on row 1, the line through column 0's next vertex
+        c0 = lines[int(col_line[0])]
+        p0 = int(col_pos[0])
+        ahead, back = int(c0[(p0 + 1) % rows]), int(c0[(p0 - 1) % rows])
+        w = min(ahead, back)
+        row1 = at_line[w, 1] if at_line[w, 0] == col_line[0] else at_line[w, 0]
+        nxt = lines.indices[lines.offsets[col_line] + (col_pos + 1) % rows]
+        step = np.where(_on_line(lines, row1, nxt, n), 1, -1)
+    q = (col_pos[:, None] + step[:, None] * np.arange(rows)) % rows  # (cols, rows)
+    G = lines.indices[lines.offsets[col_line][:, None] + q].T  # (rows, cols)
+    order = G.reshape(-1)
+    new_index = np.full(n, -1, dtype=np.int64)
+    new_index[order] = np.arange(n)
+    if (new_index < 0).any():
+        return None
+    faces = new_index[mesh.faces]
+    wrap = (not is_cylinder, True)
+    base = grid_cell_base(faces, rows, cols, wrap_rows=wrap[0], wrap_cols=wrap[1])
+    if (base < 0).any():
+        return None
+    faces = faces[np.argsort(base, kind="stable")]
+    out = _QuadMesh(mesh.vertices[order], faces, grid_shape=(rows, cols), unit=mesh.unit)
+    return out if out.grid_wrap == wrap else None
+
+
+def _on_line(lines: StructureLines, line: int, vertices: np.ndarray, n: int) -> np.ndarray:
+    """Whether each of ``vertices`` lies on structure line ``line``, ``(k,) bool``."""
+    on = np.zeros(n, dtype=bool)
+    on[lines[int(line)]] = True
+    return on[vertices]

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Literal
 
 import numpy as np
@@ -21,12 +23,23 @@ __all__ = [
     "detect",
     "DETECTIONS",
     "DEFAULT_DETECTION",
+    "DEFAULT_THRESHOLDS",
 ]
 
 #: The values of ``detection``: ``"alternating"`` (turning that flips side) or ``"thesis"`` (eq. 30).
 DETECTIONS: tuple[str, ...] = ("alternating", "thesis")
 #: Chosen by measurement (``benchmarks/studies/bench_real_meshes.py``, ``docs/real-meshes.md``).
 DEFAULT_DETECTION = "alternating"
+#: ``threshold`` when none is given, per detection: the thesis's 0.1 for eq. 30, which is large on steady
+#: design bends too; 0.03 for the alternating turning, which is zero on steady bends — the largest on the clean
+#: meshes of ``tests/data`` and E1–E4 is 0.019 (``polygon_quads.obj``; 0.0015 elsewhere), and broadband noise
+#: below 0.1 is then found too (``docs/fairing.md``, "Thresholds for broadband noise").
+DEFAULT_THRESHOLDS: Mapping[str, float] = MappingProxyType({"alternating": 0.03, "thesis": 0.1})
+
+
+def _threshold(threshold: object, detection: str) -> object:
+    """``threshold``, or the detection's default (:data:`DEFAULT_THRESHOLDS`) when it is None."""
+    return DEFAULT_THRESHOLDS[detection] if threshold is None else threshold
 
 
 def window_edges(vertices: np.ndarray, windows: np.ndarray) -> list[np.ndarray]:
@@ -249,7 +262,7 @@ class ZigzagReport:
 @_validate.renamed(fix_boundary="fix='boundary'")
 def detect(
     mesh: QuadMesh,
-    threshold: float = 0.1,
+    threshold: float | None = None,
     *,
     fix: Literal["none", "corners", "boundary"] = "corners",
     fixed: ArrayLike | None = None,
@@ -265,8 +278,10 @@ def detect(
     Parameters
     ----------
     mesh : QuadMesh
-    threshold : float
+    threshold : float, optional
         Deviation threshold (>= 0); the thesis uses 0.1 and, for strong noise, 1.
+        Default: :data:`DEFAULT_THRESHOLDS` of the ``detection`` (0.03 alternating,
+        0.1 thesis).
     fix : {"none", "corners", "boundary"}
         Vertices held in place (see :func:`quadnodes.topology.fixed_vertices`);
         corners lie in no window's middle, so they are never free anyway.
@@ -297,8 +312,8 @@ def detect(
     [[0, 0, 0, 0, 0, 0], [0, 1, 1, 1, 0, 0], [0, 0, 0, 0, 0, 0]]
     """
     _validate.quad_mesh(mesh)
-    threshold = _validate.nonnegative_number(threshold, "threshold")
     detection = _validate.choice(detection, DETECTIONS, "detection")
+    threshold = _validate.nonnegative_number(_threshold(threshold, detection), "threshold")
     held = fixed_vertices(mesh, fix, fixed)
     alt = _walk_alternation(mesh.vertices, mesh.topology.window_walk) if detection == "alternating" else None
     return _detect(mesh, threshold, held, _mesh_window_deviation(mesh), fix, alt)

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from quadnodes.mesh import QuadMesh, cylinder, grid, torus
+from quadnodes.mesh import QuadMesh, cylinder, grid, grid_faces, torus
 from quadnodes.topology import adjacency, corner_vertices, structure_lines, windows
 from meshes import extraordinary_mesh, l_shape_with_hole
 
@@ -205,7 +205,7 @@ def test_as_grid_refuses_what_is_not_a_grid():
 
     assert as_grid(extraordinary_mesh()) is None
     assert as_grid(l_shape_with_hole()) is None
-    assert as_grid(cylinder(4, 6)) is None  # closed lines: left as is
+    assert as_grid(cylinder(4, 6)).grid_wrap == (False, True)  # closed lines: a cylinder grid (item 5)
     g = grid(3, 4)
     assert as_grid(g) is g
 
@@ -227,3 +227,115 @@ def test_staircase_steps_are_not_corners_but_sides_ends_are():
     assert len(by_valence) == 10  # the three triangle corners and the 7 step vertices
     pos = m.vertices[by_turn, :2].tolist()
     assert sorted(map(tuple, pos)) == [(0.0, 0.0), (0.0, 4.0), (1.0, 4.0), (4.0, 0.0), (4.0, 1.0)]
+
+
+# --- issue 16 item 5: cylinder and torus grids from connectivity alone ---------------------------
+
+
+def _shuffled(m, rng, *, flip=False):
+    """``m`` with its vertices renumbered, its faces listed in another order, each starting elsewhere."""
+    p = rng.permutation(m.n_vertices)
+    inv = np.argsort(p)
+    faces = inv[m.faces][rng.permutation(m.n_faces)]
+    faces = np.array([np.roll(f, int(k)) for f, k in zip(faces, rng.integers(0, 4, len(faces)))])
+    if flip:
+        faces = faces[:, ::-1]
+    return QuadMesh(m.vertices[p], faces, unit="m"), p
+
+
+def _line_set(lines, closed, relabel=None):
+    """Lines as comparable tuples: closed ones from their smallest vertex towards the smaller neighbour,
+    open ones from their smaller end."""
+    out = set()
+    for line, c in zip(lines, closed):
+        line = np.asarray(line) if relabel is None else relabel[np.asarray(line)]
+        if c:
+            line = np.roll(line, -int(np.argmin(line)))
+            if line.size > 2 and line[-1] < line[1]:
+                line = np.r_[line[:1], line[:0:-1]]
+        elif line[-1] < line[0]:
+            line = line[::-1]
+        out.add((bool(c), tuple(int(v) for v in line)))
+    return out
+
+
+def _grid_rows_cols(r, c, wrap_rows, wrap_cols):
+    ids = np.arange(r * c).reshape(r, c)
+    return [(wrap_cols, list(x)) for x in ids] + [(wrap_rows, list(x)) for x in ids.T]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=st.integers(2, 7), cols=st.integers(3, 8),
+       kind=st.sampled_from(["cylinder", "torus"]), flip=st.booleans())
+def test_as_grid_recognizes_cylinders_and_tori_in_any_numbering(seed, rows, cols, kind, flip):
+    from quadnodes.io.panels import panel_labels
+    from quadnodes.topology import as_grid
+
+    rows = max(rows, 3) if kind == "torus" else rows
+    base = cylinder(rows, cols) if kind == "cylinder" else torus(rows, cols)
+    rng = np.random.default_rng(seed)
+    base = base.with_vertices(base.vertices + rng.normal(scale=0.01, size=base.vertices.shape))
+    shuffled, p = _shuffled(base, rng, flip=flip)
+    out = as_grid(shuffled)
+    assert out is not None and out.unit == "m"
+    r, c = out.grid_shape
+    if kind == "cylinder":  # the rows are the rings: the shape is never transposed
+        assert (r, c) == (rows, cols) and out.grid_wrap == (False, True)
+    else:  # either family may be the rows on a torus
+        assert sorted((r, c)) == sorted((rows, cols)) and out.grid_wrap == (True, True)
+    # the same points, and the faces are exactly the grid's cells (closed as the grid closes)
+    np.testing.assert_array_equal(np.sort(out.vertices, axis=0), np.sort(base.vertices, axis=0))
+    want = grid_faces(r, c, wrap_rows=out.grid_wrap[0], wrap_cols=out.grid_wrap[1])
+    assert {frozenset(f) for f in out.faces.tolist()} == {frozenset(f) for f in want.tolist()}
+    # rows and columns are the lines the tracer finds in the shuffled mesh, numbered as in the output
+    relabel = np.empty(out.n_vertices, dtype=np.int64)
+    pos = {tuple(v): k for k, v in enumerate(out.vertices.tolist())}
+    relabel[:] = [pos[tuple(v)] for v in shuffled.vertices.tolist()]
+    traced = structure_lines(shuffled)
+    grid_lines = _grid_rows_cols(r, c, *out.grid_wrap)
+    assert _line_set(traced, traced.closed, relabel) == _line_set([g for _, g in grid_lines],
+                                                                     [w for w, _ in grid_lines])
+    # deterministic: the same input gives the same numbering; the labels are every cell once
+    again = as_grid(QuadMesh(shuffled.vertices, shuffled.faces))
+    np.testing.assert_array_equal(again.faces, out.faces)
+    labels = panel_labels(out)
+    assert len(set(labels)) == out.n_faces and all(lab.startswith("P_") and lab.count("_") == 2 for lab in labels)
+    # the seam: row 0 starts at the smallest vertex of its loop (cylinder: boundary loop), orientation kept
+    first = shuffled.topology.boundary_vertices if kind == "cylinder" else np.ones(out.n_vertices, bool)
+    assert relabel[int(np.flatnonzero(first)[0])] == 0
+    n0 = shuffled.faces[0]
+    assert any(np.array_equal(np.roll(relabel[n0], k), f) for f in out.faces.tolist() for k in range(4))
+
+
+def test_as_grid_keeps_a_numbered_cylinder_and_torus():
+    from quadnodes.topology import as_grid
+
+    for m, shape in ((cylinder(4, 6), (4, 6)), (cylinder(2, 3), (2, 3)), (torus(3, 3), (3, 3)), (torus(5, 8), (5, 8))):
+        out = as_grid(m)
+        assert out is not None and out.grid_shape == shape and out.n_faces == m.n_faces
+        np.testing.assert_array_equal(out.vertices, m.vertices)  # already row by row: the same numbering
+
+
+def test_as_grid_refuses_a_torus_glued_with_a_shift():
+    from quadnodes.topology import as_grid
+
+    # a 4 x 6 torus whose last row is glued to row 0 shifted by one column: the columns are helices
+    r, c, s = 4, 6, 1
+    f = grid_faces(r, c, wrap_cols=True).tolist()
+    f += [[(r - 1) * c + j, (r - 1) * c + (j + 1) % c, (j + 1 + s) % c, (j + s) % c] for j in range(c)]
+    t = torus(r, c)
+    m = QuadMesh(t.vertices, np.array(f))
+    assert m.topology.valence.min() == 4 and as_grid(m) is None
+
+
+def test_grid_shape_accepts_closed_grids_and_labels_the_seam():
+    from quadnodes.errors import InputError
+    from quadnodes.io.panels import panel_rows_cols
+
+    m = QuadMesh(cylinder(3, 4).vertices, grid_faces(3, 4, wrap_cols=True), grid_shape=(3, 4))
+    assert m.grid_wrap == (False, True) and m.topology.grid_shape is None  # the solver's open-grid path: not taken
+    r, c = panel_rows_cols(m)
+    assert sorted(zip(r.tolist(), c.tolist())) == [(i, j) for i in range(2) for j in range(4)]
+    assert m.with_vertices(m.vertices * 2).grid_wrap == (False, True)
+    with pytest.raises(InputError, match="not a cell"):
+        QuadMesh(cylinder(3, 4).vertices, grid_faces(3, 4, wrap_cols=True), grid_shape=(4, 3))

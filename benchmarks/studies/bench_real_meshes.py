@@ -12,8 +12,11 @@ moves vertices, not the correspondence), averaged over the seeds. Methods, each 
 best of its settings on that mesh and noise is shown (the setting beside it):
 
 - ``fair``: ``quadnodes.fair`` with its defaults (``detection="alternating"``,
-  ``extraordinary="fair"``), iterations 1, 3, 5;
-- ``fair (thesis)``: ``extraordinary="hold", detection="thesis"`` — the thesis's method, iterations 1, 3, 5;
+  ``extraordinary="fair"``, ``spacing="fair"``), iterations 1, 3, 5;
+- ``fair (before)``: fair's defaults before issue 16 item 6: ``spacing="hold", threshold=0.1``,
+  iterations 1, 3, 5;
+- ``fair (thesis)``: ``extraordinary="hold", detection="thesis", spacing="hold"`` — the thesis's method,
+  iterations 1, 3, 5;
 - ``laplacian``: ``quadnodes.laplacian`` (λ = 0.5, corners held), iterations 1, 2, 4, 8;
 - ``taubin``: ``quadnodes.taubin`` (corners held), iterations 1, 2, 5, 10, 20;
 - ``trimesh taubin``: ``trimesh.smoothing.filter_taubin`` on the triangulated mesh, iterations
@@ -23,9 +26,11 @@ The last columns say whether fair is the best (``zigzag``) or within 20 % of the
 
 ``--studies`` prints instead the measurements behind the defaults (``docs/fairing.md``): detection on the
 clean meshes and on E1–E4 (``quadnodes.report``'s noise and parameters, seed 7), and the pseudo-window
-scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``.
+scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``. ``--spacing`` prints the study behind
+``spacing="fair"``: E1–E4 as in ``quadnodes compare`` (seeds 7 and 1–5, noise on the corners-held and on the
+interior-only variant), the thesis's parameters and the default weight, ``spacing="hold"`` against ``"fair"``.
 
-Run:  python benchmarks/studies/bench_real_meshes.py [--seeds 3] [--markdown] [--studies]
+Run:  python benchmarks/studies/bench_real_meshes.py [--seeds 3] [--markdown] [--studies | --spacing]
 """
 
 from __future__ import annotations
@@ -63,8 +68,10 @@ def _trimesh_taubin(mesh, iterations):
 
 METHODS = {
     "fair": [(f"{k} it", lambda m, k=k: fair(m, iterations=k)[0]) for k in (1, 3, 5)],
-    "fair (thesis)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, extraordinary="hold",
-                                                       detection="thesis")[0]) for k in (1, 3, 5)],
+    "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, spacing="hold", threshold=0.1)[0])
+                      for k in (1, 3, 5)],
+    "fair (thesis)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, extraordinary="hold", detection="thesis",
+                                                       spacing="hold", threshold=0.1)[0]) for k in (1, 3, 5)],
     "laplacian": [(f"{k} it", lambda m, k=k: laplacian(m, iterations=k, fix="corners")[0]) for k in (1, 2, 4, 8)],
     "taubin": [(f"{k} it", lambda m, k=k: taubin(m, iterations=k, fix="corners")[0]) for k in (1, 2, 5, 10, 20)],
     "trimesh taubin": [(f"{k} it", lambda m, k=k: _trimesh_taubin(m, k)) for k in (2, 5, 10, 20, 50)],
@@ -76,18 +83,20 @@ def studies() -> None:
 
     import quadnodes.fairing as F
     from quadnodes.report import THESIS_EXAMPLES, _geometry
-    from quadnodes.zigzag import detect
+    from quadnodes.zigzag import _walk_alternation, detect
 
-    print("clean meshes: vertices freed by detect(threshold=0.1) / largest move of fair(iterations=3) in h")
+    print("clean meshes: vertices freed by detect() at the detection's default threshold (thesis 0.1, alternating "
+          "0.03) / largest move of fair(iterations=3) in h / largest alternating turning")
     for name in MESHES:
         m = load(DATA / name)
         h = m.mean_edge_length
         cells = []
         for det in ("thesis", "alternating"):
             out, _ = fair(m, iterations=3, detection=det)
-            cells.append(f"{det} {detect(m, 0.1, detection=det).n_free} / "
+            cells.append(f"{det} {detect(m, detection=det).n_free} / "
                          f"{np.linalg.norm(out.vertices - m.vertices, axis=1).max() / h:.3f}")
-        print(f"  {name:22s} " + " | ".join(cells))
+        alt = float(_walk_alternation(m.vertices, m.topology.window_walk).max())
+        print(f"  {name:22s} " + " | ".join(cells) + f" | {alt:.2g}")
     print("E1-E4 (seed 7): clean vertices freed, and mean vertex error / h after fair on the noisy model")
     for name in ("E1", "E2", "E3", "E4"):
         ex = THESIS_EXAMPLES[name]
@@ -128,14 +137,45 @@ def studies() -> None:
         print(f"  {'hold' if s is None else s!s:5s} " + " | ".join(cells))
 
 
+def spacing_study() -> None:
+    """E1–E4 with ``spacing="hold"`` (the thesis) and ``"fair"``: the numbers of ``quadnodes compare``."""
+    from quadnodes.report import THESIS_EXAMPLES, _boundary_frame, _noisy_example, measure
+
+    keys = [("vertex_distance_mean_h", "to clean vertex"), ("surface_distance_mean_h", "to clean surface"),
+            ("zigzag_max", "zigzag max"), ("boundary_displacement_max_h", "boundary moved max"),
+            ("relief_change_pct", "relief %")]
+    print("E1-E4, mean over seeds 7, 1-5 (worst seed in brackets); hold -> fair")
+    for name in ("E1", "E2", "E3", "E4"):
+        ex = THESIS_EXAMPLES[name]
+        for fix in ("corners", "boundary"):
+            for label, params in (("thesis weights", dict(ex.fair)), ("default weight", {**ex.fair, "weight": 0.3})):
+                vals = {"hold": [], "fair": []}
+                for seed in (7, 1, 2, 3, 4, 5):
+                    _, clean, fine, noisy, _, _ = _noisy_example(name, seed, fix)
+                    frame = _boundary_frame(clean)
+                    for mode in vals:
+                        out, _ = fair(noisy, **params, spacing=mode)
+                        row = measure(noisy, out, clean, fine, boundary_frame=frame)
+                        vals[mode].append([row[k] for k, _ in keys])
+                h, f = (np.array(vals[m]) for m in ("hold", "fair"))
+                worse = (f - h).max(axis=0)  # the worst seed's change (larger = worse; relief: signed)
+                cells = [f"{lab} {h[:, j].mean():.3g} -> {f[:, j].mean():.3g} ({worse[j]:+.2g})"
+                         for j, (_, lab) in enumerate(keys)]
+                print(f"  {name} noise on {fix:8s} {label:15s} " + " | ".join(cells), flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--markdown", action="store_true", help="print a Markdown table")
     ap.add_argument("--studies", action="store_true", help="the measurements behind the defaults instead")
+    ap.add_argument("--spacing", action="store_true", help="the study behind spacing='fair' instead")
     args = ap.parse_args()
     if args.studies:
         studies()
+        return
+    if args.spacing:
+        spacing_study()
         return
     head = ["mesh", "noise", "noisy"] + list(METHODS) + ["fair vs best peer"]
     rows = []

@@ -272,7 +272,7 @@ def dxf_document(
     planar = planar_panels(mesh, planar_tolerance)
     unf = unfold(mesh)
     if per_row is None and mesh.grid_shape is not None and panel_rows_cols(mesh) is not None:
-        per_row = mesh.grid_shape[1] - 1
+        per_row = mesh.grid_shape[1] - 1 + mesh.grid_wrap[1]  # a ring of a cylinder has one cell more
     sheet = layout(unf.outlines, per_row=per_row, gap=gap)
     box = sheet.max(axis=1) - sheet.min(axis=1)
     if text_height is None:

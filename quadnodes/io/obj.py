@@ -297,7 +297,7 @@ def parse_obj(
             )
     if grid_shape is not None:
         r, c = grid_shape
-        if not (r >= 2 and c >= 2 and r * c == n and _validate.grid_cells(face_array, r, c) < 0):
+        if not (r >= 2 and c >= 2 and r * c == n and _validate.grid_wrap(face_array, r, c) is not None):
             grid_shape = None
     try:
         return QuadMesh(vertices, face_array, grid_shape=grid_shape, unit=unit)

@@ -34,9 +34,11 @@ _GW = 0.5 * _GW
 def panel_rows_cols(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray] | None:
     """Row and column of every panel's grid cell, or ``None`` without ``grid_shape``.
 
-    The cell of a quad is the smallest row and the smallest column among its four
-    vertices, so the label does not depend on where the face's vertex list starts
-    or which way it turns.
+    The cell of a quad is the row and column of its corner ``(i, j)`` whose
+    neighbours in the quad are ``(i, j+1)`` and ``(i+1, j)`` (on an open grid the
+    smallest row and column among its four vertices; across the seam of a cylinder
+    or torus grid the last column or row), so the label does not depend on where
+    the face's vertex list starts or which way it turns.
 
     Returns
     -------
@@ -48,12 +50,20 @@ def panel_rows_cols(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray] | None:
     >>> r, c = panel_rows_cols(grid(3, 3))
     >>> r.tolist(), c.tolist()
     ([0, 0, 1, 1], [0, 1, 0, 1])
+    >>> from quadnodes.mesh import cylinder
+    >>> from quadnodes.topology import as_grid
+    >>> panel_rows_cols(as_grid(cylinder(2, 3)))[1].tolist()  # the last cell closes the ring
+    [0, 1, 2]
     """
     _validate.quad_mesh(mesh)
     if mesh.grid_shape is None:
         return None
-    rows, cols = np.divmod(mesh.faces, mesh.grid_shape[1])
-    return rows.min(axis=1), cols.min(axis=1)
+    if mesh.grid_wrap == (False, False):
+        rows, cols = np.divmod(mesh.faces, mesh.grid_shape[1])
+        return rows.min(axis=1), cols.min(axis=1)
+    wrap_rows, wrap_cols = mesh.grid_wrap
+    base = _validate.grid_cell_base(mesh.faces, *mesh.grid_shape, wrap_rows=wrap_rows, wrap_cols=wrap_cols)
+    return np.divmod(base, mesh.grid_shape[1])
 
 
 def panel_labels(mesh: QuadMesh) -> list[str]:

@@ -278,7 +278,7 @@ def _grid_shape(text: str | None, faces: np.ndarray, n: int) -> tuple[int, int] 
         r, c = (int(t) for t in (text or "").split())
     except ValueError:
         return None
-    if r >= 2 and c >= 2 and r * c == n and _validate.grid_cells(faces, r, c) < 0:
+    if r >= 2 and c >= 2 and r * c == n and _validate.grid_wrap(faces, r, c) is not None:
         return r, c
     return None
 

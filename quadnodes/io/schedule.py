@@ -10,7 +10,8 @@ millimetres gives ``area_mm2``, ``edge_01_mm``, ``planarity_mm``.
     Face index in the mesh.
 ``row``, ``col``
     Grid row and column of the face's cell (smallest row and column of its
-    vertices); empty without ``grid_shape``.
+    vertices; across the seam of a cylinder or torus grid the last column or row,
+    :func:`quadnodes.io.panels.panel_rows_cols`); empty without ``grid_shape``.
 ``x0_<u>, y0_<u>, z0_<u>, ... x3_<u>, y3_<u>, z3_<u>``
     The four corners in face order (counter-clockwise), as in the mesh.
 ``area_<u>2``

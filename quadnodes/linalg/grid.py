@@ -2,7 +2,10 @@
 
 On a ``rows × cols`` grid whose every row of ``A`` couples four consecutive nodes
 of one grid line, ``AᵀA + ωI`` has 13 diagonals (offsets 0, ±1, ±2, ±3, ±cols,
-±2 cols, ±3 cols). :class:`GridPattern` computes once where each entry goes;
+±2 cols, ±3 cols). A grid closed around (a cylinder or torus, whose lines are
+closed and whose windows wrap across the seam) adds the periodic diagonals
+``±(cols − d)`` (rows closed) and ``±(n − d·cols)`` (columns closed), ``d = 1, 2, 3``.
+:class:`GridPattern` computes once where each entry goes;
 :meth:`GridPattern.normal_matrix` then fills the diagonals for any coefficients,
 with nodes outside the unknowns as identity rows.
 """
@@ -32,9 +35,21 @@ class GridPattern:
     per mesh and reused by every iteration and every weight.
     """
 
-    def __init__(self, ext: np.ndarray, start: np.ndarray, n: int, cols: int) -> None:
+    def __init__(self, ext: np.ndarray, start: np.ndarray, n: int, cols: int, *, wrap_rows: bool = False,
+                 wrap_cols: bool = False) -> None:
         m = ext.size
-        idx = np.int32 if 13 * n < 2**31 - 1 else np.int64  # (kept per mesh: half the memory of int64)
+        offsets = [-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols]
+        # a pair d apart along a closed line, across its seam: (d, b - a, slot of M[a, b], slot of M[b, a])
+        seam: list[tuple[int, int, int, int]] = []
+        for closed, period, step in ((wrap_cols, cols, 1), (wrap_rows, n, cols)):
+            if closed:
+                for d in (1, 2, 3):
+                    seam.append((d, d * step - period, len(offsets), len(offsets) + 1))
+                    offsets += [d * step - period, period - d * step]
+        if len(set(offsets)) != len(offsets):
+            raise ValueError(f"GridPattern: a {n // cols} x {cols} grid closed around is too small for distinct "
+                             "diagonals (at least 7 nodes along every closed direction)")
+        idx = np.int32 if len(offsets) * n < 2**31 - 1 else np.int64  # (kept per mesh: half the memory of int64)
         starts = np.zeros(m, dtype=bool)
         starts[start] = True
         self.valid = True
@@ -51,15 +66,27 @@ class GridPattern:
                 self.target.append((a,))
                 continue
             row = b - a == d
-            if not (row | (b - a == d * cols)).all():  # not rows (+1) and columns (+cols)
+            col = b - a == d * cols
+            up = np.where(row, 6 + d, 9 + d)  # M[a, b] at column b in slot up
+            down = 12 - up  # M[b, a] at column a
+            ok = row | col
+            for sd, delta, s_up, s_down in seam:
+                if sd == d:
+                    across = b - a == delta
+                    up = np.where(across, s_up, up)
+                    down = np.where(across, s_down, down)
+                    ok |= across
+            if not ok.all():  # not along rows (+1), columns (+cols) or across a seam
                 self.valid = False
                 return
-            up = np.where(row, 6 + d, 9 + d)
             self.q.append(q)
-            up = up.astype(idx)
-            self.target.append((up * idx(n) + b, (12 - up) * idx(n) + a))  # M[a, b] at column b, M[b, a] at column a
-        self.offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
+            up, down = up.astype(idx), down.astype(idx)
+            self.target.append((up * idx(n) + b, down * idx(n) + a))
+        self.offsets = np.array(offsets)
         self.n, self.start, self.ext = n, start, ext
+        # a closed line's walk repeats its first three nodes, so a pair near its start sits at two places
+        # of the walk (each holding some of its windows): those entries are summed, not written
+        self.summed = bool(seam)
 
     def normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray]:
         """``AᵀA + ωI`` in the grid's numbering as ``(offsets, data)``; other rows and columns are the identity's.
@@ -79,8 +106,8 @@ class GridPattern:
 
         Returns
         -------
-        offsets : (13,) int64
-        data : (13, n) float64
+        offsets : (13,) int64, or (19,) / (25,) on a grid closed in one / both directions
+        data : (len(offsets), n) float64
             ``data[d, j] = M[j - offsets[d], j]`` (SciPy's ``dia_matrix`` layout).
 
         Examples
@@ -99,7 +126,7 @@ class GridPattern:
         C[:, start] = coef.T
         for i in range(4):
             C[i, : m - i] *= on[i:]  # slot i of the window at s is ext[s + i]
-        data = np.zeros((13, n))
+        data = np.zeros((self.offsets.size, n))
         flat = data.reshape(-1)
         val = np.empty(m)
         for d in range(4):
@@ -109,6 +136,9 @@ class GridPattern:
             v = np.take(val, self.q[d])
             if d == 0:
                 data[6] = np.bincount(self.target[0][0], weights=v, minlength=n)
+            elif self.summed:
+                flat += np.bincount(self.target[d][0], weights=v, minlength=flat.size)
+                flat += np.bincount(self.target[d][1], weights=v, minlength=flat.size)
             else:
                 flat[self.target[d][0]] = v
                 flat[self.target[d][1]] = v

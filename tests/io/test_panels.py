@@ -16,6 +16,20 @@ def test_labels_on_a_grid_and_without():
     assert panel_rows_cols(cylinder(2, 3)) is None
 
 
+def test_labels_on_cylinder_and_torus_grids_name_every_cell_once(tmp_path):
+    from quadnodes.io.obj import load_obj, save_obj
+    from quadnodes.mesh import torus
+    from quadnodes.topology import as_grid
+
+    c = as_grid(cylinder(2, 3))
+    assert panel_labels(c) == ["P_0_0", "P_0_1", "P_0_2"]  # the last cell closes the ring
+    t = as_grid(torus(3, 4))
+    assert sorted(panel_labels(t)) == sorted(f"P_{i}_{j}" for i in range(3) for j in range(4))
+    save_obj(t, tmp_path / "t.obj")  # the grid comment survives a round trip for a closed grid too
+    back = load_obj(tmp_path / "t.obj")
+    assert back.grid_shape == (3, 4) and back.grid_wrap == (True, True) and panel_labels(back) == panel_labels(t)
+
+
 def test_degenerate_panels_name_the_reason():
     v = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1.5, 0, 0], [2, 1, 0], [2, 0, 0]])
     m = QuadMesh(v, [[0, 1, 2, 3], [1, 4, 5, 2]])

@@ -74,7 +74,7 @@ def test_the_page_edits_the_quickstart_live(served):
     key0 = b.wait_for(VIEW_KEY, timeout=300)
     assert b.evaluate("document.querySelector('.view[data-view=\"fair.mesh\"] .view-plot').data.length") == 2
     assert b.evaluate("document.querySelectorAll('#wires path.wire').length") >= 20
-    comment = "# threshold 0.1 and weight 0.3 by default"
+    comment = "# threshold 0.03 (alternating detection) and weight 0.3 by default"
     assert comment in graph.read_text()
 
     # change fair.iterations through the form
