@@ -43,8 +43,8 @@ __all__ = [
     "window_coefficients",
     "extraordinary_windows",
     "EXTRAORDINARY_MODES",
-    "SPACING_MODES",
-    "DEFAULT_SPACING",
+    "LINE_SPACING_MODES",
+    "DEFAULT_LINE_SPACING",
     "fairing_matrix",
     "fairing_energy",
     "FairingSystem",
@@ -88,7 +88,7 @@ GRID_MIN_FREE = 0.6
 DEFAULT_WEIGHT = 0.3
 
 
-def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, spacing: str = "hold") -> np.ndarray:
+def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, line_spacing: str = "hold") -> np.ndarray:
     """Coefficients ``(a0, a1, a2, a3)`` of eq. 32 for every window.
 
     Lengths are taken from ``vertices`` (frozen). Each row sums to zero, so the
@@ -98,7 +98,7 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, spacing: s
     ----------
     vertices : (n, 3) float64
     windows : (w, 4) int64
-    spacing : {"hold", "fair"}
+    line_spacing : {"hold", "fair"}
         ``"hold"`` (default here: eq. 32 exactly): every edge's own length;
         ``"fair"``: the window's mean edge length for all three (:func:`even_lengths`).
 
@@ -111,12 +111,12 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, spacing: s
     >>> v = np.array([[0., 0, 0], [1, 0, 0], [3, 0, 0], [4, 0, 0]])
     >>> window_coefficients(v, np.array([[0, 1, 2, 3]])).tolist()
     [[-0.5, 1.0, -1.0, 0.5]]
-    >>> window_coefficients(v, np.array([[0, 1, 2, 3]]), spacing="fair").tolist()  # mean length 4/3
+    >>> window_coefficients(v, np.array([[0, 1, 2, 3]]), line_spacing="fair").tolist()  # mean length 4/3
     [[-0.375, 1.125, -1.125, 0.375]]
     """
-    spacing = _validate.choice(spacing, SPACING_MODES, "spacing")
+    line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")
     inv = np.stack([1.0 / np.sqrt(np.einsum("ij,ij->i", d, d)) for d in window_edges(vertices, windows)], axis=1)
-    if spacing == "fair":
+    if line_spacing == "fair":
         inv = even_lengths(inv)
     return _coefficients(inv[:, 0], inv[:, 1], inv[:, 2])
 
@@ -126,17 +126,17 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, spacing: s
 EXTRAORDINARY_SCALE = 0.25
 #: The values of ``extraordinary`` in :func:`fair`.
 EXTRAORDINARY_MODES: tuple[str, ...] = ("fair", "hold")
-#: The values of ``spacing`` in :func:`fair` and :func:`window_coefficients`: ``"hold"`` freezes every edge's
+#: The values of ``line_spacing`` in :func:`fair` and :func:`window_coefficients`: ``"hold"`` freezes every edge's
 #: length (eq. 32 exactly), ``"fair"`` gives a window's three edges their mean length (:func:`even_lengths`).
-SPACING_MODES: tuple[str, ...] = ("fair", "hold")
+LINE_SPACING_MODES: tuple[str, ...] = ("fair", "hold")
 #: Measured on the real meshes and on E1–E4 (docs/fairing.md, "Spacing along the lines").
-DEFAULT_SPACING = "fair"
+DEFAULT_LINE_SPACING = "fair"
 
 
 def even_lengths(inverse: np.ndarray) -> np.ndarray:
     """Inverse lengths ``(w, 3)`` with each window's three edges given their mean length.
 
-    With ``spacing="fair"`` the window term ``((d0 + d2)/2 − d1) / l̄`` is a third
+    With ``line_spacing="fair"`` the window term ``((d0 + d2)/2 − d1) / l̄`` is a third
     difference along the line: it vanishes on a straight line whose vertices are
     evenly spaced or whose spacing grows linearly, and sees a vertex slid along
     the line (which frozen per-edge lengths hold, because ``d/l`` keeps its
@@ -261,12 +261,12 @@ def fairing_matrix(vertices: np.ndarray, windows: np.ndarray) -> sp.csr_matrix:
 
 
 def fairing_energy(
-    vertices: np.ndarray, windows: np.ndarray, *, lengths_from: np.ndarray | None = None, spacing: str = "hold"
+    vertices: np.ndarray, windows: np.ndarray, *, lengths_from: np.ndarray | None = None, line_spacing: str = "hold"
 ) -> float:
     """Linearized fairness energy ``Σ ||f_i||²`` with lengths frozen at ``lengths_from``.
 
-    ``lengths_from`` defaults to ``vertices``; then, with ``spacing="hold"``,
-    ``||f_i||²`` equals the window's deviation (eq. 30) exactly. ``spacing="fair"``
+    ``lengths_from`` defaults to ``vertices``; then, with ``line_spacing="hold"``,
+    ``||f_i||²`` equals the window's deviation (eq. 30) exactly. ``line_spacing="fair"``
     is the energy :func:`fair` minimizes by default (see :func:`window_coefficients`).
 
     Examples
@@ -277,7 +277,7 @@ def fairing_energy(
     0.0
     """
     ref = vertices if lengths_from is None else lengths_from
-    c = window_coefficients(ref, windows, spacing=spacing)
+    c = window_coefficients(ref, windows, line_spacing=line_spacing)
     f = np.einsum("wk,wkj->wj", c, vertices[windows])
     return float(np.einsum("ij,ij->", f, f))
 
@@ -695,7 +695,7 @@ class IterationReport:
 
     ``energy_before``/``energy_after`` are the linearized energy (eq. 32) of the
     whole mesh with lengths frozen at the iterate's start (each window's mean
-    length with ``spacing="fair"``); ``deviation_*`` the exact eq. 30 sums.
+    length with ``line_spacing="fair"``); ``deviation_*`` the exact eq. 30 sums.
     """
 
     iteration: int
@@ -812,7 +812,7 @@ def fair(
     solver: Literal["auto", "direct", "cg"] = "auto",
     extraordinary: Literal["fair", "hold"] = "fair",
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
-    spacing: Literal["fair", "hold"] = DEFAULT_SPACING,
+    line_spacing: Literal["fair", "hold"] = DEFAULT_LINE_SPACING,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -867,7 +867,7 @@ def fair(
     detection : {"alternating", "thesis"}
         How zigzag vertices are found each iteration (:func:`quadnodes.zigzag.detect`):
         ``"thesis"`` is eq. 30; ``"alternating"`` (default) leaves steady bends alone.
-    spacing : {"fair", "hold"}
+    line_spacing : {"fair", "hold"}
         How edge lengths are frozen in eq. 32. ``"hold"``: the thesis exactly —
         every edge keeps its own length, so a vertex slid along its line (the
         along-line part of noise) costs nothing and stays. ``"fair"`` (default):
@@ -910,7 +910,7 @@ def fair(
     solver = _validate.choice(solver, ("auto", "direct", "cg"), "solver")  # type: ignore[assignment]
     extraordinary = _validate.choice(extraordinary, EXTRAORDINARY_MODES, "extraordinary")  # type: ignore[assignment]
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
-    spacing = _validate.choice(spacing, SPACING_MODES, "spacing")  # type: ignore[assignment]
+    line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")  # type: ignore[assignment]
     held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
     xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "fair" else np.empty((0, 4), np.int64)
@@ -952,7 +952,7 @@ def fair(
         alt = _walk_alternation(x, walk) if detection == "alternating" else None
         zz = _detect(current, float(thresholds[it]), held, geometry[0], fix, alt)
         dev_before = float(zz.window_deviation.sum())
-        if spacing == "hold":
+        if line_spacing == "hold":
             inverse = geometry[1]
             w_energy = zz.window_deviation  # lengths frozen at x: each window's term is its eq. 30 deviation
         else:

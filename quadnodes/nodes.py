@@ -348,7 +348,7 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          solver: Literal["auto", "direct", "cg"] = "auto",
          extraordinary: Literal["fair", "hold"] = "fair",
          detection: Literal["alternating", "thesis"] = "alternating",
-         spacing: Literal["fair", "hold"] = "fair") -> tuple[QuadMesh, FairingReport]:
+         line_spacing: Literal["fair", "hold"] = "fair") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
     with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
 
@@ -376,13 +376,13 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
         fair (default: vertices where lines end get a fairness term of their own) or hold (the thesis).
     detection : str
         alternating (default: steady bends are no zigzag) or thesis (eq. 30 exactly).
-    spacing : str
+    line_spacing : str
         fair (default: uneven spacing along a line is faired too) or hold (the thesis: every edge keeps its length).
     """
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
                  fix=fix, fixed=fixed, solver=solver, reference=reference, extraordinary=extraordinary,
-                 detection=detection, spacing=spacing)
+                 detection=detection, line_spacing=line_spacing)
 
 
 @node("planarize", outputs=("mesh", "report"),

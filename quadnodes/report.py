@@ -99,9 +99,9 @@ def _ex(name: str, surface: str, rows: int, cols: int, laplace: int, taubin_: in
 
 
 #: How the "new method" rows run fair: the thesis's method, edge lengths frozen one by one (eq. 32), since
-#: the page checks the thesis's claims about it; fair's default ``spacing="fair"`` is measured against it in
+#: the page checks the thesis's claims about it; fair's default ``line_spacing="fair"`` is measured against it in
 #: ``docs/fairing.md`` (``benchmarks/studies/bench_real_meshes.py --spacing``).
-THESIS_FAIR: Mapping[str, Any] = MappingProxyType({"spacing": "hold"})
+THESIS_FAIR: Mapping[str, Any] = MappingProxyType({"line_spacing": "hold"})
 
 #: The thesis's examples with its parameters (chapter 5) and the noise of examples/make_thesis_graphs.py.
 THESIS_EXAMPLES: Mapping[str, ThesisExample] = MappingProxyType({

@@ -80,22 +80,22 @@ def test_fixed_vertices_never_move(mesh, fix):
 
 @given(meshes(), st.sampled_from([0.001, 0.3, 10.0]), st.sampled_from(["fair", "hold"]))
 def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight, spacing):
-    out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, spacing=spacing)
+    out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, line_spacing=spacing)
     assert np.isfinite(out.vertices).all()
     for r in rep.iterations:
         assert r.energy_after <= r.energy_before * (1 + 1e-12) + 1e-15
-    # against the input's own energy with lengths frozen at the input (eq. 30 exactly with spacing="hold")
+    # against the input's own energy with lengths frozen at the input (eq. 30 exactly with line_spacing="hold")
     w = mesh.topology.windows
-    e_in = fairing_energy(mesh.vertices, w, spacing=spacing)
+    e_in = fairing_energy(mesh.vertices, w, line_spacing=spacing)
     if mesh.topology.extraordinary.any():  # the energy also holds the pseudo-windows' rows (scaled by s)
         from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
 
         xw = extraordinary_windows(mesh.vertices, mesh.topology)
         assert rep.iterations[0].energy_before == pytest.approx(
             e_in + EXTRAORDINARY_SCALE**2 * fairing_energy(mesh.vertices, xw))
-        out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, extraordinary="hold", spacing=spacing)
+        out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, extraordinary="hold", line_spacing=spacing)
     assert rep.iterations[0].energy_before == pytest.approx(e_in)
-    assert fairing_energy(out.vertices, w, lengths_from=mesh.vertices, spacing=spacing) <= e_in * (1 + 1e-9) + 1e-15 \
+    assert fairing_energy(out.vertices, w, lengths_from=mesh.vertices, line_spacing=spacing) <= e_in * (1 + 1e-9) + 1e-15 \
         or len(rep.iterations) > 1
 
 
@@ -243,16 +243,16 @@ def test_solver_choice_and_report():
 
 @given(meshes(), st.sampled_from(["fair", "hold"]))
 def test_reported_energies_equal_direct_evaluation(mesh, spacing):
-    out, rep = fair(mesh, iterations=1, threshold=0.0, spacing=spacing)
+    out, rep = fair(mesh, iterations=1, threshold=0.0, line_spacing=spacing)
     r = rep.iterations[0]
     w = mesh.topology.windows
     from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
 
     xw = extraordinary_windows(mesh.vertices, mesh.topology)  # empty without extraordinary vertices
     s2 = EXTRAORDINARY_SCALE**2  # (the pseudo-windows keep their own lengths)
-    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w, spacing=spacing)
+    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w, line_spacing=spacing)
                                             + s2 * fairing_energy(mesh.vertices, xw), rel=1e-9, abs=1e-12)
-    assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices, spacing=spacing)
+    assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices, line_spacing=spacing)
                                            + s2 * fairing_energy(out.vertices, xw, lengths_from=mesh.vertices),
                                            rel=1e-8, abs=1e-10)
 
@@ -681,14 +681,14 @@ def test_closed_grids_fair_on_the_grid_path_as_on_the_general_path(monkeypatch, 
 
 
 def test_a_vertex_slid_along_its_line_goes_back_with_spacing_fair():
-    """Frozen per-edge lengths (the thesis, ``spacing="hold"``) hold a vertex slid along its row; the window's
-    mean length (``spacing="fair"``) brings it back. The same vertices are free either way."""
+    """Frozen per-edge lengths (the thesis, ``line_spacing="hold"``) hold a vertex slid along its row; the window's
+    mean length (``line_spacing="fair"``) brings it back. The same vertices are free either way."""
     g = grid(7, 9)
     v = g.vertices.copy()
     v[3 * 9 + 4, 0] += 0.3  # along row 3: its column now zigzags, its row is only unevenly spaced
     m = g.with_vertices(v)
-    a, ra = fair(m, iterations=3, spacing="fair")
-    b, rb = fair(m, iterations=3, spacing="hold")
+    a, ra = fair(m, iterations=3, line_spacing="fair")
+    b, rb = fair(m, iterations=3, line_spacing="hold")
     assert [r.n_free for r in ra.iterations] == [r.n_free for r in rb.iterations]
     err_a = np.linalg.norm(a.vertices - g.vertices, axis=1).max()
     err_b = np.linalg.norm(b.vertices - g.vertices, axis=1).max()
@@ -704,7 +704,7 @@ def test_spacing_fair_costs_nothing_on_evenly_or_linearly_graded_lines(grade, st
     direction = np.roll([1.0, 0.5, -0.25], axis)
     p = np.r_[0.0, np.cumsum(lengths)][:, None] * (direction / np.linalg.norm(direction)) + [3.0, -1.0, 2.0]
     w = np.arange(6)[:, None] + np.arange(4)
-    c = window_coefficients(p, w, spacing="fair")
+    c = window_coefficients(p, w, line_spacing="fair")
     assert np.abs(np.einsum("wk,wkj->wj", c, p[w])).max() <= 1e-12 * (1 + np.abs(p).max())
     np.testing.assert_allclose(c.sum(axis=1), 0.0, atol=1e-12)  # translation invariant
     inv = 1 / lengths[w[:, :3]]
@@ -720,8 +720,8 @@ def test_default_threshold_follows_the_detection():
     assert fair(m)[1].iterations[0].threshold == 0.03
     assert fair(m, detection="thesis")[1].iterations[0].threshold == 0.1
     assert fair(m, threshold=0.5, detection="thesis")[1].iterations[0].threshold == 0.5  # a given one is kept
-    with pytest.raises(InputError, match="spacing"):
-        fair(m, spacing="even")
+    with pytest.raises(InputError, match="line_spacing"):
+        fair(m, line_spacing="even")
 
 
 @settings(max_examples=25, deadline=None)

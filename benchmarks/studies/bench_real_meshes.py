@@ -12,10 +12,10 @@ moves vertices, not the correspondence), averaged over the seeds. Methods, each 
 best of its settings on that mesh and noise is shown (the setting beside it):
 
 - ``fair``: ``quadnodes.fair`` with its defaults (``detection="alternating"``,
-  ``extraordinary="fair"``, ``spacing="fair"``), iterations 1, 3, 5;
-- ``fair (before)``: fair's defaults before issue 16 item 6: ``spacing="hold", threshold=0.1``,
+  ``extraordinary="fair"``, ``line_spacing="fair"``), iterations 1, 3, 5;
+- ``fair (before)``: fair's defaults before issue 16 item 6: ``line_spacing="hold", threshold=0.1``,
   iterations 1, 3, 5;
-- ``fair (thesis)``: ``extraordinary="hold", detection="thesis", spacing="hold"`` — the thesis's method,
+- ``fair (thesis)``: ``extraordinary="hold", detection="thesis", line_spacing="hold"`` — the thesis's method,
   iterations 1, 3, 5;
 - ``laplacian``: ``quadnodes.laplacian`` (λ = 0.5, corners held), iterations 1, 2, 4, 8;
 - ``taubin``: ``quadnodes.taubin`` (corners held), iterations 1, 2, 5, 10, 20;
@@ -27,8 +27,8 @@ The last columns say whether fair is the best (``zigzag``) or within 20 % of the
 ``--studies`` prints instead the measurements behind the defaults (``docs/fairing.md``): detection on the
 clean meshes and on E1–E4 (``quadnodes.report``'s noise and parameters, seed 7), and the pseudo-window
 scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``. ``--spacing`` prints the study behind
-``spacing="fair"``: E1–E4 as in ``quadnodes compare`` (seeds 7 and 1–5, noise on the corners-held and on the
-interior-only variant), the thesis's parameters and the default weight, ``spacing="hold"`` against ``"fair"``.
+``line_spacing="fair"``: E1–E4 as in ``quadnodes compare`` (seeds 7 and 1–5, noise on the corners-held and on the
+interior-only variant), the thesis's parameters and the default weight, ``line_spacing="hold"`` against ``"fair"``.
 
 Run:  python benchmarks/studies/bench_real_meshes.py [--seeds 3] [--markdown] [--studies | --spacing]
 """
@@ -68,10 +68,10 @@ def _trimesh_taubin(mesh, iterations):
 
 METHODS = {
     "fair": [(f"{k} it", lambda m, k=k: fair(m, iterations=k)[0]) for k in (1, 3, 5)],
-    "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, spacing="hold", threshold=0.1)[0])
+    "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_spacing="hold", threshold=0.1)[0])
                       for k in (1, 3, 5)],
     "fair (thesis)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, extraordinary="hold", detection="thesis",
-                                                       spacing="hold", threshold=0.1)[0]) for k in (1, 3, 5)],
+                                                       line_spacing="hold", threshold=0.1)[0]) for k in (1, 3, 5)],
     "laplacian": [(f"{k} it", lambda m, k=k: laplacian(m, iterations=k, fix="corners")[0]) for k in (1, 2, 4, 8)],
     "taubin": [(f"{k} it", lambda m, k=k: taubin(m, iterations=k, fix="corners")[0]) for k in (1, 2, 5, 10, 20)],
     "trimesh taubin": [(f"{k} it", lambda m, k=k: _trimesh_taubin(m, k)) for k in (2, 5, 10, 20, 50)],
@@ -138,7 +138,7 @@ def studies() -> None:
 
 
 def spacing_study() -> None:
-    """E1–E4 with ``spacing="hold"`` (the thesis) and ``"fair"``: the numbers of ``quadnodes compare``."""
+    """E1–E4 with ``line_spacing="hold"`` (the thesis) and ``"fair"``: the numbers of ``quadnodes compare``."""
     from quadnodes.report import THESIS_EXAMPLES, _boundary_frame, _noisy_example, measure
 
     keys = [("vertex_distance_mean_h", "to clean vertex"), ("surface_distance_mean_h", "to clean surface"),
@@ -154,7 +154,7 @@ def spacing_study() -> None:
                     _, clean, fine, noisy, _, _ = _noisy_example(name, seed, fix)
                     frame = _boundary_frame(clean)
                     for mode in vals:
-                        out, _ = fair(noisy, **params, spacing=mode)
+                        out, _ = fair(noisy, **params, line_spacing=mode)
                         row = measure(noisy, out, clean, fine, boundary_frame=frame)
                         vals[mode].append([row[k] for k, _ in keys])
                 h, f = (np.array(vals[m]) for m in ("hold", "fair"))
@@ -169,7 +169,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--markdown", action="store_true", help="print a Markdown table")
     ap.add_argument("--studies", action="store_true", help="the measurements behind the defaults instead")
-    ap.add_argument("--spacing", action="store_true", help="the study behind spacing='fair' instead")
+    ap.add_argument("--spacing", action="store_true", help="the study behind line_spacing='fair' instead")
     args = ap.parse_args()
     if args.studies:
         studies()
