@@ -562,8 +562,8 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
         # a vertex with no active constraint keeps x, y, z: its coordinates then couple only through P, which
         # keeps the factorization near that of three separate systems when few constraints are active
         dirs = np.where((slab | disk)[:, None, None], np.stack([ax, er, ec], axis=1), np.eye(3))
-        Z = sp.csr_matrix((dirs[vi, di].ravel(), ((3 * vi[:, None] + np.arange(3)).ravel(), np.repeat(np.arange(vi.size), 3))),
-                          shape=(3 * k, vi.size))
+        Z = sp.csr_matrix((dirs[vi, di].ravel(), ((3 * vi[:, None] + np.arange(3)).ravel(),
+                                                  np.repeat(np.arange(vi.size), 3))), shape=(3 * k, vi.size))
         H = sp.csr_matrix((np.einsum("i,ij,ik->ijk", curv, ec, ec).ravel(), (ii, jj)), shape=(3 * k, 3 * k))
         held = cen + np.where(slab, np.sign(a) * h, 0.0)[:, None] * ax + np.where(disk, r, 0.0)[:, None] * er
         A = (Z.T @ (P3 + H) @ Z).tocsc() + delta * sp.identity(vi.size, format="csc")

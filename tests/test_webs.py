@@ -208,8 +208,8 @@ def own_projection(x, c, n, r, h):
 def cylinder_problem(rows, cols, seed, energy, closeness):
     from quadnodes.discrete_curvature import vertex_normals
 
-    m, _ = perturb(grid(rows, cols, height=0.4 * np.outer(np.sin(np.linspace(0, 3, rows)), np.cos(np.linspace(0, 2, cols)))),
-                   tangential=0.25, normal=0.15, seed=seed)
+    relief = 0.4 * np.outer(np.sin(np.linspace(0, 3, rows)), np.cos(np.linspace(0, 2, cols)))
+    m, _ = perturb(grid(rows, cols, height=relief), tangential=0.25, normal=0.15, seed=seed)
     h = m.mean_edge_length
     rng = np.random.default_rng(seed)
     r = 0.3 * h * rng.choice([0.2, 1.0, 5.0], m.n_vertices)  # small, mixed and large cylinders side by side
