@@ -197,9 +197,9 @@ class WebReport:
     of the result in mean edge lengths h (how far one projected Jacobi step
     would move a vertex; 0 at the exact constrained minimizer, ``tolerance`` or
     less when ``converged``, which also needs the solver's estimate of the
-    distance to the minimizer below ``tolerance``); ``projection_move``: how far (mesh unit) the final
-    exact projection onto the cylinders moved any vertex of the solver's last
-    iterate; ``warm_start_iterations``: the ADMM iterations before the Newton
+    distance to the minimizer below ``tolerance``); ``projection_move``: how
+    far (mesh unit) the final exact projection onto the cylinders moved any
+    vertex of the solver's last iterate; ``warm_start_iterations``: the ADMM iterations before the Newton
     steps (``iterations``) of ``solver="newton"``.
     """
 
@@ -270,9 +270,11 @@ def fair_web(
         More vertices to hold.
     solver : {"newton", "admm", "projected_gradient"}
         For the constrained problem (see the module docstring): ``"newton"``
-        (the default) converges in a few tens of steps at any size; the two
-        first-order methods are cheap per step but need very many steps on large
-        networks (E2's matrix has condition number ~ n⁴).
+        (the default) converged in 2-60 steps in every measured case (small to
+        large cylinders, 100² and 300² grids), each step one sparse factorization
+        of a 3n system (minutes at 300²); the two first-order methods are cheap
+        per step but need very many steps on large networks (E2's matrix has
+        condition number ~ n⁴) and are for small ones.
     max_iterations : int
         Cap on Newton steps / ADMM / projected-gradient iterations.
     tolerance : float
@@ -452,10 +454,11 @@ def _admm(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, a
 
     Over-relaxed (α = 1.6). Every 10 iterations: stop when the primal residual
     ``|x − z|``, the KKT residual of ``z`` (:func:`_natural_residual`) and the
-    distance estimate (:func:`_distance_estimate`) are below ``tol``; without a given ``rho`` rebalance it OSQP-style,
-    ``ρ ← ρ √(primal / dual)`` (relative residuals) when that changes ρ more than
-    5× (at most 12 refactorizations of ``P + ρI``). Returns the last ``z``
-    (inside every cylinder), the iterations, whether it converged, the KKT residual.
+    distance estimate (:func:`_distance_estimate`) are below ``tol``; without a
+    given ``rho`` rebalance it OSQP-style, ``ρ ← ρ √(primal / dual)`` (relative
+    residuals) when that changes ρ more than 5× (at most 12 refactorizations of
+    ``P + ρI``). Returns the last ``z`` (inside every cylinder), the iterations,
+    whether it converged, the KKT residual.
     """
     k = P.shape[0]
     Pr = P.tocsr()
