@@ -821,7 +821,7 @@ def advise(metrics: dict, baseline: dict | None = None, *, key: str, above: floa
 def fair_web(mesh: QuadMesh, fixed: np.ndarray | None = None, *,
              energy: Literal["E1", "E2", "tension"] = "E2", tension: float = 1.0, closeness: float = 0.0,
              cylinder_radius: float | str | None = None, cylinder_height: float | str | None = None,
-             fix: FixMode = "boundary", solver: Literal["admm", "projected_gradient"] = "admm",
+             fix: FixMode = "boundary", solver: Literal["newton", "admm", "projected_gradient"] = "newton",
              max_iterations: int = 5000, tolerance: float = 1e-5) -> tuple[QuadMesh, Any]:
     """Fair web (thesis 3.1.1): minimize E1, E2 or E2 + τE1 of the structure-line network, optionally inside
     tolerance cylinders (radius across, half-height along the normal; mesh unit or text such as '20 mm').
@@ -841,11 +841,11 @@ def fair_web(mesh: QuadMesh, fixed: np.ndarray | None = None, *,
     fix : str
         Vertices held in place: none, corners or boundary (the thesis holds the boundary).
     solver : str
-        admm or projected_gradient, for the cylinder constraints.
+        newton (semismooth Newton, the default), admm or projected_gradient, for the cylinder constraints.
     max_iterations : int
-        Cap on constrained solver iterations.
+        Cap on constrained solver iterations (Newton steps for newton).
     tolerance : float
-        Stop when the iterates move less than this many mean edge lengths.
+        Stop when the KKT residual is below this many mean edge lengths.
     """
     from .webs import fair_web as _fair_web
 

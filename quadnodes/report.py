@@ -804,7 +804,8 @@ def _iterations(rep: Any) -> int:
     if rep is None:
         return 0
     it = getattr(rep, "iterations", 0)
-    return len(it) if isinstance(it, list) else int(it)
+    # fair_web's Newton solver counts its ADMM warm start apart
+    return (len(it) if isinstance(it, list) else int(it)) + int(getattr(rep, "warm_start_iterations", 0))
 
 
 @_validate.renamed(noise_fix="fix")

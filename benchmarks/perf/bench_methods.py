@@ -10,8 +10,15 @@ Rows (settings as named; each in a fresh process, modules imported before the cl
 
 - ``fair``: the thesis's method, ``fair(iterations=3)`` (defaults), the reference;
 - ``fair_web``: E2 of the structure-line network, boundary fixed, no cylinders (one sparse solve);
-- ``fair_web_admm`` / ``fair_web_pg``: the same with tolerance cylinders (radius 0.5 h, half-height
-  0.2 h, corners fixed), by ADMM or accelerated projected gradient, to 1e-5 h (the default);
+- ``fair_web_newton`` / ``fair_web_admm`` / ``fair_web_pg``: the same (``--energy``, ``--closeness``) with
+  tolerance cylinders and the corners fixed, by the semismooth Newton method (the default; cap 100 steps),
+  ADMM or accelerated projected gradient (cap ``--web-cap``, 1,000), to a KKT residual of 1e-5 h (the
+  default). ``--cylinders``: ``bench`` radius 0.5 h, half-height 0.2 h (the default); ``small`` 0.1 h /
+  0.05 h; ``large`` 2 h / 1 h; ``mixed`` 0.5 h / 0.2 h times a seeded random 0.1, 1 or 10 per vertex.
+  The note says converged or not, the process's CPU time (on a loaded machine a steadier measure than the
+  wall time), the KKT residual reached, Newton steps after the ADMM warm start, and
+  how far the final exact projection moved any vertex; with ``--distance`` also how far the result is from a
+  Newton run to 1e-9 h (outside the clock);
 - ``spring``: Yamada's spring model, boundary fixed, to tolerance 1e-4 or ``--cap`` iterations;
 - ``schneider_kobbelt``: boundary + one ring fixed, to tolerance 1e-4 or ``--cap`` iterations;
 - ``curvature``: every field of ``quadnodes.curvature`` once;
@@ -23,6 +30,7 @@ iterations). "peak MB": the process's peak resident memory minus its resident
 memory after the mesh was built (as in ``bench_core.py``).
 
 Run:  python benchmarks/perf/bench_methods.py [--sizes 100 300] [--only spring fair ...] [--cap 200]
+          [--cylinders bench|small|mixed|large] [--energy E2] [--closeness 0] [--web-cap 1000]
 """
 
 from __future__ import annotations
@@ -36,7 +44,8 @@ import time
 
 import numpy as np
 
-ROWS = ("fair", "fair_web", "fair_web_admm", "fair_web_pg", "spring", "schneider_kobbelt", "curvature", "fourier")
+ROWS = ("fair", "fair_web", "fair_web_newton", "fair_web_admm", "fair_web_pg",
+        "spring", "schneider_kobbelt", "curvature", "fourier")
 
 
 def _rss_mb() -> float:
@@ -57,7 +66,11 @@ def _mesh(kind: str, n: int):
     return QuadMesh(noisy.vertices, noisy.faces)  # fresh: no cached topology
 
 
-def run_row(kind: str, n: int, cap: int) -> dict:
+#: Cylinder sizes of ``--cylinders`` (radius, half-height) in mean edge lengths h.
+CYLINDERS = {"bench": (0.5, 0.2), "small": (0.1, 0.05), "large": (2.0, 1.0), "mixed": (0.5, 0.2)}
+
+
+def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
     import quadnodes as qn
 
     m = _mesh(kind, n)
@@ -70,11 +83,30 @@ def run_row(kind: str, n: int, cap: int) -> dict:
     elif kind == "fair_web":
         _, rep = qn.fair_web(m)
         its, note = 1, "one sparse solve"
-    elif kind in ("fair_web_admm", "fair_web_pg"):
-        solver = "admm" if kind == "fair_web_admm" else "projected_gradient"
-        _, rep = qn.fair_web(m, fix="corners", cylinder_radius=0.5 * h, cylinder_height=0.2 * h, solver=solver,
-                             max_iterations=cap * 25)
-        its, note = rep.iterations, f"{'converged' if rep.converged else 'NOT converged'}, {rep.n_on_cylinder} on cylinder"
+    elif kind in ("fair_web_newton", "fair_web_admm", "fair_web_pg"):
+        web = web or {}
+        solver = {"fair_web_newton": "newton", "fair_web_admm": "admm", "fair_web_pg": "projected_gradient"}[kind]
+        fr, fh = CYLINDERS[web.get("cylinders", "bench")]
+        radius, height = fr * h, fh * h
+        if web.get("cylinders") == "mixed":
+            rng = np.random.default_rng(1)
+            radius = radius * rng.choice([0.1, 1.0, 10.0], m.n_vertices)
+            height = height * rng.choice([0.1, 1.0, 10.0], m.n_vertices)
+        settings = dict(fix="corners", energy=web.get("energy", "E2"), closeness=web.get("closeness", 0.0),
+                        cylinder_radius=radius, cylinder_height=height)
+        cpu = time.process_time()
+        out, rep = qn.fair_web(m, **settings, solver=solver,
+                               max_iterations=100 if solver == "newton" else web.get("cap", 1000))
+        wall_web, cpu = time.perf_counter() - t, time.process_time() - cpu
+        its = rep.iterations
+        note = (f"{'converged' if rep.converged else 'NOT converged'}, CPU {cpu:.1f} s, "
+                f"KKT {rep.kkt_residual:.1e} h, "
+                f"{rep.n_on_cylinder} on cylinder, projection moved {rep.projection_move / h:.0e} h")
+        if solver == "newton":
+            note += f", after {rep.warm_start_iterations} ADMM"
+        if web.get("distance"):  # outside the clock: the distance to a tightly converged reference
+            ref, _ = qn.fair_web(m, **settings, solver="newton", tolerance=1e-9, max_iterations=200)
+            note += f", {np.abs(out.vertices - ref.vertices).max() / h:.1e} h from the 1e-9 h Newton reference"
     elif kind == "spring":
         _, rep = qn.spring(m, max_iterations=cap)
         its, note = rep.iterations, "converged" if rep.converged else f"cap {cap}, last move {rep.max_displacement:.1e} h"
@@ -89,7 +121,7 @@ def run_row(kind: str, n: int, cap: int) -> dict:
         its, note = 1, f"{rep.closed_lines} closed lines"
     else:
         raise SystemExit(f"unknown row {kind!r}")
-    wall = time.perf_counter() - t
+    wall = time.perf_counter() - t if not kind.startswith("fair_web_") else wall_web
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base
     return {"row": kind, "n": n, "wall_s": wall, "iterations": int(its), "per_iteration_s": wall / max(its, 1),
             "peak_mb": peak, "note": note}
@@ -101,16 +133,26 @@ def main() -> None:
     ap.add_argument("--only", nargs="+", choices=ROWS, default=list(ROWS))
     ap.add_argument("--cap", type=int, default=200,
                     help="iteration cap of spring and Schneider-Kobbelt (x25 for the cylinder solvers)")
-    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--cylinders", choices=sorted(CYLINDERS), default="bench", help="cylinder sizes of fair_web_*")
+    ap.add_argument("--energy", choices=("E1", "E2", "tension"), default="E2", help="energy of fair_web_*")
+    ap.add_argument("--closeness", type=float, default=0.0, help="closeness of fair_web_*")
+    ap.add_argument("--web-cap", type=int, default=1000, help="iteration cap of fair_web_admm / fair_web_pg")
+    ap.add_argument("--distance", action="store_true",
+                    help="fair_web_*: also the largest distance to a Newton run to 1e-9 h (not timed)")
+    ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(run_row(args.child[0], int(args.child[1]), int(args.child[2]))))
+        print(json.dumps(run_row(args.child[0], int(args.child[1]), int(args.child[2]), json.loads(args.child[3]))))
         return
+    web = {"cylinders": args.cylinders, "energy": args.energy, "closeness": args.closeness, "cap": args.web_cap,
+           "distance": args.distance}
+    if any(k.startswith("fair_web_") for k in args.only):
+        print(f"fair_web_*: {args.energy}, closeness {args.closeness}, cylinders {args.cylinders}, corners fixed")
     print(f"{'method':<20} {'n':>5} {'to convergence':>15} {'iterations':>10} {'per iteration':>14} "
           f"{'peak MB':>8}  note")
     for n in args.sizes:
         for kind in args.only:
-            out = subprocess.run([sys.executable, __file__, "--child", kind, str(n), str(args.cap)],
+            out = subprocess.run([sys.executable, __file__, "--child", kind, str(n), str(args.cap), json.dumps(web)],
                                  capture_output=True, text=True, check=True)
             r = json.loads(out.stdout.strip().splitlines()[-1])
             print(f"{kind:<20} {f'{n}²':>5} {r['wall_s']:>13.3f} s {r['iterations']:>10} "
