@@ -19,7 +19,9 @@ Rows
   window-middle vertex free (all but the four corners), default solver (block
   conjugate gradients from the anchor); includes structure lines, detection,
   assembly and solve; the note gives CG steps and the relative residual;
-- peers on the same system (assembly excluded): SciPy SuperLU with its default
+- fair, line_spacing="hold": the same with eq. 32's own edge lengths (the thesis); on broadband
+  noise its matrix has stiff spots, where the line preconditioner applies (from 250,000 unknowns);
+- peers on the default's system (``line_spacing="fair"``; assembly excluded): SciPy SuperLU with its default
   ordering and with MMD(AᵀA+A), quadnodes' own CG with ``preconditioner="none"`` (what the
   default does where the matrix has no stiff spots), and CG preconditioned by pyamg smoothed
   aggregation when pyamg is installed, CHOLMOD when scikit-sparse is (``pip install -e .[bench]``). SuperLU at 1000² takes minutes and
@@ -76,8 +78,8 @@ def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
     if kind == "lines":
         w = windows(m.topology.structure_lines)
         extra = f"{len(w)} windows"
-    elif kind == "fair":
-        _, rep = fair(m, iterations=1, threshold=0.0)
+    elif kind in ("fair", "fair_hold"):
+        _, rep = fair(m, iterations=1, threshold=0.0, line_spacing="hold" if kind == "fair_hold" else "fair")
         r = rep.iterations[0]
         extra = f"{r.n_free} free, {r.solver} {r.cg_iterations} steps, residual {r.residual:.0e}"
     elif kind in ("superlu", "superlu_mmd", "pyamg", "plain", "cholmod"):
@@ -96,17 +98,21 @@ def _peer(kind: str, m) -> tuple[float, str]:
     """Solve the same one-iteration system with a peer solver; returns (seconds, note)."""
     from scipy.sparse.linalg import cg, splu
 
-    from quadnodes.fairing import DEFAULT_WEIGHT, FairingSystem
-    from quadnodes.zigzag import detect
+    from quadnodes.fairing import DEFAULT_WEIGHT, FairingSystem, even_lengths
+    from quadnodes.zigzag import detect, window_edges
 
     free = detect(m, 0.0).free
+    # fair()'s own system: its default line_spacing="fair" (every window's edges at their mean length)
+    inverse = even_lengths(1.0 / np.sqrt(np.stack(
+        [np.einsum("ij,ij->i", d, d) for d in window_edges(m.vertices, m.topology.windows)], axis=1)))
     if kind == "plain":  # quadnodes' own CG on the grid's storage, without the line preconditioner
         s = FairingSystem(m.vertices, m.topology.windows, free, DEFAULT_WEIGHT / m.mean_edge_length**2,
-                          solver="cg", preconditioner="none", _topology=m.topology)
+                          solver="cg", preconditioner="none", _topology=m.topology, _inverse_lengths=inverse)
         t = time.perf_counter()
         s.solve(m.vertices[free])
         return time.perf_counter() - t, f"cg {s.iterations} steps, residual {s.residual:.0e}"
-    s = FairingSystem(m.vertices, m.topology.windows, free, DEFAULT_WEIGHT / m.mean_edge_length**2, solver="cg")
+    s = FairingSystem(m.vertices, m.topology.windows, free, DEFAULT_WEIGHT / m.mean_edge_length**2, solver="cg",
+                      _inverse_lengths=inverse)
     M = s.matrix
     rhs = s._rhs + s.weight * m.vertices[free]
     t = time.perf_counter()
@@ -130,6 +136,7 @@ def _peer(kind: str, m) -> tuple[float, str]:
 LABELS = {
     "lines": "quadnodes structure lines + windows",
     "fair": "quadnodes fair, 1 iteration, all free (block CG)",
+    "fair_hold": "quadnodes fair as above, line_spacing=\"hold\" (eq. 32's own lengths)",
     "plain": "quadnodes CG without the line preconditioner (solve only)",
     "superlu": "peer: SciPy SuperLU, default ordering (solve only)",
     "superlu_mmd": "peer: SciPy SuperLU, MMD(AᵀA+A) (solve only)",
@@ -140,7 +147,7 @@ LABELS = {
 }
 
 
-FAIR_KINDS = ("fair", "plain", "superlu", "superlu_mmd", "pyamg", "cholmod")
+FAIR_KINDS = ("fair", "fair_hold", "plain", "superlu", "superlu_mmd", "pyamg", "cholmod")
 
 
 def main() -> None:
