@@ -669,6 +669,16 @@ def test_closed_grids_fair_on_the_grid_path_as_on_the_general_path(monkeypatch, 
     assert isinstance(s._cg[0], DiagonalBlocks) and len(s._cg[0].ranges) == threads and s.residual <= 1e-9
     d = FairingSystem(g.vertices, g.topology.windows, free, w, solver="direct").solve(g.vertices[free])
     assert np.abs(x - d).max() <= 1e-8 * size
+    # the compiled kernels (symmetric storage with the periodic diagonals); no line solves on a closed grid
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.cg import SymmetricDiagonalBlocks
+
+    monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 100)
+    for pre in ("auto", "lines"):
+        c = FairingSystem(g.vertices, g.topology.windows, free, w, solver="cg", preconditioner=pre, _topology=g.topology)
+        xc = c.solve(g.vertices[free])
+        assert isinstance(c._cg[0], SymmetricDiagonalBlocks) and c._cg[1] is None
+        assert np.abs(xc - d).max() <= 1e-8 * size
     a, ra = fair(shuffled, threshold=0.0, solver="direct")  # the general path in the file's numbering
     for solver in ("cg", "direct"):
         b, rb = fair(g, threshold=0.0, solver=solver)

@@ -369,7 +369,7 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
         n = data.shape[1]
         offsets = np.asarray(offsets)
         up = np.flatnonzero(offsets >= 0)
-        if offsets[up[0]] != 0 or not np.array_equal(np.sort(-offsets[offsets < 0]), offsets[up[1:]]):
+        if offsets[up[0]] != 0 or not np.array_equal(np.sort(-offsets[offsets < 0]), np.sort(offsets[up[1:]])):
             raise ValueError("offsets: expected a main diagonal and symmetric pairs")
         self.upper_offsets = offsets[up].astype(np.int64)
         U = np.zeros((up.size, n))
