@@ -331,15 +331,25 @@ def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
     return float(np.abs(data).sum(axis=0)[rows].max())
 
 
-def _line_preconditioner(data: np.ndarray, cols: int) -> LinePreconditioner:
-    """Row-line and column-line bands of a grid's 13 diagonals (offsets ±1..3 come only from row
-    windows, ±cols.. only from column windows), each with the whole diagonal, in the nodes' order."""
+def _line_preconditioner(data: np.ndarray, offsets: np.ndarray, cols: int) -> LinePreconditioner:
+    """Row-line and column-line bands of a grid's diagonals (offsets ±1..3 come only from row
+    windows, ±cols.. only from column windows), each with the whole diagonal, in the nodes' order.
+
+    On a grid closed around (a cylinder or torus: periodic diagonals after the first 13) the
+    couplings across the seam are left out of the bands and their absolute values added to
+    the diagonal of the lines they belong to (rows for offsets below ``cols``, else columns):
+    ``D_|E| − E`` is diagonally dominant, so each band stays at least its family's ``AᵀA``
+    plus the rest of the diagonal — positive definite — and a closed line costs one banded
+    solve like an open one.
+    """
     n = data.shape[1]
     rows = np.zeros((4, n))
     cols_ = np.zeros((4, n))
     rows[3] = cols_[3] = data[6]
     rows[:3] = data[9:6:-1]  # data[6 + k, j] = M[j - k, j] -> row 3 - k
     cols_[:3] = data[12:9:-1]  # data[9 + k, j] = M[j - k·cols, j]
+    for slot in range(13, len(offsets)):  # data[slot, j] = M[j - o, j]: column j's entry, = row j's
+        (rows if abs(int(offsets[slot])) < cols else cols_)[3] += np.abs(data[slot])
     return LinePreconditioner(rows, cols_, cols)
 
 
@@ -519,7 +529,6 @@ class FairingSystem:
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
         self.solver = "direct" if solver == "direct" or (solver == "auto" and k <= DIRECT_LIMIT) else "cg"
         self.preconditioner = _validate.choice(preconditioner, ("auto", "lines", "none"), "preconditioner")
-        # the line preconditioner's bands hold an open grid's lines only
         self._grid_cols = None if _topology is None or _topology.grid_shape is None else _topology.grid_shape[1]
         self.rtol = _validate.positive_number(rtol, "rtol")
         self.iterations = 0
@@ -585,16 +594,14 @@ class FairingSystem:
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
-                # the line solves hold an open grid's lines only (a cylinder's or torus's windows
-                # across the seam add periodic diagonals: plain CG there)
-                open_grid = self._grid_cols is not None and offsets.size == 13
+                cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
                 compiled = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines"
-                lines = open_grid and (self.preconditioner == "lines" or (
-                    compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight))
+                lines = self.preconditioner == "lines" or (
+                    compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
                 precond = None
                 if lines:
                     try:
-                        precond = _line_preconditioner(data, self._grid_cols)
+                        precond = _line_preconditioner(data, offsets, cols)
                     except np.linalg.LinAlgError as exc:  # a line block not positive definite: plain CG
                         if self.preconditioner == "lines":
                             raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc

@@ -669,16 +669,21 @@ def test_closed_grids_fair_on_the_grid_path_as_on_the_general_path(monkeypatch, 
     assert isinstance(s._cg[0], DiagonalBlocks) and len(s._cg[0].ranges) == threads and s.residual <= 1e-9
     d = FairingSystem(g.vertices, g.topology.windows, free, w, solver="direct").solve(g.vertices[free])
     assert np.abs(x - d).max() <= 1e-8 * size
-    # the compiled kernels (symmetric storage with the periodic diagonals); no line solves on a closed grid
+    # the compiled kernels (symmetric storage with the periodic diagonals) and the line solves, whose
+    # closed lines drop the couplings across the seam onto the diagonal
     import quadnodes.fairing as fairing_module
-    from quadnodes.linalg.cg import SymmetricDiagonalBlocks
+    from quadnodes.linalg.cg import LinePreconditioner, SymmetricDiagonalBlocks
 
     monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 100)
-    for pre in ("auto", "lines"):
+    monkeypatch.setattr(linalg_cg, "LINES_PARALLEL_MIN_ROWS", 10 if threads > 1 else 10**9)
+    steps = {}
+    for pre in ("none", "lines"):
         c = FairingSystem(g.vertices, g.topology.windows, free, w, solver="cg", preconditioner=pre, _topology=g.topology)
         xc = c.solve(g.vertices[free])
-        assert isinstance(c._cg[0], SymmetricDiagonalBlocks) and c._cg[1] is None
+        assert isinstance(c._cg[0], SymmetricDiagonalBlocks) and isinstance(c._cg[1], LinePreconditioner) == (pre == "lines")
         assert np.abs(xc - d).max() <= 1e-8 * size
+        steps[pre] = c.iterations
+    assert steps["lines"] < steps["none"]
     a, ra = fair(shuffled, threshold=0.0, solver="direct")  # the general path in the file's numbering
     for solver in ("cg", "direct"):
         b, rb = fair(g, threshold=0.0, solver=solver)
