@@ -168,16 +168,29 @@ class _ShapeKeeper:
 
     def project(self, x: np.ndarray) -> tuple[np.ndarray, int]:
         """Centred target corners ``(m, 4, 3)`` and how many quads the bounds changed."""
-        q = quad_plane_projection(x, self.faces)
-        z, e1, e2, ok = _panel_coordinates(x, self.faces)
-        h, _ = _corner_heights(z)
-        short = np.abs(np.roll(z, -1, axis=1) - z) < self.min_length
-        bad = ok & ((h < self.min_height).any(axis=1) | short.any(axis=1))
+        # the arithmetic of quad_plane_projection (bit for bit), sharing its normal with the bound check
+        p = x[self.faces]
+        r = p - p.mean(axis=1, keepdims=True)
+        d1 = p[:, 2] - p[:, 0]
+        n = np.cross(d1, p[:, 3] - p[:, 1])
+        nn = np.linalg.norm(n, axis=1, keepdims=True)
+        n = np.divide(n, nn, out=np.zeros_like(n), where=nn > 0)
+        q = r - np.einsum("mk,mj->mkj", np.einsum("mkj,mj->mk", r, n), n)
+        l1 = np.linalg.norm(d1, axis=1, keepdims=True)
+        e1 = np.divide(d1, l1, out=np.zeros_like(d1), where=l1 > 0)
+        e2 = np.cross(n, e1)
+        u = np.einsum("mkj,mj->mk", r, e1)  # in-plane coordinates (r and q differ only along n)
+        w = np.einsum("mkj,mj->mk", r, e2)
+        # a corner's height over its neighbours' chord d = z[k+1] − z[k−1], outwards: −(d × (z[k] − z[k−1]))/|d|
+        du, dw = np.roll(u, -1, axis=1) - np.roll(u, 1, axis=1), np.roll(w, -1, axis=1) - np.roll(w, 1, axis=1)
+        cross = du * (w - np.roll(w, 1, axis=1)) - dw * (u - np.roll(u, 1, axis=1))
+        low = -cross < self.min_height * np.hypot(du, dw)
+        short = np.hypot(np.roll(u, -1, axis=1) - u, np.roll(w, -1, axis=1) - w) < self.min_length
+        bad = (low | short).any(axis=1) & (nn[:, 0] > 0) & (l1[:, 0] > 0)
         if not bad.any():
             return q, 0
         v = np.flatnonzero(bad)
-        zk = self._repair(z[v], self.min_length[v], self.min_height[v])
-        q = q.copy()
+        zk = self._repair(u[v] + 1j * w[v], self.min_length[v], self.min_height[v])
         q[v] = zk.real[:, :, None] * e1[v][:, None, :] + zk.imag[:, :, None] * e2[v][:, None, :]
         return q, int(v.size)
 

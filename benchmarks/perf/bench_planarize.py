@@ -57,7 +57,11 @@ Columns
 quadnodes rows use ``shape="keep"`` (the default) unless ``--shape free`` is given
 (the plain projection, as before issue 16).
 
-Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free]
+``--shapes``: instead of the tables, every quadnodes row (E1–E4, and F100 without
+``--quick``; the Newton row on F100 only with ``--slow``) with ``shape="free"``
+and ``shape="keep"`` one after the other, so both see the same machine load.
+
+Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
@@ -184,12 +188,17 @@ def main() -> None:
                     help="also run libigl at threshold 1e-3 on the 100×100 surface (up to an hour)")
     ap.add_argument("--shape", choices=("keep", "free"), default="keep",
                     help="planarize's shape setting for the quadnodes rows (default keep)")
+    ap.add_argument("--shapes", action="store_true",
+                    help="compare shape='free' and shape='keep' on every quadnodes row (one table)")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
         print(json.dumps(run_row(args.row[0], args.row[1], args.shape)))
         return
     cases = list(EXAMPLES) + ([] if args.quick else [FREEFORM])
+    if args.shapes:
+        _compare_shapes(cases, args.slow)
+        return
     for name in cases:
         worst = 0.0
         lines = []
@@ -212,6 +221,25 @@ def main() -> None:
         if name == FREEFORM and not args.slow:
             print("\n(libigl at threshold 1e-3 skipped on this mesh: run with --slow)")
         print(f"\nLargest |diagonal_distance − |igl.quad_planarity|| over these rows: {worst:.1e}", flush=True)
+
+
+def _compare_shapes(cases: list[str], slow: bool) -> None:
+    """One table: each quadnodes row with shape="free" (before issue 16) and shape="keep" (the default)."""
+    print("| mesh | method | shape | planarity max | edge ratio min | folded | to clean surface max (h) "
+          "| zigzag mean | iterations | wall time (s) |")
+    print("|---|---|---|---:|---:|---:|---:|---:|---|---:|")
+    for name in cases:
+        for kind in ("qn_mesh", "qn_face", "qn_none", "qn_newton"):
+            if name == FREEFORM and kind == "qn_newton" and not slow:
+                continue
+            for shape in ("free", "keep"):
+                out = subprocess.run([sys.executable, __file__, "--row", name, kind, "--shape", shape],
+                                     capture_output=True, text=True, check=True)
+                r = json.loads(out.stdout.strip().splitlines()[-1])
+                print(f"| {name} | {LABELS[kind].removeprefix('quadnodes').strip(', ') or 'quadnodes'} | {shape} "
+                      f"| {r['planarity_max']:.2e} | {r['edge_ratio_min']:.3f} | {r['folded']} "
+                      f"| {r['surface_max_h']:.3f} | {r['zigzag_mean']:.2e} | {r['iterations']} "
+                      f"| {r['wall_s']:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
