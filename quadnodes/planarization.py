@@ -239,6 +239,12 @@ def kept_shape_projection(vertices: np.ndarray, faces: np.ndarray, *, rest: np.n
     (m, 4, 3) float64
         Centred, planar target corners.
 
+    Raises
+    ------
+    InputError
+        On vertex or face arrays of the wrong shape or with bad indices, or ``rest``
+        not shaped like ``vertices``.
+
     Examples
     --------
     >>> rest = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
@@ -248,7 +254,12 @@ def kept_shape_projection(vertices: np.ndarray, faces: np.ndarray, *, rest: np.n
     >>> bool(nonconvex_panels(QuadMesh(q[0], [[0, 1, 2, 3]]))[0])
     False
     """
-    return _ShapeKeeper(np.asarray(rest, dtype=np.float64), faces).project(vertices)[0]
+    x = _validate.vertices_array(vertices)
+    r = _validate.vertices_array(rest, "rest")
+    if r.shape != x.shape:
+        raise InputError(f"rest: expected the shape of vertices {x.shape}, got {r.shape}")
+    f = _validate.faces_array(faces, len(x))
+    return _ShapeKeeper(r, f).project(x)[0]
 
 
 @dataclass(frozen=True)

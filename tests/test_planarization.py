@@ -359,3 +359,14 @@ def test_shape_setting_reaches_the_node(tmp_path):
     g.add("planarize", noisy.mesh, id="free", shape="free")
     res = g.run()
     assert res["keep.report"].shape == "keep" and res["free.report"].shape == "free"
+
+
+def test_kept_shape_projection_checks_its_input():
+    from quadnodes.planarization import kept_shape_projection
+
+    v = hypar(3).vertices
+    f = hypar(3).faces
+    with pytest.raises(InputError, match="rest"):
+        kept_shape_projection(v, f, rest=v[:-1])
+    with pytest.raises(InputError, match="faces"):
+        kept_shape_projection(v, f + 100, rest=v)
