@@ -419,10 +419,12 @@ def _newton(
 
     Each step minimizes the quadratic energy subject to the linearized constraints
     ``c + G Δ = 0`` (one sparse KKT solve for x, y and z together), then halves the
-    step until the constraint norm decreases (at most 6 times); with ``keep``
-    (``shape="keep"``) also until no quad convex in ``x0`` turns non-convex and no
-    edge falls below :data:`KEPT_EDGE_RATIO` of its length — a step that cannot be
-    made so ends the iteration at the last sound positions. Works in units of
+    step until the constraint norm decreases (at most 6 times). With ``keep``
+    (``shape="keep"``) the result must be sound — no quad convex in ``x0`` turned
+    non-convex, no edge below :data:`KEPT_EDGE_RATIO` of its length: the iterates may
+    pass through unsound positions (a fold that later opens again), but if the last
+    one is unsound, the last sound iterate is returned (its planarity is the
+    history's last entry). Works in units of
     the mean edge length ``h`` about the centroid, so the system is well scaled.
     Returns the positions, the maximum planarity after every step and the number of steps.
     """
@@ -465,6 +467,9 @@ def _newton(
             if (np.linalg.norm(Y[edges[:, 1]] - Y[edges[:, 0]], axis=1) < min_len).any():
                 return False
             return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
+
+        last_sound, last_sound_p = X0, float(quad_diagonal_distance(X0, faces, relative=relative).max()) * (
+            1.0 if relative else h)
     for steps in range(1, max_steps + 1):
         target = (closest(X * h + centre)[0] - centre) / h
         b = (w_c * target[fi] + w_i * X0[fi] - fixed_F).reshape(-1)
@@ -483,19 +488,21 @@ def _newton(
         for _ in range(7):
             Xt = X.copy()
             Xt[fi] += t * D
-            if float(np.linalg.norm(_planarity_constraints(Xt, fa)[0])) < norm0 and (not keep or sound(Xt)):
+            if float(np.linalg.norm(_planarity_constraints(Xt, fa)[0])) < norm0:
                 break
             t *= 0.5
-        if keep and not sound(Xt):
-            steps -= 1
-            break  # every step along this direction folds a quad or collapses an edge: stop where it was sound
         X = Xt
         # X is in units of h: a length tolerance compares the diagonal distance times h
         pmax = float(quad_diagonal_distance(X, faces, relative=relative).max()) * (1.0 if relative else h)
         history.append(pmax)
         report_progress(min(steps / max_steps, 1.0), f"Newton step {steps}: planarity max {pmax:.2e}")
+        if keep and sound(X):
+            last_sound, last_sound_p = X.copy(), pmax
         if pmax <= tol:
             break
+    if keep and last_sound is not X and not sound(X):
+        X = last_sound  # the end folds a quad or collapses an edge: back to the last sound iterate
+        history.append(last_sound_p)
     out = x0.copy()  # fixed vertices exactly as given (no round trip through the scaled frame)
     out[fi] = X[fi] * h + centre
     return out, history, steps

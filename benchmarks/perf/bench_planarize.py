@@ -59,7 +59,8 @@ quadnodes rows use ``shape="keep"`` (the default) unless ``--shape free`` is giv
 
 ``--shapes``: instead of the tables, every quadnodes row (E1–E4, and F100 without
 ``--quick``; the Newton row on F100 only with ``--slow``) with ``shape="free"``
-and ``shape="keep"`` one after the other, so both see the same machine load.
+and ``shape="keep"`` one after the other in one process, so both see the same
+machine load, and whether the two results are bit-identical.
 
 Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
@@ -224,22 +225,35 @@ def main() -> None:
 
 
 def _compare_shapes(cases: list[str], slow: bool) -> None:
-    """One table: each quadnodes row with shape="free" (before issue 16) and shape="keep" (the default)."""
-    print("| mesh | method | shape | planarity max | edge ratio min | folded | to clean surface max (h) "
-          "| zigzag mean | iterations | wall time (s) |")
-    print("|---|---|---|---:|---:|---:|---:|---:|---|---:|")
+    """One table: each quadnodes row with shape="free" (before issue 16) and shape="keep" (the default).
+
+    Both runs of a row happen in one process on the same faired mesh (its structure lines built
+    beforehand), free first; "same result" says whether the two meshes are bit-identical.
+    """
+    from quadnodes.planarization import planarize
+
+    print("| mesh | method | planarity max free / keep | folded free / keep | edge ratio min free / keep "
+          "| same result | returned by | wall time free / keep (s) |")
+    print("|---|---|---|---|---|---|---|---|")
     for name in cases:
+        face, clean, _, faired = _case(name)
+        _ = faired.topology.windows
         for kind in ("qn_mesh", "qn_face", "qn_none", "qn_newton"):
             if name == FREEFORM and kind == "qn_newton" and not slow:
                 continue
+            ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean}[kind]
+            runs = []
             for shape in ("free", "keep"):
-                out = subprocess.run([sys.executable, __file__, "--row", name, kind, "--shape", shape],
-                                     capture_output=True, text=True, check=True)
-                r = json.loads(out.stdout.strip().splitlines()[-1])
-                print(f"| {name} | {LABELS[kind].removeprefix('quadnodes').strip(', ') or 'quadnodes'} | {shape} "
-                      f"| {r['planarity_max']:.2e} | {r['edge_ratio_min']:.3f} | {r['folded']} "
-                      f"| {r['surface_max_h']:.3f} | {r['zigzag_mean']:.2e} | {r['iterations']} "
-                      f"| {r['wall_s']:.2f} |", flush=True)
+                t = time.perf_counter()
+                out, rep = planarize(faired, reference=ref, method="newton" if kind == "qn_newton" else "auto",
+                                     shape=shape)
+                runs.append((out, rep, time.perf_counter() - t))
+            (a, ra, ta), (b, rb, tb) = runs
+            same = "yes" if np.array_equal(a.vertices, b.vertices) else "no"
+            print(f"| {name} | {LABELS[kind].removeprefix('quadnodes').strip(', ')} "
+                  f"| {ra.planarity_max:.2e} / {rb.planarity_max:.2e} | {len(ra.nonconvex)} / {len(rb.nonconvex)} "
+                  f"| {ra.edge_length_ratio_min:.3f} / {rb.edge_length_ratio_min:.3f} | {same} "
+                  f"| {ra.method} / {rb.method} | {ta:.2f} / {tb:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
