@@ -396,7 +396,7 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
               planarity_weight: float = 1.0, fairness_weight: float = 0.1, closeness_weight: float = 0.1,
               input_weight: float | None = None, fix: FixMode = "corners",
               reference_samples: int = 4, method: Literal["auto", "local-global", "newton"] = "auto",
-              newton_steps: int = 30) -> tuple[QuadMesh, PlanarizeReport]:
+              newton_steps: int = 30, shape: Literal["keep", "free"] = "keep") -> tuple[QuadMesh, PlanarizeReport]:
     """Make every quad planar (within planar_tolerance: relative, or a length such as "2 mm") while keeping
     structure lines fair and the vertices close to a reference surface (a face or a mesh; they may slide
     along it) or to their input positions; corners, boundary or a mask held fixed. method: local/global
@@ -425,11 +425,13 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
         local-global projection, newton steps with planarity as a hard constraint, or auto (newton where it stalls).
     newton_steps : int
         Most Newton steps.
+    shape : str
+        keep (default: no quad folds into a dart or bow-tie, no edge shrinks below 0.3 of its length) or free.
     """
     return _planarize(mesh, reference=reference, planar_tolerance=planar_tolerance, max_iterations=max_iterations,
                       planarity_weight=planarity_weight, fairness_weight=fairness_weight,
                       closeness_weight=closeness_weight, input_weight=input_weight, fix=fix, fixed=fixed,
-                      reference_samples=reference_samples, method=method, newton_steps=newton_steps)
+                      reference_samples=reference_samples, method=method, newton_steps=newton_steps, shape=shape)
 
 
 @node("laplacian", outputs=("mesh", "report"),

@@ -53,7 +53,7 @@ from .linalg import QuadraticProblem, regularization
 from .topology import adjacency, fixed_vertices
 from .flatness import DEFAULT_PLANAR_TOLERANCE, resolve_planar_tolerance
 
-__all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "DEFAULT_TOLERANCE"]
+__all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "kept_shape_projection", "DEFAULT_TOLERANCE"]
 
 #: Default planarity tolerance: diagonal distance / mean diagonal length — the package's one default
 #: (:data:`quadnodes.flatness.DEFAULT_PLANAR_TOLERANCE`), which the exporters use too.
@@ -66,8 +66,14 @@ NEWTON_LIMIT = 20000
 MAX_WEIGHT_GROWTH = 1e6
 #: An edge shorter than this share of its input length counts as collapsed: the result is not converged.
 COLLAPSED_EDGE_RATIO = 0.2
+#: ``shape="keep"``: the local step keeps every edge at least this share of its input length ...
+KEPT_EDGE_RATIO = 0.3
+#: ... and every corner of a quad that was convex at least this share of its input height over the chord
+#: between its two neighbours (measured in the panel's plane), so no quad becomes a dart or a bow-tie.
+KEPT_CORNER_HEIGHT = 0.2
 
 Fix = Literal["none", "corners", "boundary"]
+Shape = Literal["keep", "free"]
 
 
 def quad_plane_projection(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -103,6 +109,159 @@ def quad_plane_projection(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray
     return r - np.einsum("mk,mj->mkj", np.einsum("mkj,mj->mk", r, n), n)
 
 
+def _panel_coordinates(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Every quad projected onto its diagonal mid-plane, as complex in-plane coordinates.
+
+    Returns ``(z, e1, e2, ok)``: ``z (m, 4) complex`` the centred corners in the
+    orthonormal frame ``e1`` (along ``p2 − p0``), ``e2`` (``n × e1``, with ``n`` along
+    the vector area ``(p2 − p0) × (p3 − p1)``, so a convex quad is counter-clockwise);
+    ``ok`` is False where the diagonals are parallel (no plane).
+    """
+    p = vertices[faces]
+    r = p - p.mean(axis=1, keepdims=True)
+    d1 = p[:, 2] - p[:, 0]
+    n = np.cross(d1, p[:, 3] - p[:, 1])
+    nn = np.linalg.norm(n, axis=1, keepdims=True)
+    l1 = np.linalg.norm(d1, axis=1, keepdims=True)
+    ok = (nn[:, 0] > 0) & (l1[:, 0] > 0)
+    n = np.divide(n, nn, out=np.zeros_like(n), where=nn > 0)
+    e1 = np.divide(d1, l1, out=np.zeros_like(d1), where=l1 > 0)
+    e2 = np.cross(n, e1)
+    z = np.einsum("mkj,mj->mk", r, e1) + 1j * np.einsum("mkj,mj->mk", r, e2)
+    return z, e1, e2, ok
+
+
+def _corner_heights(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Height of every corner over the chord between its two neighbours (> 0: convex), and the chord's outward normal."""
+    prv, nxt = np.roll(z, 1, axis=1), np.roll(z, -1, axis=1)
+    d = nxt - prv
+    ad = np.abs(d)
+    out = np.divide(-1j * d, ad, out=np.zeros_like(d), where=ad > 0)  # right of prv -> nxt: outside a ccw quad
+    return np.real(np.conj(out) * (z - 0.5 * (prv + nxt))), out
+
+
+class _ShapeKeeper:
+    """The local step of ``shape="keep"``: the closest planar quad, then the least change that keeps its shape.
+
+    Built once from the input: every edge's least length (:data:`KEPT_EDGE_RATIO`
+    of its input length) and, for a quad convex in the input, every corner's
+    least height over the chord of its neighbours (:data:`KEPT_CORNER_HEIGHT` of its
+    input height, in the quad's own mid-plane). :meth:`project` projects every quad
+    onto its diagonal mid-plane (:func:`quad_plane_projection`); where that planar
+    quad breaks a bound, a few Gauss–Seidel sweeps over its edges and corners move
+    it, in its plane, to the nearest quad that keeps them (each bound is a
+    least-norm correction: a short edge is stretched about its midpoint, a low
+    corner lifted outwards while its neighbours give way). The result is planar by
+    construction. Quads that keep their bounds get exactly the plain projection.
+    """
+
+    sweeps = 4
+
+    def __init__(self, rest: np.ndarray, faces: np.ndarray) -> None:
+        p = rest[faces]
+        z, _, _, ok = _panel_coordinates(rest, faces)
+        h, _ = _corner_heights(z)
+        convex = ok & (h > 0).all(axis=1)
+        self.faces = faces
+        self.min_height = np.where(convex[:, None], KEPT_CORNER_HEIGHT * h, -np.inf)
+        self.min_length = KEPT_EDGE_RATIO * np.linalg.norm(np.roll(p, -1, axis=1) - p, axis=2)
+
+    def project(self, x: np.ndarray) -> tuple[np.ndarray, int]:
+        """Centred target corners ``(m, 4, 3)`` and how many quads the bounds changed."""
+        # the arithmetic of quad_plane_projection (bit for bit), sharing its normal with the bound check
+        p = x[self.faces]
+        r = p - p.mean(axis=1, keepdims=True)
+        d1 = p[:, 2] - p[:, 0]
+        n = np.cross(d1, p[:, 3] - p[:, 1])
+        nn = np.linalg.norm(n, axis=1, keepdims=True)
+        n = np.divide(n, nn, out=np.zeros_like(n), where=nn > 0)
+        q = r - np.einsum("mk,mj->mkj", np.einsum("mkj,mj->mk", r, n), n)
+        l1 = np.linalg.norm(d1, axis=1, keepdims=True)
+        e1 = np.divide(d1, l1, out=np.zeros_like(d1), where=l1 > 0)
+        e2 = np.cross(n, e1)
+        u = np.einsum("mkj,mj->mk", r, e1)  # in-plane coordinates (r and q differ only along n)
+        w = np.einsum("mkj,mj->mk", r, e2)
+        # a corner's height over its neighbours' chord d = z[k+1] − z[k−1], outwards: −(d × (z[k] − z[k−1]))/|d|
+        du, dw = np.roll(u, -1, axis=1) - np.roll(u, 1, axis=1), np.roll(w, -1, axis=1) - np.roll(w, 1, axis=1)
+        cross = du * (w - np.roll(w, 1, axis=1)) - dw * (u - np.roll(u, 1, axis=1))
+        low = -cross < self.min_height * np.hypot(du, dw)
+        short = np.hypot(np.roll(u, -1, axis=1) - u, np.roll(w, -1, axis=1) - w) < self.min_length
+        bad = (low | short).any(axis=1) & (nn[:, 0] > 0) & (l1[:, 0] > 0)
+        if not bad.any():
+            return q, 0
+        v = np.flatnonzero(bad)
+        zk = self._repair(u[v] + 1j * w[v], self.min_length[v], self.min_height[v])
+        q[v] = zk.real[:, :, None] * e1[v][:, None, :] + zk.imag[:, :, None] * e2[v][:, None, :]
+        return q, int(v.size)
+
+    def _repair(self, z: np.ndarray, lmin: np.ndarray, hmin: np.ndarray) -> np.ndarray:
+        z = z.copy()
+        for _ in range(self.sweeps):
+            for k in range(4):
+                k1 = (k + 1) % 4
+                e = z[:, k1] - z[:, k]
+                le = np.abs(e)
+                u = np.divide(e, le, out=np.ones_like(e), where=le > 0)
+                dz = 0.5 * np.maximum(lmin[:, k] - le, 0.0) * u
+                z[:, k1] += dz
+                z[:, k] -= dz
+            for k in range(4):
+                km, kp = (k - 1) % 4, (k + 1) % 4
+                d = z[:, kp] - z[:, km]
+                ad = np.abs(d)
+                out = np.divide(-1j * d, ad, out=np.zeros_like(d), where=ad > 0)
+                lift = np.maximum(hmin[:, k] - np.real(np.conj(out) * (z[:, k] - 0.5 * (z[:, km] + z[:, kp]))), 0.0)
+                # least-norm change meeting the corner's height: the corner moves 2/3, each neighbour 1/3 back
+                z[:, k] += out * lift * (2.0 / 3.0)
+                z[:, km] -= out * lift / 3.0
+                z[:, kp] -= out * lift / 3.0
+        return z - z.mean(axis=1, keepdims=True)
+
+
+def kept_shape_projection(vertices: np.ndarray, faces: np.ndarray, *, rest: np.ndarray) -> np.ndarray:
+    """Each quad's closest planar quad that keeps its shape bounds against ``rest`` (the local step of ``shape="keep"``).
+
+    Like :func:`quad_plane_projection`, then, for a quad where that planar quad has
+    an edge shorter than :data:`KEPT_EDGE_RATIO` of its length in ``rest`` or (if the
+    quad is convex in ``rest``) a corner lower than :data:`KEPT_CORNER_HEIGHT` of its
+    height there over the chord between its neighbours, moved in its plane until it
+    (nearly) keeps them. Scale- and translation-equivariant.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 4) int64
+    rest : (n, 3) float64
+        The positions the bounds are measured on (the input of :func:`planarize`).
+
+    Returns
+    -------
+    (m, 4, 3) float64
+        Centred, planar target corners.
+
+    Raises
+    ------
+    InputError
+        On vertex or face arrays of the wrong shape or with bad indices, or ``rest``
+        not shaped like ``vertices``.
+
+    Examples
+    --------
+    >>> rest = np.array([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    >>> dart = rest.copy(); dart[2] = [0.2, 0.2, 0.1]   # corner 2 pushed inside the quad
+    >>> q = kept_shape_projection(dart, np.array([[0, 1, 2, 3]]), rest=rest)
+    >>> from quadnodes.flatness import nonconvex_panels
+    >>> bool(nonconvex_panels(QuadMesh(q[0], [[0, 1, 2, 3]]))[0])
+    False
+    """
+    x = _validate.vertices_array(vertices)
+    r = _validate.vertices_array(rest, "rest")
+    if r.shape != x.shape:
+        raise InputError(f"rest: expected the shape of vertices {x.shape}, got {r.shape}")
+    f = _validate.faces_array(faces, len(x))
+    return _ShapeKeeper(r, f).project(x)[0]
+
+
 @dataclass(frozen=True)
 class PlanarizeReport:
     """What :func:`planarize` did.
@@ -122,6 +281,8 @@ class PlanarizeReport:
     Quality figures: ``edge_length_ratio_min``/``_max`` (output over input length,
     over all edges), ``nonconvex`` (quad ids), ``moved_max``. ``methods_tried``
     lists every method run, in order (``method`` is the one whose result is returned).
+    ``shape`` is the setting; ``guarded`` how many quads the shape bounds of
+    ``shape="keep"`` changed in the last local step (planarity fought the bounds there).
     """
 
     converged: bool
@@ -156,6 +317,8 @@ class PlanarizeReport:
     collapsed_edges: int = 0
     failure: str = ""
     held_off_reference: float = 0.0
+    shape: str = "keep"
+    guarded: int = 0
 
     def notes(self) -> list[str]:
         """Short sentences for the user: not converged, held vertices far off the reference.
@@ -169,6 +332,11 @@ class PlanarizeReport:
         out: list[str] = []
         if self.failure:
             out.append(self.failure)
+        if not self.converged and self.guarded and self.shape == "keep":
+            out.append(f"{self.guarded} quads needed the shape bounds to stay convex with edges of at least "
+                       f"{KEPT_EDGE_RATIO:g} of their length: planar panels here would fold or collapse them. "
+                       f"Hold fewer vertices (fix={self.fix!r}: try fix='none'), loosen planar_tolerance, or "
+                       "shape='free' to see the folded result")
         if not self.converged and not self.failure:
             out.append(f"not converged: planarity {self.planarity_max:.3g} (relative) after {self.iterations} "
                        f"iterations ({self.method}); the tolerance {self.planar_tolerance!r} was not met")
@@ -245,13 +413,18 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
 
 def _newton(
     x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
-    h: float, closest: Any, tol: float, max_steps: int, relative: bool = True,
+    h: float, closest: Any, tol: float, max_steps: int, relative: bool = True, keep: bool = False,
 ) -> tuple[np.ndarray, list[float], int]:
     """Planarity as a hard constraint: Gauss–Newton (SQP) steps on the fairness and closeness energy.
 
     Each step minimizes the quadratic energy subject to the linearized constraints
     ``c + G Δ = 0`` (one sparse KKT solve for x, y and z together), then halves the
-    step until the constraint norm decreases (at most 6 times). Works in units of
+    step until the constraint norm decreases (at most 6 times). With ``keep``
+    (``shape="keep"``) the result must be sound — no quad convex in ``x0`` turned
+    non-convex, no edge below :data:`KEPT_EDGE_RATIO` of its length: the iterates may
+    pass through unsound positions (a fold that later opens again), but if the last
+    one is unsound, the last sound iterate is returned (its planarity is the
+    history's last entry). Works in units of
     the mean edge length ``h`` about the centroid, so the system is well scaled.
     Returns the positions, the maximum planarity after every step and the number of steps.
     """
@@ -283,6 +456,19 @@ def _newton(
     X = X0.copy()
     history: list[float] = []
     steps = 0
+    if keep:
+        edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+        min_len = KEPT_EDGE_RATIO * np.linalg.norm(X0[edges[:, 1]] - X0[edges[:, 0]], axis=1)
+        convex0 = _validate.corner_turns(X0, faces)[0] == 0
+
+        def sound(Y: np.ndarray) -> bool:
+            """No edge below its kept length, no quad convex in the input turned non-convex."""
+            if (np.linalg.norm(Y[edges[:, 1]] - Y[edges[:, 0]], axis=1) < min_len).any():
+                return False
+            return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
+
+        last_sound, last_sound_p = X0, float(quad_diagonal_distance(X0, faces, relative=relative).max()) * (
+            1.0 if relative else h)
     for steps in range(1, max_steps + 1):
         target = (closest(X * h + centre)[0] - centre) / h
         b = (w_c * target[fi] + w_i * X0[fi] - fixed_F).reshape(-1)
@@ -308,8 +494,13 @@ def _newton(
         pmax = float(quad_diagonal_distance(X, faces, relative=relative).max()) * (1.0 if relative else h)
         history.append(pmax)
         report_progress(min(steps / max_steps, 1.0), f"Newton step {steps}: planarity max {pmax:.2e}")
+        if keep and sound(X):
+            last_sound, last_sound_p = X.copy(), pmax
         if pmax <= tol:
             break
+    if keep and last_sound is not X and not sound(X):
+        X = last_sound  # the end folds a quad or collapses an edge: back to the last sound iterate
+        history.append(last_sound_p)
     out = x0.copy()  # fixed vertices exactly as given (no round trip through the scaled frame)
     out[fi] = X[fi] * h + centre
     return out, history, steps
@@ -333,6 +524,7 @@ def planarize(
     anderson: int = 5,
     method: Literal["auto", "local-global", "newton"] = "auto",
     newton_steps: int = 30,
+    shape: Shape = "keep",
 ) -> tuple[QuadMesh, PlanarizeReport]:
     """Make every quad planar while keeping structure lines fair and the mesh on its design surface.
 
@@ -382,6 +574,16 @@ def planarize(
         that meets the tolerance (else the flatter one) is returned.
     newton_steps : int
         Cap on Newton steps (>= 1).
+    shape : {"keep", "free"}
+        ``"keep"`` (default): no quad convex in the input may turn into a dart or a
+        bow-tie, and no edge may shrink below :data:`KEPT_EDGE_RATIO` of its input
+        length. The local step projects each quad onto the closest planar quad
+        that keeps these bounds (:func:`kept_shape_projection`), and Newton steps
+        are shortened so that they keep them. Where planarity can only be had by
+        breaking them (e.g. corners held on a surface whose grid is far from a
+        conjugate net), the result stays sound and is reported unconverged.
+        ``"free"``: the plain projection (quads may fold; such a result is reported,
+        never ``converged``).
 
     Returns
     -------
@@ -423,6 +625,7 @@ def planarize(
             raise InputError(f"{name}: expected a number >= 0, got {value!r}")
     method = _validate.choice(method, ("auto", "local-global", "newton"), "method")
     newton_steps = _validate.positive_int(newton_steps, "newton_steps")
+    shape = _validate.choice(shape, ("keep", "free"), "shape")
     if not isinstance(adapt, (bool, np.bool_)):
         raise InputError(f"adapt: expected True or False, got {adapt!r}")
     held = fixed_vertices(mesh, fix, fixed)
@@ -458,7 +661,7 @@ def planarize(
         return ref.closest(x)
 
     def finish(x: np.ndarray, converged: bool, its: int, history: list[float], w_p_now: float, facts: int,
-               used: str = "local-global", n_steps: int = 0):
+               used: str = "local-global", n_steps: int = 0, guarded: int = 0):
         out = mesh if x is x0 else mesh.with_vertices(x)
         quality = _quality(mesh, out)
         met = converged
@@ -482,6 +685,7 @@ def planarize(
             reference_distance_max=float(dist.max()), reference_distance_mean=float(dist.mean()),
             weight_planarity_final=w_p_now, factorizations=facts, seconds=time.perf_counter() - t0,
             length_scale=h, history=history, method=used, newton_steps=n_steps, methods_tried=[used], **quality,
+            shape=shape, guarded=guarded,
         )
 
     if p_before <= tol:
@@ -512,8 +716,10 @@ def planarize(
     else:
         F = sp.csr_matrix((n, n))
     def run_newton(its: int, history: list[float], facts: int) -> tuple[QuadMesh, PlanarizeReport]:
-        x, steps_h, steps = _newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol, newton_steps, relative)
-        return finish(x, steps_h[-1] <= tol, its, history + steps_h, w_p, facts + steps, "newton", steps)
+        x, steps_h, steps = _newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol, newton_steps, relative,
+                                    keep=shape == "keep")
+        met = bool(steps_h) and steps_h[-1] <= tol
+        return finish(x, met, its, history + steps_h, w_p, facts + len(steps_h), "newton", steps)
 
     if method == "newton":
         return run_newton(0, [], 0)
@@ -536,9 +742,17 @@ def planarize(
     m4 = faces.size
     gather = sp.csr_matrix((np.ones(m4), (faces.reshape(-1), np.arange(m4))), shape=(n, m4))
 
+    keeper = _ShapeKeeper(x0, faces) if shape == "keep" else None
+    guarded = 0
+
     def step(x: np.ndarray) -> np.ndarray:
         """One local/global step from positions ``x``: new free positions (the fixed-point map)."""
-        qv = gather @ quad_plane_projection(x, faces).reshape(-1, 3)
+        nonlocal guarded
+        if keeper is None:
+            q = quad_plane_projection(x, faces)
+        else:
+            q, guarded = keeper.project(x)
+        qv = gather @ q.reshape(-1, 3)
         target, _ = closest(x)
         lin = -((w_p / h**2) * qv + (w_c / h**2) * target + (w_i / h**2) * x0)
         return lu.solve(lin, Y=xfix)[fi]
@@ -569,12 +783,16 @@ def planarize(
             last_change = it
             if acc is not None:
                 acc.reset()
-    result = finish(x, converged, it, history, w_p, facts)
+    result = finish(x, converged, it, history, w_p, facts, guarded=guarded)
     if converged or method != "auto" or fi.size > NEWTON_LIMIT:
         return result
     other = run_newton(it, history, facts)
-    better = other[1].converged or (not result[1].converged and other[1].planarity_max < result[1].planarity_max)
-    chosen = other if better else result
+
+    def rank(r: PlanarizeReport) -> tuple[bool, bool, float]:
+        # converged first, then a sound mesh (nothing folded or collapsed), then the flatter
+        return (not r.converged, bool(r.nonconvex or r.collapsed_edges), r.planarity_max)
+
+    chosen = other if rank(other[1]) < rank(result[1]) else result
     return chosen[0], replace(chosen[1], methods_tried=["local-global", "newton"])
 
 

@@ -46,11 +46,18 @@ def test_a_planar_grid_stays_put():
 def test_a_hyperbolic_paraboloid_becomes_planar_by_bounded_movement():
     m = hypar()
     assert diagonal_distance(m).max() > 0.01
-    # corners held (the default): planar, but the corner quads turn into darts — not "converged" (issue 16)
-    spiky, rep_c = planarize(m, planar_tolerance=1e-4)
+    # corners held, shape="free": planar, but the corner quads turn into darts — not "converged" (issue 16)
+    spiky, rep_c = planarize(m, planar_tolerance=1e-4, shape="free")
     assert rep_c.planarity_max <= 1e-4 and not rep_c.converged
     assert rep_c.nonconvex == [0, 6, 42, 48] and "non-convex" in rep_c.failure
     assert np.flatnonzero(nonconvex_panels(spiky)).tolist() == rep_c.nonconvex  # an independent count
+    # shape="keep" (the default) prevents the darts: a sound mesh, unconverged, with what to change
+    sound, rep_k = planarize(m, planar_tolerance=1e-4)
+    _check_quality(m, sound, rep_k)
+    assert rep_k.shape == "keep" and rep_k.guarded > 0 and not rep_k.converged
+    assert not nonconvex_panels(sound).any() and rep_k.edge_length_ratio_min > 0.25
+    assert rep_k.planarity_max < rep_k.planarity_max_before
+    assert any("fix='none'" in n for n in rep_k.notes())
     out, rep = planarize(m, planar_tolerance=1e-4, fix="none")
     d = diagonal_distance(out)
     assert rep.converged and d.max() <= 1e-4 and rep.planarity_max == pytest.approx(d.max())
@@ -130,10 +137,12 @@ def test_reference_surface_keeps_vertices_on_it():
     clean = hypar(9)
     noisy, _ = perturb(clean, tangential=0.2, normal=0.1, seed=2, fix="corners")
     faired, _ = fair(noisy, iterations=3)
-    a, ra = planarize(faired)
-    b, rb = planarize(faired, reference=clean)
+    # the hypar's grid runs along its rulings (no conjugate net): with its corners held, planar quads would
+    # fold (see test_a_hyperbolic_paraboloid...), so the whole mesh may move here
+    a, ra = planarize(faired, fix="none")
+    b, rb = planarize(faired, reference=clean, fix="none")
     assert ra.reference == "none" and rb.reference == "mesh"
-    assert rb.planarity_max <= 1e-3
+    assert rb.planarity_max <= 1e-3 and rb.converged
     _check_quality(faired, b, rb)
     from quadnodes.metrics import distance_to_mesh
 
@@ -182,6 +191,7 @@ def test_unreachable_tolerance_stops_unconverged():
         ({"adapt": "yes"}, "adapt"),
         ({"method": "shapeup"}, "method"),
         ({"newton_steps": 0}, "newton_steps"),
+        ({"shape": "KEEP"}, "shape"),
     ],
 )
 def test_bad_input_names_the_parameter(kwargs, match):
@@ -210,12 +220,17 @@ def test_node_and_step_export_write_planar_faces(tmp_path):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_newton_meets_the_tolerance_with_fixed_vertices_untouched(seed):
     m, _ = perturb(hypar(7), tangential=0.1, normal=0.1, seed=seed)
-    out, rep = planarize(m, method="newton", planar_tolerance=1e-4)
+    out, rep = planarize(m, method="newton", planar_tolerance=1e-4, shape="free")
     assert rep.method == "newton" and rep.newton_steps <= 30 and rep.methods_tried == ["newton"]
     assert diagonal_distance(out).max() <= 1e-4
     _check_quality(m, out, rep)  # planar, but corners held: darts at the corners are reported, not "converged"
     c = m.topology.corner_vertices
     np.testing.assert_array_equal(out.vertices[c], m.vertices[c])
+    # shape="keep": every Newton step is shortened so that nothing folds or collapses
+    sound, rep_k = planarize(m, method="newton", planar_tolerance=1e-4)
+    _check_quality(m, sound, rep_k)
+    assert rep_k.nonconvex == [] and rep_k.edge_length_ratio_min >= 0.3 - 1e-12
+    np.testing.assert_array_equal(sound.vertices[c], m.vertices[c])
 
 
 def test_auto_falls_back_to_newton_where_local_global_stalls():
@@ -225,10 +240,14 @@ def test_auto_falls_back_to_newton_where_local_global_stalls():
     clean = surfaces.example("E1")
     faired, _ = fair(perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")[0], iterations=3)
     lg, rep_lg = planarize(faired, fix="boundary", method="local-global")
-    assert not rep_lg.converged
-    out, rep = planarize(faired, fix="boundary")
-    assert rep.method == "newton" and rep.planarity_max <= 1e-3
+    assert not rep_lg.converged and rep_lg.nonconvex == []
+    # Newton reaches the tolerance only by folding two quads next to the held boundary
+    nw, rep_nw = planarize(faired, fix="boundary", method="newton", shape="free")
+    assert rep_nw.planarity_max <= 1e-3 and rep_nw.nonconvex and not rep_nw.converged
+    # auto tries both (and reports both) but returns the sound mesh, not the flatter folded one
+    out, rep = planarize(faired, fix="boundary", shape="free")
     assert rep.methods_tried == ["local-global", "newton"]  # every method tried is reported (issue 16)
+    assert rep.method == "local-global" and rep.nonconvex == []
     _check_quality(faired, out, rep)
     assert rep.iterations == rep_lg.iterations  # the local/global iterations it tried first
     b = clean.topology.boundary_vertices
@@ -298,3 +317,56 @@ def test_length_tolerance_in_the_mesh_unit():
     assert rep_m.tolerance == pytest.approx(5e-4) and rep_m.unit == "m"
     with pytest.raises(InputError, match="planar_tolerance"):
         planarize(noisy, planar_tolerance="half a mm")
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), push=st.floats(0.0, 1.5))
+def test_kept_shape_projection_is_planar_and_keeps_the_bounds(seed, push):
+    from quadnodes.flatness import quad_diagonal_distance
+    from quadnodes.planarization import KEPT_CORNER_HEIGHT, KEPT_EDGE_RATIO, kept_shape_projection
+
+    rng = np.random.default_rng(seed)
+    rest = hypar(4).vertices
+    faces = hypar(4).faces
+    x = rest + rng.normal(scale=0.15, size=rest.shape)
+    x[5] += push * (x[10] - x[5])  # drive one vertex towards (and past) the opposite corner: darts, bow-ties
+    q = kept_shape_projection(x, faces, rest=rest)
+    np.testing.assert_allclose(q.sum(axis=1), 0.0, atol=1e-12)
+    flat = q.reshape(-1, 3)
+    quads = np.arange(len(flat)).reshape(-1, 4)
+    assert quad_diagonal_distance(flat, quads).max() < 1e-9
+    from quadnodes._validate import corner_turns
+
+    # every target is convex, with no edge far below its kept length
+    against, _ = corner_turns(flat, quads)
+    assert (against == 0).all()
+    l_q = np.linalg.norm(np.roll(q, -1, axis=1) - q, axis=2)
+    l_rest = np.linalg.norm(np.roll(rest[faces], -1, axis=1) - rest[faces], axis=2)
+    assert (l_q >= 0.9 * KEPT_EDGE_RATIO * l_rest).all()
+    # quads that keep their bounds are projected exactly as before (here: the rest shape itself, all convex)
+    np.testing.assert_array_equal(kept_shape_projection(rest, faces, rest=rest), quad_plane_projection(rest, faces))
+    assert 0 < KEPT_CORNER_HEIGHT < 1 and 0.2 < KEPT_EDGE_RATIO < 1
+
+
+def test_shape_setting_reaches_the_node(tmp_path):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import Graph
+
+    g = Graph(base_dir=tmp_path)
+    m = g.add("grid", id="grid", rows=6, cols=6, spacing=1.0)
+    noisy = g.add("perturb", m, id="noisy", normal=0.15, seed=5)
+    g.add("planarize", noisy.mesh, id="keep")
+    g.add("planarize", noisy.mesh, id="free", shape="free")
+    res = g.run()
+    assert res["keep.report"].shape == "keep" and res["free.report"].shape == "free"
+
+
+def test_kept_shape_projection_checks_its_input():
+    from quadnodes.planarization import kept_shape_projection
+
+    v = hypar(3).vertices
+    f = hypar(3).faces
+    with pytest.raises(InputError, match="rest"):
+        kept_shape_projection(v, f, rest=v[:-1])
+    with pytest.raises(InputError, match="faces"):
+        kept_shape_projection(v, f + 100, rest=v)

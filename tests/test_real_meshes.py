@@ -90,3 +90,24 @@ def test_staircase_boundary_has_few_corners_and_planarizes_with_defaults():
     # holding the whole valence-defined set would leave some quads with four held corners: refused, named
     with pytest.raises(InputError, match="have all four corners held"):
         planarize(m, fix="none", fixed=topo.corner_vertices | topo.boundary_vertices, planar_tolerance=1e-6)
+
+
+def test_planarize_keeps_quads_sound_on_the_issue_cases():
+    # issue 16, item 4: with reference=input the ruled hypar's edges collapsed to 0.6 % of their length
+    m = load(DATA / "compas/hypar.obj")
+    _, free = planarize(m, reference=m, shape="free")
+    assert free.edge_length_ratio_min < 0.01 and free.nonconvex and not free.converged
+    _, keep = planarize(m, reference=m)
+    assert keep.shape == "keep" and keep.nonconvex == [] and keep.collapsed_edges == 0
+    assert keep.edge_length_ratio_min > 0.25
+    # its grid runs along the rulings (no conjugate net): with the corners held, planar quads must fold,
+    # so the sound result is not converged, and the report says what to change
+    assert not keep.converged and any("fix='none'" in n for n in keep.notes())
+    # the staircase mesh, noisy and faired, nothing held: the plain projection folds quads; "keep" converges
+    st = load(DATA / "staircase_saddle.obj")
+    faired, _ = fair(perturb(st, tangential=0.2, normal=0.1, seed=3)[0], iterations=3)
+    _, f2 = planarize(faired, fix="none", shape="free")
+    assert f2.nonconvex and not f2.converged
+    flat, k2 = planarize(faired, fix="none")
+    assert k2.converged and k2.nonconvex == [] and k2.planarity_max <= 1e-3
+    assert k2.edge_length_ratio_min > 0.25

@@ -47,11 +47,22 @@ Columns
   factorizations, i.e. planarity-weight doublings + 1, and whether the tolerance was
   met); libigl does not report its count: "100 (cap)" when the result is still above
   its threshold, "≤ 100" when it stopped at the threshold;
+- edge ratio min: the shortest edge relative to its length in the faired input;
+  folded: quads convex in the faired input that are darts or bow-ties in the
+  result (``quadnodes.flatness.nonconvex_panels``) — a sound result has none;
 - wall time: the planarization call only (mesh construction, noise, fairing, the
   mesh's structure lines and module imports excluded); peak MB: that row's subprocess peak resident memory (ru_maxrss) minus
   its resident memory just before the call.
 
-Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow]
+quadnodes rows use ``shape="keep"`` (the default) unless ``--shape free`` is given
+(the plain projection, as before issue 16).
+
+``--shapes``: instead of the tables, every quadnodes row (E1–E4, and F100 without
+``--quick``; the Newton row on F100 only with ``--slow``) with ``shape="free"``
+and ``shape="keep"`` one after the other in one process, so both see the same
+machine load, and whether the two results are bit-identical.
+
+Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
@@ -108,7 +119,7 @@ def _case(name: str):
     return face, clean, fine, faired
 
 
-def run_row(name: str, kind: str) -> dict:
+def run_row(name: str, kind: str, shape: str = "keep") -> dict:
     import igl
 
     from quadnodes.metrics import distance_to_mesh
@@ -127,7 +138,7 @@ def run_row(name: str, kind: str) -> dict:
         out = faired
     elif kind.startswith("qn_"):
         ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean}[kind]
-        out, rep = planarize(faired, reference=ref, method="newton" if kind == "qn_newton" else "auto")
+        out, rep = planarize(faired, reference=ref, method="newton" if kind == "qn_newton" else "auto", shape=shape)
         met = "met" if rep.converged else "NOT met"
         if rep.method == "newton" and kind != "qn_newton":
             iters = f"{rep.iterations} + {rep.newton_steps} Newton ({met})"
@@ -149,7 +160,14 @@ def run_row(name: str, kind: str) -> dict:
     ds = distance_to_mesh(out.vertices, fine) / h
     moved = np.linalg.norm(out.vertices - faired.vertices, axis=1) / h
     zz = window_deviation(out.vertices, out.topology.windows)
+    from quadnodes.flatness import nonconvex_panels
+
+    e = faired.topology.edges
+    ratio = (np.linalg.norm(out.vertices[e[:, 1]] - out.vertices[e[:, 0]], axis=1)
+             / np.linalg.norm(faired.vertices[e[:, 1]] - faired.vertices[e[:, 0]], axis=1))
+    folded = int((nonconvex_panels(out) & ~nonconvex_panels(faired)).sum())
     return {
+        "edge_ratio_min": float(ratio.min()), "folded": folded,
         "planarity_max": float(pl.max()), "planarity_mean": float(pl.mean()),
         "igl_measure_diff": float(np.abs(pl - pl_igl).max()),
         "surface_max_h": float(ds.max()), "surface_mean_h": float(ds.mean()),
@@ -161,7 +179,7 @@ def run_row(name: str, kind: str) -> dict:
 
 
 HEADER = ("| method | planarity max | planarity mean | to clean surface max (h) | to clean surface mean (h) "
-          "| moved max (h) | zigzag mean | iterations | wall time (s) | peak MB |")
+          "| moved max (h) | zigzag mean | edge ratio min | folded | iterations | wall time (s) | peak MB |")
 
 
 def main() -> None:
@@ -169,19 +187,26 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="only E1–E4 (skip the 100×100 free-form surface)")
     ap.add_argument("--slow", action="store_true",
                     help="also run libigl at threshold 1e-3 on the 100×100 surface (up to an hour)")
+    ap.add_argument("--shape", choices=("keep", "free"), default="keep",
+                    help="planarize's shape setting for the quadnodes rows (default keep)")
+    ap.add_argument("--shapes", action="store_true",
+                    help="compare shape='free' and shape='keep' on every quadnodes row (one table)")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
-        print(json.dumps(run_row(args.row[0], args.row[1])))
+        print(json.dumps(run_row(args.row[0], args.row[1], args.shape)))
         return
     cases = list(EXAMPLES) + ([] if args.quick else [FREEFORM])
+    if args.shapes:
+        _compare_shapes(cases, args.slow)
+        return
     for name in cases:
         worst = 0.0
         lines = []
         for kind in KINDS:
             if name == FREEFORM and kind in ("igl_tol", "qn_newton") and not args.slow:
                 continue
-            out = subprocess.run([sys.executable, __file__, "--row", name, kind],
+            out = subprocess.run([sys.executable, __file__, "--row", name, kind, "--shape", args.shape],
                                  capture_output=True, text=True, check=True)
             r = json.loads(out.stdout.strip().splitlines()[-1])
             worst = max(worst, r["igl_measure_diff"])
@@ -189,13 +214,46 @@ def main() -> None:
             peak = "—" if r["peak_mb"] is None else f"{r['peak_mb']:.0f}"
             lines.append(f"| {LABELS[kind]} | {r['planarity_max']:.2e} | {r['planarity_mean']:.2e} "
                          f"| {r['surface_max_h']:.3f} | {r['surface_mean_h']:.3f} | {r['moved_max_h']:.3f} "
-                         f"| {r['zigzag_mean']:.2e} | {r['iterations']} | {wall} | {peak} |")
+                         f"| {r['zigzag_mean']:.2e} | {r['edge_ratio_min']:.3f} | {r['folded']} "
+                         f"| {r['iterations']} | {wall} | {peak} |")
             if len(lines) == 1:
-                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---|---:|---:|")
+                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|")
             print(lines[-1], flush=True)
         if name == FREEFORM and not args.slow:
             print("\n(libigl at threshold 1e-3 skipped on this mesh: run with --slow)")
         print(f"\nLargest |diagonal_distance − |igl.quad_planarity|| over these rows: {worst:.1e}", flush=True)
+
+
+def _compare_shapes(cases: list[str], slow: bool) -> None:
+    """One table: each quadnodes row with shape="free" (before issue 16) and shape="keep" (the default).
+
+    Both runs of a row happen in one process on the same faired mesh (its structure lines built
+    beforehand), free first; "same result" says whether the two meshes are bit-identical.
+    """
+    from quadnodes.planarization import planarize
+
+    print("| mesh | method | planarity max free / keep | folded free / keep | edge ratio min free / keep "
+          "| same result | returned by | wall time free / keep (s) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in cases:
+        face, clean, _, faired = _case(name)
+        _ = faired.topology.windows
+        for kind in ("qn_mesh", "qn_face", "qn_none", "qn_newton"):
+            if name == FREEFORM and kind == "qn_newton" and not slow:
+                continue
+            ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean}[kind]
+            runs = []
+            for shape in ("free", "keep"):
+                t = time.perf_counter()
+                out, rep = planarize(faired, reference=ref, method="newton" if kind == "qn_newton" else "auto",
+                                     shape=shape)
+                runs.append((out, rep, time.perf_counter() - t))
+            (a, ra, ta), (b, rb, tb) = runs
+            same = "yes" if np.array_equal(a.vertices, b.vertices) else "no"
+            print(f"| {name} | {LABELS[kind].removeprefix('quadnodes').strip(', ')} "
+                  f"| {ra.planarity_max:.2e} / {rb.planarity_max:.2e} | {len(ra.nonconvex)} / {len(rb.nonconvex)} "
+                  f"| {ra.edge_length_ratio_min:.3f} / {rb.edge_length_ratio_min:.3f} | {same} "
+                  f"| {ra.method} / {rb.method} | {ta:.2f} / {tb:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
