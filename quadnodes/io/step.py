@@ -267,6 +267,7 @@ class _Built:
     rgb: list[tuple[float, float, float]] | None
     mode: str
     name: str
+    pcurves: bool = False  # also write every edge's curve on each of its faces
 
 
 def step_panels(
@@ -450,8 +451,9 @@ def _write_named_shell(built: _Built, path: str, metres: float) -> None:
             colours.SetColor(sub, Quantity_Color(*built.rgb[k], Quantity_TypeOfColor.Quantity_TOC_sRGB),
                              XCAFDoc_ColorType.XCAFDoc_ColorSurf)
     STEPCAFControl_Controller.Init_s()
-    previous = Interface_Static.IVal_s("write.stepcaf.subshapes.name")
+    previous = {key: Interface_Static.IVal_s(key) for key in ("write.stepcaf.subshapes.name", "write.surfacecurve.mode")}
     Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
+    Interface_Static.SetIVal_s("write.surfacecurve.mode", int(built.pcurves))
     try:
         writer = STEPCAFControl_Writer()
         writer.SetNameMode(True)
@@ -461,7 +463,8 @@ def _write_named_shell(built: _Built, path: str, metres: float) -> None:
         if writer.Write(path) != IFSelect_ReturnStatus.IFSelect_RetDone:
             raise ExportError("OCCT failed to write the STEP file")
     finally:
-        Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", previous)
+        for key, value in previous.items():
+            Interface_Static.SetIVal_s(key, value)
 
 
 def _write_step(built: _Built, path: str, unit: str) -> None:
@@ -484,7 +487,7 @@ def _write_step(built: _Built, path: str, unit: str) -> None:
             _write_named_shell(built, path, metres)
         else:
             b123d_unit = {"mm": "MM", "cm": "CM", "m": "M", "in": "IN", "ft": "FT"}[unit]
-            export_step(built.shape, path, unit=Unit[b123d_unit])
+            export_step(built.shape, path, unit=Unit[b123d_unit], write_pcurves=built.pcurves)
     finally:
         Interface_Static.SetCVal_s("write.step.unit", previous or "MM")
 
@@ -498,6 +501,7 @@ def write_step(
     colors: bool = False,
     name: str = "panels",
     check: bool = False,
+    pcurves: bool = False,
     **renamed: Any,
 ) -> tuple[Path, StepReport]:
     """:func:`save_step`, also returning the :class:`StepReport`.
@@ -511,8 +515,10 @@ def write_step(
     >>> report.n_planar, round(report.max_corner_move, 6)
     (1, 0.1)
     """
+    pcurves = _validate.flag(pcurves, "pcurves")
     built, report = _build(mesh, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
                            check=check, renamed=renamed, where="save_step")
+    built.pcurves = pcurves
     report_progress(0.8, f"writing {mesh.n_faces} panels to STEP")
     out = write_atomic(path, lambda tmp: _write_step(built, tmp, mesh.unit))
     report_progress(1.0, f"wrote {out.name}")
@@ -528,6 +534,7 @@ def save_step(
     colors: bool = False,
     name: str = "panels",
     check: bool = False,
+    pcurves: bool = False,
     **renamed: Any,
 ) -> Path:
     """Write the panels of ``mesh`` to a STEP file, atomically.
@@ -569,4 +576,4 @@ def save_step(
     True
     """
     return write_step(mesh, path, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
-                      check=check, **renamed)[0]
+                      check=check, pcurves=pcurves, **renamed)[0]
