@@ -41,8 +41,10 @@ Modes
 ``"compound"``
     One compound of independent faces (fastest; neighbours share no edges).
 ``"shell"`` (the export node's default)
-    The faces sewn along their shared edges (``BRepBuilderAPI_Sewing``) into one
-    shell per connected piece of the mesh, every face **named** with its panel
+    The panels connected along their shared edges: one shell per connected piece
+    of the mesh, built on the mesh's own vertices and edges (one OCCT vertex per
+    mesh vertex, one edge per mesh edge, used by both its panels; no sewing),
+    every face **named** with its panel
     label ``P_<row>_<col>`` (or ``P_<face index>``) through XCAF sub-shape names
     (the STEP ``ADVANCED_FACE`` names, read by OCCT with
     ``read.stepcaf.subshapes.name``); optionally coloured. Labelled and
@@ -51,9 +53,22 @@ Modes
     An assembly whose children are the panels (one product per panel, named
     with its label), optionally coloured; neighbours share no edges.
 
-The sewing tolerance absorbs the corner moves of planar panels (neighbouring
-projected corners are at most two moves apart), so panels on both sides of a
-shared edge stay connected.
+In a shell the panels share their corners, so a planar panel's corners are not
+moved: its shared vertices are the mesh's vertices, its plane face is bounded by
+their projections onto its plane (the pcurves), and each shared edge and vertex
+carries the distance between the two as its tolerance — the panel's corner move,
+at most half the tolerance, exactly as much as the compound moves its corners.
+The whole shape is built in one read of OCCT's BRep text
+(:mod:`quadnodes.io._brep`): about 1 s of CPU for 10,000 panels, where building
+them face by face and sewing them took 13 s.
+
+Pcurves
+-------
+Every edge is a straight line on planes and bilinear patches, which a reader
+projects onto each face exactly, so by default the file leaves out the edges'
+curves on each face (``write.surfacecurve.mode = 0``): 13 MB instead of 32 MB and
+about 40 % less writing time for 10,000 panels; ``pcurves=True`` writes them (OCCT's
+default). The tests read both back (OCCT, gmsh): the same faces, edges and names.
 
 Units
 -----
@@ -326,7 +341,7 @@ def step_panels(
         message gives the new name).
     ExportError
         On a degenerate panel (zero-length edge or zero area; the message names
-        it), or when sewing loses faces.
+        it), or when OCCT cannot build the panels.
 
     Examples
     --------
@@ -421,7 +436,7 @@ def step_shape(
 
 
 def _write_named_shell(built: _Built, path: str, metres: float) -> None:
-    """Write a sewn shell with every face named (XCAF sub-shape labels) and optionally coloured."""
+    """Write a shell with every face named (XCAF sub-shape labels) and optionally coloured."""
     from OCP.IFSelect import IFSelect_ReturnStatus
     from OCP.Interface import Interface_Static
     from OCP.Quantity import Quantity_Color, Quantity_TypeOfColor
@@ -445,7 +460,7 @@ def _write_named_shell(built: _Built, path: str, metres: float) -> None:
     for k, face in enumerate(built.faces):
         sub = shapes.AddSubShape(top, face)
         if sub.IsNull():
-            raise ExportError(f"panel {k} ({built.labels[k]}): its face is not part of the sewn shell")
+            raise ExportError(f"panel {k} ({built.labels[k]}): its face is not part of the shell")
         TDataStd_Name.Set_s(sub, TCollection_ExtendedString(built.labels[k]))
         if built.rgb is not None:
             colours.SetColor(sub, Quantity_Color(*built.rgb[k], Quantity_TypeOfColor.Quantity_TOC_sRGB),
@@ -550,6 +565,10 @@ def save_step(
     mesh : QuadMesh
     path : str or path-like
         Target file, usually ``*.step`` or ``*.stp``.
+    pcurves : bool
+        Also write every edge's curve on each of its faces (OCCT's default; off
+        here: the edges are straight lines that every reader projects exactly,
+        and the file is 2.5 times smaller and written faster).
 
     Returns
     -------
@@ -559,8 +578,9 @@ def save_step(
     Raises
     ------
     InputError
-        On an unknown ``mode``, a bad ``planar_tolerance`` or an old keyword
-        (``planar_tol``, ``mesh_unit``), before anything is built.
+        On an unknown ``mode``, a bad ``planar_tolerance``, ``pcurves`` not a
+        bool, or an old keyword (``planar_tol``, ``mesh_unit``), before anything
+        is built.
     ExportError
         On a degenerate panel (naming its face index and label), a unit STEP
         cannot declare, an OCCT failure while writing, or an unwritable path;
