@@ -236,8 +236,10 @@ def panel_topology(
                                      sign[:, 2], wire_edge_no[:, 2], sign[:, 3], wire_edge_no[:, 3]]).tolist()))
     parts.append(_fill(_FACE, [np.full(m, CONFUSION), surf, wire_no]))
     shell_no = index(n + n_edges + 2 * m + np.arange(len(shells)))
-    for faces_of in shells:
-        parts.append("Sh\n\n0101000\n" + "".join("+%d 0 " % x for x in face_no[faces_of].tolist()) + "*\n")
+    open_face = (sides_per_edge[he] == 1).any(axis=1)  # a panel with a side on the boundary
+    for faces_of in shells:  # flags: free, modified, checked, orientable, closed (no boundary edge), …
+        flags = "0101000" if open_face[faces_of].any() else "0101100"
+        parts.append(f"Sh\n\n{flags}\n" + "".join("+%d 0 " % x for x in face_no[faces_of].tolist()) + "*\n")
     if n_top:
         members = face_no if component is None else shell_no
         parts.append("Co\n\n1101000\n" + "".join("+%d 0 " % x for x in members.tolist()) + "*\n")

@@ -113,3 +113,16 @@ def test_compound_faces_are_free_and_planar_corners_lie_on_their_plane():
         moved = np.linalg.norm(corners[:, None] - exact[None], axis=2).min(axis=1)
         expected = 0.5 * gap[k] if planar[k] else 0.0
         np.testing.assert_allclose(moved, expected, atol=1e-9)
+
+
+def test_a_closed_mesh_gives_a_closed_shell(tmp_path):
+    from quadnodes.mesh import torus
+
+    m = torus(6, 8)
+    built, report = _built(m, "shell")
+    assert built.shape.wrapped.Closed() and _is_valid(built.shape.wrapped)
+    assert report.n_free_edges == 0 and report.n_shared_edges == len(m.topology.edges)
+    text = step_mod.save_step(m, tmp_path / "t.step", mode="shell").read_text()
+    assert "CLOSED_SHELL" in text and "OPEN_SHELL" not in text
+    open_text = step_mod.save_step(grid(3, 3), tmp_path / "g.step", mode="shell").read_text()
+    assert "OPEN_SHELL" in open_text and "CLOSED_SHELL" not in open_text
