@@ -377,7 +377,7 @@ def _build(
 
     labels = panel_labels(mesh)
     check_panels(mesh, planar_tolerance, "step")
-    report_progress(0.1, f"building {mesh.n_faces} panels ({mode})")
+    report_progress(0.1, f"building panels ({mesh.n_faces}, {mode})")
     top, topo_faces, fallback = _build_faces(mesh, planar, labels, mode, check=check)
     is_plane = planar.copy()
     is_plane[fallback] = False
