@@ -125,7 +125,6 @@ _PLANAR_RGB = (0.62, 0.80, 0.95)  # light blue
 _BILINEAR_LOW_RGB = (1.00, 0.85, 0.20)  # yellow: just above the tolerance
 _BILINEAR_HIGH_RGB = (0.85, 0.10, 0.10)  # red: the mesh's least planar panel
 
-_OCC_CONFUSION = 1e-7  # OCCT Precision::Confusion(), the default edge tolerance
 
 
 def _refuse_renamed(removed: dict[str, Any], where: str) -> None:
@@ -319,7 +318,7 @@ def step_panels(
         Label of the top-level shape (the STEP product / header name).
     check : bool
         Also run ``BRepCheck_Analyzer`` on every face (about 0.3 ms per panel on
-        a quiet machine, 10 times the build) and fall back to the bilinear
+        a quiet machine, a few times the whole build) and fall back to the bilinear
         patch for a plane face it rejects. Off by default: a plane face on
         projected corners of a simple polygon and the bilinear patch of a
         non-degenerate quad are valid by construction (the tests check every
