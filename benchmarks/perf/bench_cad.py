@@ -5,13 +5,15 @@ variants — twisted (a saddle: every panel a bilinear patch), almost flat (ever
 tolerance 1e-3 but none exactly: the case that used to abort), and a mix — written with
 ``quadnodes.io.write_step`` in each mode, beside the peer: build123d's own constructors
 (``Face.make_bezier_surface`` / ``Face(Wire.make_polygon(...))``) and ``build123d.export_step`` of a
-Compound of the same faces, in the same run. "build" is the shape alone, "total" includes writing.
+Compound of the same faces (with build123d's default pcurves), in the same run. "build" is the shape
+alone, "total" includes writing (quadnodes' default ``pcurves=False``; ``--pcurves`` adds rows with
+``pcurves=True``, OCCT's default).
 
 Part 2 (``--examples``): examples/quickstart.toml and examples/planar_panels.toml at 40, 45, 60 and 120 per
 side (only the nodes the STEP and CSV need), STEP as a sewn shell: panels, planar, fallbacks, largest
 corner move, time.
 
-Run:  python benchmarks/perf/bench_cad.py [--examples]
+Run:  python benchmarks/perf/bench_cad.py [--examples] [--modes compound,shell] [--pcurves]
 """
 
 from __future__ import annotations
@@ -77,7 +79,7 @@ def _peer(mesh: QuadMesh, path: Path) -> tuple[tuple[float, float], tuple[float,
     return built, _since(t)
 
 
-def speed() -> None:
+def speed(pcurves: bool = False) -> None:
     print("| mesh (10,000 panels) | writer | mode | planar | build wall / CPU [s] | total wall / CPU [s] | size [MB] |")
     print("|---|---|---|---:|---:|---:|---:|")
     step_panels(grid(2, 2))  # warm-up: imports outside the timings
@@ -86,14 +88,16 @@ def speed() -> None:
         for kind in ("twisted", "almost flat", "mixed"):
             mesh = _mesh(kind)
             for mode in MODES:
-                t = _clock()
-                _, report = step_panels(mesh, mode=mode)
-                build = _since(t)
-                t = _clock()
-                path, report = write_step(mesh, out / "q.step", mode=mode)
-                total = _since(t)
-                print(f"| {kind} | quadnodes | {mode} | {report.n_planar} | {_fmt(build)} | {_fmt(total)} | "
-                      f"{os.path.getsize(path) / 1e6:.1f} |", flush=True)
+                for with_pcurves in (False, True) if pcurves else (False,):
+                    t = _clock()
+                    _, report = step_panels(mesh, mode=mode)
+                    build = _since(t)
+                    t = _clock()
+                    path, report = write_step(mesh, out / "q.step", mode=mode, pcurves=with_pcurves)
+                    total = _since(t)
+                    label = f"{mode}, pcurves" if with_pcurves else mode
+                    print(f"| {kind} | quadnodes | {label} | {report.n_planar} | {_fmt(build)} | {_fmt(total)} | "
+                          f"{os.path.getsize(path) / 1e6:.1f} |", flush=True)
             built, total = _peer(mesh, out / "peer.step")
             print(f"| {kind} | build123d (peer) | compound | – | {_fmt(built)} | {_fmt(total)} | "
                   f"{os.path.getsize(out / 'peer.step') / 1e6:.1f} |", flush=True)
@@ -132,12 +136,13 @@ if __name__ == "__main__":
     ap.add_argument("--examples", action="store_true", help="also run the example graphs at 40 … 120 per side")
     ap.add_argument("--only-examples", action="store_true", help="run only the example graphs")
     ap.add_argument("--modes", default=",".join(MODES), help="STEP modes to time (comma-separated)")
+    ap.add_argument("--pcurves", action="store_true", help="also time every mode with pcurves=True")
     args = ap.parse_args()
     MODES = tuple(args.modes.split(","))
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores, load average "
           f"{os.getloadavg()[0]:.1f} at the start\n")
     if not args.only_examples:
-        speed()
+        speed(args.pcurves)
     if args.examples or args.only_examples:
         print()
         examples()

@@ -20,6 +20,7 @@ STEP exporter and the schedule). :func:`load_3dm` reads a Rhino mesh back into a
 from __future__ import annotations
 
 import os
+from collections import deque
 from pathlib import Path
 from typing import Any, Literal
 
@@ -118,12 +119,8 @@ def model_3dm(
     rmesh = rhino3dm.Mesh()
     verts = rmesh.Vertices
     verts.UseDoublePrecisionVertices = True
-    add_v = verts.AddPoint3d
-    for p in mesh.vertices.tolist():
-        add_v(*p)
-    add_f = rmesh.Faces.AddFace
-    for q in mesh.faces.tolist():
-        add_f(*q)
+    deque(map(verts.AddPoint3d, *mesh.vertices.T.tolist()), maxlen=0)
+    deque(map(rmesh.Faces.AddFace, *mesh.faces.T.tolist()), maxlen=0)
     attrs = rhino3dm.ObjectAttributes()
     attrs.Name = "quad mesh"
     attrs.LayerIndex = layer_index["mesh"]
@@ -172,40 +169,48 @@ def _add_panels(model: Any, mesh: QuadMesh, planar: np.ndarray, area: np.ndarray
     keys = ("id", "row", "col", "planarity", f"planarity_{u}", f"area_{u}2", f"edges_{u}", "planar")
     if rc is None:  # Rhino drops a key whose text is empty: no row and col without a grid
         keys = keys[:1] + keys[3:]
-    # corners as homogeneous points; the surface's control points (0,0) (1,0) (1,1) (0,1) are corners 0..3
-    corners = np.concatenate([mesh.vertices[mesh.faces], np.ones((mesh.n_faces, 4, 1))], axis=2).tolist()
+    # every panel's texts at once, in key order, without "planar" (it comes with the layer's attributes)
+    m = mesh.n_faces
+    if rc is None:
+        fmt, columns = "%s\0%r\0%r\0%r\0%r %r %r %r\0", [labels]
+    else:
+        fmt, columns = "%s\0%d\0%d\0%r\0%r\0%r\0%r %r %r %r\0", [labels, rows, cols]
+    columns += [rel, gap, area.tolist(), *edges.T.tolist()]
+    texts = (fmt * m % tuple([x for row in zip(*columns) for x in row])).split("\0") if user_text and m else []
+    per = len(keys) - 1
+    # the control points (0,0) (1,0) (1,1) (0,1) of panel k are its corners 0..3: points[4k : 4k + 4]
+    corners = mesh.vertices[mesh.faces].reshape(-1, 3)
+    points = list(map(rhino3dm.Point4d, *corners.T.tolist(), [1.0] * len(corners)))
     template = rhino3dm.NurbsSurface.Create(3, False, 2, 2, 2, 2)
     for knots in (template.KnotsU, template.KnotsV):
         knots[0] = 0.0
         knots[1] = 1.0
-    layer = [layer_index["bilinear"], layer_index["planar"]]
-    P4 = rhino3dm.Point4d
-    Attributes = rhino3dm.ObjectAttributes
-    add = model.Objects.AddSurface
-    e = edges.tolist()
-    a_ = area.tolist()
-    flags = planar.tolist()
-    # one surface and one attributes object, both copied by AddSurface: every control point and every
-    # key is set again for every panel
-    attrs = Attributes()
-    set_text = attrs.SetUserString
-    put = template.Points.__setitem__
-    s = template
-    for k, q in enumerate(corners):
-        put((0, 0), P4(*q[0]))
-        put((1, 0), P4(*q[1]))
-        put((1, 1), P4(*q[2]))
-        put((0, 1), P4(*q[3]))
-        attrs.Name = labels[k]
-        attrs.LayerIndex = layer[flags[k]]
+    # one attributes object per layer, copied by AddSurface: its "planar" text and layer set once,
+    # the other keys (set first, so every panel lists its keys in the same order) set for every panel
+    by_flag = []
+    for flag in (False, True):
+        attrs = rhino3dm.ObjectAttributes()
+        attrs.LayerIndex = layer_index["planar" if flag else "bilinear"]
         if user_text:
-            values = (labels[k], str(rows[k]), str(cols[k]), repr(rel[k]), repr(gap[k]), repr(a_[k]),
-                      "%r %r %r %r" % tuple(e[k]), "yes" if flags[k] else "no")
-            if rc is None:
-                values = values[:1] + values[3:]
-            for key, value in zip(keys, values):
-                set_text(key, value)
-        add(s, attrs)
+            for key in keys:
+                attrs.SetUserString(key, "yes" if flag else "no")
+        by_flag.append(attrs)
+    set_text = [a.SetUserString for a in by_flag]
+    keys_set = keys[:-1]
+    add = model.Objects.AddSurface
+    put = template.Points.__setitem__
+    c00, c10, c11, c01 = (0, 0), (1, 0), (1, 1), (0, 1)
+    for k, flag in enumerate(planar.tolist()):
+        j = 4 * k
+        put(c00, points[j])
+        put(c10, points[j + 1])
+        put(c11, points[j + 2])
+        put(c01, points[j + 3])
+        attrs = by_flag[flag]
+        attrs.Name = labels[k]
+        if user_text:
+            deque(map(set_text[flag], keys_set, texts[per * k: per * k + per]), maxlen=0)
+        add(template, attrs)
 
 
 def _add_lines(model: Any, mesh: QuadMesh, layer: int) -> None:
@@ -222,7 +227,7 @@ def _add_lines(model: Any, mesh: QuadMesh, layer: int) -> None:
         attrs = rhino3dm.ObjectAttributes()
         attrs.Name = f"L_{i}"
         attrs.LayerIndex = layer
-        model.Objects.AddPolyline([P3(*p) for p in v[idx].tolist()], attrs)
+        model.Objects.AddPolyline(list(map(P3, *v[idx].T.tolist())), attrs)
 
 
 def save_3dm(

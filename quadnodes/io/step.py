@@ -41,8 +41,10 @@ Modes
 ``"compound"``
     One compound of independent faces (fastest; neighbours share no edges).
 ``"shell"`` (the export node's default)
-    The faces sewn along their shared edges (``BRepBuilderAPI_Sewing``) into one
-    shell per connected piece of the mesh, every face **named** with its panel
+    The panels connected along their shared edges: one shell per connected piece
+    of the mesh, built on the mesh's own vertices and edges (one OCCT vertex per
+    mesh vertex, one edge per mesh edge, used by both its panels; no sewing),
+    every face **named** with its panel
     label ``P_<row>_<col>`` (or ``P_<face index>``) through XCAF sub-shape names
     (the STEP ``ADVANCED_FACE`` names, read by OCCT with
     ``read.stepcaf.subshapes.name``); optionally coloured. Labelled and
@@ -51,9 +53,22 @@ Modes
     An assembly whose children are the panels (one product per panel, named
     with its label), optionally coloured; neighbours share no edges.
 
-The sewing tolerance absorbs the corner moves of planar panels (neighbouring
-projected corners are at most two moves apart), so panels on both sides of a
-shared edge stay connected.
+In a shell the panels share their corners, so a planar panel's corners are not
+moved: its shared vertices are the mesh's vertices, its plane face is bounded by
+their projections onto its plane (the pcurves), and each shared edge and vertex
+carries the distance between the two as its tolerance — the panel's corner move,
+at most half the tolerance, exactly as much as the compound moves its corners.
+The whole shape is built in one read of OCCT's BRep text
+(:mod:`quadnodes.io._brep`): about 1 s of CPU for 10,000 panels, where building
+them face by face and sewing them took 13 s.
+
+Pcurves
+-------
+Every edge is a straight line on planes and bilinear patches, which a reader
+projects onto each face exactly, so by default the file leaves out the edges'
+curves on each face (``write.surfacecurve.mode = 0``): 13 MB instead of 32 MB and
+about 40 % less writing time for 10,000 panels; ``pcurves=True`` writes them (OCCT's
+default). The tests read both back (OCCT, gmsh): the same faces, edges and names.
 
 Units
 -----
@@ -110,7 +125,6 @@ _PLANAR_RGB = (0.62, 0.80, 0.95)  # light blue
 _BILINEAR_LOW_RGB = (1.00, 0.85, 0.20)  # yellow: just above the tolerance
 _BILINEAR_HIGH_RGB = (0.85, 0.10, 0.10)  # red: the mesh's least planar panel
 
-_OCC_CONFUSION = 1e-7  # OCCT Precision::Confusion(), the default edge tolerance
 
 
 def _refuse_renamed(removed: dict[str, Any], where: str) -> None:
@@ -175,78 +189,71 @@ def _panel_error(k: int, label: str, kind: str, why: str) -> ExportError:
     return ExportError(f"panel {k} ({label}): cannot build the {kind} face: {why}")
 
 
-def _bilinear_face(c: list[list[float]]) -> Any:
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
-    from OCP.collections import HArray2_gp_Pnt
-    from OCP.Geom import Geom_BezierSurface
-    from OCP.gp import gp_Pnt
+def _topology(mesh: QuadMesh, planar: np.ndarray, mode: str) -> tuple[Any, list[Any]]:
+    """The OCCT shape of the panels and its faces in mesh order (see :mod:`quadnodes.io._brep`).
 
-    poles = HArray2_gp_Pnt(1, 2, 1, 2)
-    poles.SetValue(1, 1, gp_Pnt(*c[0]))
-    poles.SetValue(2, 1, gp_Pnt(*c[1]))
-    poles.SetValue(2, 2, gp_Pnt(*c[2]))
-    poles.SetValue(1, 2, gp_Pnt(*c[3]))
-    maker = BRepBuilderAPI_MakeFace(Geom_BezierSurface(poles), _OCC_CONFUSION)
-    return maker.Face() if maker.IsDone() else None
+    ``shell``: the mesh's own vertices and edges, shared by the panels, one shell per connected
+    piece; the plane of a planar panel passes within half its diagonal distance of its corners
+    and the shared edges and vertices carry that distance as their tolerance. Otherwise every
+    panel has its own four vertices and edges, a planar panel's corners projected onto its plane.
+    """
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
 
-
-def _plane_face(c: list[list[float]], centroid: list[float], normal: list[float]) -> Any:
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
-    from OCP.gp import gp_Dir, gp_Pln, gp_Pnt
-
-    poly = BRepBuilderAPI_MakePolygon(*(gp_Pnt(*q) for q in c), True)
-    if not poly.IsDone():
-        return None
-    # the corners turn counter-clockwise about the normal (a simple polygon, checked by planar_panels),
-    # so OCCT need not classify the wire (Inside=False)
-    maker = BRepBuilderAPI_MakeFace(gp_Pln(gp_Pnt(*centroid), gp_Dir(*normal)), poly.Wire(), False)
-    return maker.Face() if maker.IsDone() else None
-
-
-def _build_faces(
-    mesh: QuadMesh, planar: np.ndarray, labels: list[str], *, check: bool
-) -> tuple[list[Any], list[int]]:
-    """One ``TopoDS_Face`` per quad (OCP directly), and the planar panels that fell back to bilinear."""
-    from OCP.BRepCheck import BRepCheck_Analyzer
+    from ._brep import panel_topology
 
     p = mesh.vertices[mesh.faces]  # (m, 4, 3)
+    m = mesh.n_faces
     normal = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
     nlen = np.linalg.norm(normal, axis=1)
     unit_n = normal / np.where(nlen > 0, nlen, 1.0)[:, None]
     centroid = p.mean(axis=1)
+    xdir = p[:, 1] - p[:, 0]
+    xdir -= np.einsum("fj,fj->f", xdir, unit_n)[:, None] * unit_n
+    xlen = np.linalg.norm(xdir, axis=1)
+    xdir /= np.where(xlen > 0, xlen, 1.0)[:, None]
+    if mode == "shell":
+        topo = mesh.topology
+        twin = topo.he_twin
+        inner = np.flatnonzero(twin >= 0)
+        adjacent = csr_matrix((np.ones(inner.size), (inner // 4, twin[inner] // 4)), shape=(m, m))
+        _, piece = connected_components(adjacent, directed=False)
+        return panel_topology(mesh.vertices, mesh.faces, planar, centroid, unit_n, xdir, topo.edges,
+                              topo.he_edge.reshape(m, 4), piece)
     # planar panels: corners onto the mid-plane of the diagonals (each moves half the diagonal distance)
     height = np.einsum("fkj,fj->fk", p - centroid[:, None, :], unit_n)
-    flat = p - height[:, :, None] * unit_n[:, None, :]
-    corners = np.where(planar[:, None, None], flat, p).tolist()
-    exact = p.tolist()
-    normal_l, centroid_l = unit_n.tolist(), centroid.tolist()
-    faces: list[Any] = []
+    corners = np.where(planar[:, None, None], p - height[:, :, None] * unit_n[:, None, :], p)
+    quads = np.arange(4 * m).reshape(m, 4)
+    nxt = np.roll(quads, -1, axis=1)
+    edges = np.stack([np.minimum(quads, nxt), np.maximum(quads, nxt)], axis=2).reshape(-1, 2)
+    return panel_topology(corners.reshape(-1, 3), quads, planar, centroid, unit_n, xdir, edges, quads, None)
+
+
+def _build_faces(
+    mesh: QuadMesh, planar: np.ndarray, labels: list[str], mode: str, *, check: bool
+) -> tuple[Any, list[Any], list[int]]:
+    """The shape, one ``TopoDS_Face`` per quad, and the planar panels that fell back to bilinear."""
+    try:
+        shape, faces = _topology(mesh, planar, mode)
+    except Exception as exc:  # OCCT's Standard_Failure family arrives as Python exceptions
+        raise ExportError(f"cannot build the {mesh.n_faces} panels: {type(exc).__name__}: {exc}") from exc
     fallback: list[int] = []
-    every = max(1, mesh.n_faces // 20)
-    for k in range(mesh.n_faces):
-        if k % every == 0:
-            report_progress(0.7 * k / mesh.n_faces, f"building panel {k}/{mesh.n_faces}")
-        face = None
-        if planar[k]:
-            try:
-                face = _plane_face(corners[k], centroid_l[k], normal_l[k])
-            except Exception:  # OCCT's Standard_Failure: fall back to the exact patch below
-                face = None
-            if face is not None and check and not BRepCheck_Analyzer(face).IsValid():
-                face = None
-            if face is None:
-                fallback.append(k)
-        if face is None:
-            try:
-                face = _bilinear_face(exact[k])
-            except Exception as exc:  # OCCT's Standard_Failure family arrives as Python exceptions
-                raise _panel_error(k, labels[k], "bilinear", f"{type(exc).__name__}: {exc}") from exc
-            if face is None:
-                raise _panel_error(k, labels[k], "bilinear", "OCCT could not make the face")
-            if check and not BRepCheck_Analyzer(face).IsValid():
-                raise _panel_error(k, labels[k], "bilinear", "OCCT reports the face invalid")
-        faces.append(face)
-    return faces, fallback
+    if check:
+        from OCP.BRepCheck import BRepCheck_Analyzer
+
+        bad = [k for k, f in enumerate(faces) if not BRepCheck_Analyzer(f).IsValid()]
+        fallback = [k for k in bad if planar[k]]
+        if len(fallback) < len(bad):
+            k = next(k for k in bad if not planar[k])
+            raise _panel_error(k, labels[k], "bilinear", "OCCT reports the face invalid")
+        if fallback:  # the refused plane faces as bilinear patches, the rest unchanged
+            planar = planar.copy()
+            planar[fallback] = False
+            shape, faces = _topology(mesh, planar, mode)
+            for k in fallback:
+                if not BRepCheck_Analyzer(faces[k]).IsValid():
+                    raise _panel_error(k, labels[k], "bilinear", "OCCT reports the face invalid")
+    return shape, faces, fallback
 
 
 def _colors(mesh: QuadMesh, planar: np.ndarray) -> list[tuple[float, float, float]]:
@@ -264,18 +271,6 @@ def _colors(mesh: QuadMesh, planar: np.ndarray) -> list[tuple[float, float, floa
     return [tuple(row) for row in out.tolist()]
 
 
-def _edge_counts(shape: Any) -> tuple[int, int]:
-    """(edges shared by two or more faces, edges of one face) of an OCP shape."""
-    from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as EdgeMap
-    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
-    from OCP.TopExp import TopExp
-
-    emap = EdgeMap()
-    TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, emap)
-    sizes = [emap.FindFromIndex(i).Size() for i in range(1, emap.Extent() + 1)]
-    return sum(1 for n in sizes if n >= 2), sum(1 for n in sizes if n == 1)
-
-
 @dataclass
 class _Built:
     """What the writer needs: the top OCP shape, the faces in mesh order, labels, colours."""
@@ -286,34 +281,7 @@ class _Built:
     rgb: list[tuple[float, float, float]] | None
     mode: str
     name: str
-
-
-def _sew(mesh: QuadMesh, topo_faces: list[Any], max_move: float) -> tuple[Any, list[Any]]:
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-
-    # Neighbouring corners are bit-identical except where planar panels were
-    # flattened: two such corners are at most 2 * max_move apart.
-    sew_tol = max(_OCC_CONFUSION, 1e-6 * mesh.mean_edge_length, 2.2 * max_move + _OCC_CONFUSION)
-    sewing = BRepBuilderAPI_Sewing(sew_tol)
-    for f in topo_faces:
-        sewing.Add(f)
-    sewing.Perform()
-    sewn = sewing.SewedShape()
-    n_sewn = 0
-    explorer = TopExp_Explorer(sewn, TopAbs_FACE)
-    while explorer.More():
-        n_sewn += 1
-        explorer.Next()
-    if n_sewn != mesh.n_faces or sewing.NbMultipleEdges() != 0:
-        raise ExportError(
-            f"sewing {mesh.n_faces} panels gave {n_sewn} faces and "
-            f"{sewing.NbMultipleEdges()} edges shared by more than two faces"
-        )
-    faces = [TopoDS.Face(sewing.Modified(f)) if sewing.IsModified(f) else f for f in topo_faces]
-    return sewn, faces
+    pcurves: bool = False  # also write every edge's curve on each of its faces
 
 
 def step_panels(
@@ -350,7 +318,7 @@ def step_panels(
         Label of the top-level shape (the STEP product / header name).
     check : bool
         Also run ``BRepCheck_Analyzer`` on every face (about 0.3 ms per panel on
-        a quiet machine, 10 times the build) and fall back to the bilinear
+        a quiet machine, a few times the whole build) and fall back to the bilinear
         patch for a plane face it rejects. Off by default: a plane face on
         projected corners of a simple polygon and the bilinear patch of a
         non-degenerate quad are valid by construction (the tests check every
@@ -372,7 +340,7 @@ def step_panels(
         message gives the new name).
     ExportError
         On a degenerate panel (zero-length edge or zero area; the message names
-        it), or when sewing loses faces.
+        it), or when OCCT cannot build the panels.
 
     Examples
     --------
@@ -403,10 +371,13 @@ def _build(
     if not isinstance(name, str) or not name:
         raise InputError(f"name: expected a non-empty string, got {name!r}")
     from build123d import Color, Compound, Face, Shell
+    from OCP.TopAbs import TopAbs_SHELL
+    from OCP.TopoDS import TopoDS
 
     labels = panel_labels(mesh)
     check_panels(mesh, planar_tolerance, "step")
-    topo_faces, fallback = _build_faces(mesh, planar, labels, check=check)
+    report_progress(0.1, f"building panels ({mesh.n_faces}, {mode})")
+    top, topo_faces, fallback = _build_faces(mesh, planar, labels, mode, check=check)
     is_plane = planar.copy()
     is_plane[fallback] = False
     moves = corner_moves(mesh, is_plane)
@@ -421,31 +392,17 @@ def _build(
             for k, f in enumerate(topo_faces)
         ]
         shape = Compound(children=children, label=name)
-        top = shape.wrapped
     elif mode == "compound":
-        from OCP.BRep import BRep_Builder
-        from OCP.TopoDS import TopoDS_Compound
-
-        comp = TopoDS_Compound()
-        builder = BRep_Builder()
-        builder.MakeCompound(comp)
-        for f in topo_faces:
-            builder.Add(comp, f)
-        shape = Compound(comp, label=name)
-        top = comp
-    else:
-        from OCP.TopAbs import TopAbs_FACE, TopAbs_SHELL
-        from OCP.TopoDS import TopoDS
-
-        top, topo_faces = _sew(mesh, topo_faces, max_move)
-        if top.ShapeType() == TopAbs_SHELL:
-            shape = Shell(TopoDS.Shell(top), label=name)
-        elif top.ShapeType() == TopAbs_FACE:  # a one-panel mesh
-            shape = Shell(Face(TopoDS.Face(top)), label=name)
-            top = shape.wrapped
-        else:
-            shape = Compound(TopoDS.Compound(top), label=name)
-    shared, free = _edge_counts(top)
+        shape = Compound(TopoDS.Compound(top), label=name)
+    elif top.ShapeType() == TopAbs_SHELL:
+        shape = Shell(TopoDS.Shell(top), label=name)
+    else:  # a mesh in several pieces: a compound of shells
+        shape = Compound(TopoDS.Compound(top), label=name)
+    if mode == "shell":  # the mesh's edges, each one edge of the shell
+        per_edge = mesh.topology.edge_face_count
+        shared, free = int((per_edge == 2).sum()), int((per_edge == 1).sum())
+    else:  # every panel its own four edges
+        shared, free = 0, 4 * mesh.n_faces
     report = StepReport(
         mode=mode, unit=mesh.unit, planar_tolerance=planar_tolerance, n_panels=mesh.n_faces,
         n_planar=int(is_plane.sum()), n_bilinear=int(mesh.n_faces - is_plane.sum()), fallback=tuple(fallback),
@@ -478,7 +435,7 @@ def step_shape(
 
 
 def _write_named_shell(built: _Built, path: str, metres: float) -> None:
-    """Write a sewn shell with every face named (XCAF sub-shape labels) and optionally coloured."""
+    """Write a shell with every face named (XCAF sub-shape labels) and optionally coloured."""
     from OCP.IFSelect import IFSelect_ReturnStatus
     from OCP.Interface import Interface_Static
     from OCP.Quantity import Quantity_Color, Quantity_TypeOfColor
@@ -502,14 +459,15 @@ def _write_named_shell(built: _Built, path: str, metres: float) -> None:
     for k, face in enumerate(built.faces):
         sub = shapes.AddSubShape(top, face)
         if sub.IsNull():
-            raise ExportError(f"panel {k} ({built.labels[k]}): its face is not part of the sewn shell")
+            raise ExportError(f"panel {k} ({built.labels[k]}): its face is not part of the shell")
         TDataStd_Name.Set_s(sub, TCollection_ExtendedString(built.labels[k]))
         if built.rgb is not None:
             colours.SetColor(sub, Quantity_Color(*built.rgb[k], Quantity_TypeOfColor.Quantity_TOC_sRGB),
                              XCAFDoc_ColorType.XCAFDoc_ColorSurf)
     STEPCAFControl_Controller.Init_s()
-    previous = Interface_Static.IVal_s("write.stepcaf.subshapes.name")
+    previous = {key: Interface_Static.IVal_s(key) for key in ("write.stepcaf.subshapes.name", "write.surfacecurve.mode")}
     Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
+    Interface_Static.SetIVal_s("write.surfacecurve.mode", int(built.pcurves))
     try:
         writer = STEPCAFControl_Writer()
         writer.SetNameMode(True)
@@ -519,7 +477,8 @@ def _write_named_shell(built: _Built, path: str, metres: float) -> None:
         if writer.Write(path) != IFSelect_ReturnStatus.IFSelect_RetDone:
             raise ExportError("OCCT failed to write the STEP file")
     finally:
-        Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", previous)
+        for key, value in previous.items():
+            Interface_Static.SetIVal_s(key, value)
 
 
 def _write_step(built: _Built, path: str, unit: str) -> None:
@@ -542,7 +501,7 @@ def _write_step(built: _Built, path: str, unit: str) -> None:
             _write_named_shell(built, path, metres)
         else:
             b123d_unit = {"mm": "MM", "cm": "CM", "m": "M", "in": "IN", "ft": "FT"}[unit]
-            export_step(built.shape, path, unit=Unit[b123d_unit])
+            export_step(built.shape, path, unit=Unit[b123d_unit], write_pcurves=built.pcurves)
     finally:
         Interface_Static.SetCVal_s("write.step.unit", previous or "MM")
 
@@ -556,6 +515,7 @@ def write_step(
     colors: bool = False,
     name: str = "panels",
     check: bool = False,
+    pcurves: bool = False,
     **renamed: Any,
 ) -> tuple[Path, StepReport]:
     """:func:`save_step`, also returning the :class:`StepReport`.
@@ -569,8 +529,10 @@ def write_step(
     >>> report.n_planar, round(report.max_corner_move, 6)
     (1, 0.1)
     """
+    pcurves = _validate.flag(pcurves, "pcurves")
     built, report = _build(mesh, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
                            check=check, renamed=renamed, where="save_step")
+    built.pcurves = pcurves
     report_progress(0.8, f"writing {mesh.n_faces} panels to STEP")
     out = write_atomic(path, lambda tmp: _write_step(built, tmp, mesh.unit))
     report_progress(1.0, f"wrote {out.name}")
@@ -586,6 +548,7 @@ def save_step(
     colors: bool = False,
     name: str = "panels",
     check: bool = False,
+    pcurves: bool = False,
     **renamed: Any,
 ) -> Path:
     """Write the panels of ``mesh`` to a STEP file, atomically.
@@ -601,6 +564,10 @@ def save_step(
     mesh : QuadMesh
     path : str or path-like
         Target file, usually ``*.step`` or ``*.stp``.
+    pcurves : bool
+        Also write every edge's curve on each of its faces (OCCT's default; off
+        here: the edges are straight lines that every reader projects exactly,
+        and the file is 2.5 times smaller and written faster).
 
     Returns
     -------
@@ -610,8 +577,9 @@ def save_step(
     Raises
     ------
     InputError
-        On an unknown ``mode``, a bad ``planar_tolerance`` or an old keyword
-        (``planar_tol``, ``mesh_unit``), before anything is built.
+        On an unknown ``mode``, a bad ``planar_tolerance``, ``pcurves`` not a
+        bool, or an old keyword (``planar_tol``, ``mesh_unit``), before anything
+        is built.
     ExportError
         On a degenerate panel (naming its face index and label), a unit STEP
         cannot declare, an OCCT failure while writing, or an unwritable path;
@@ -627,4 +595,4 @@ def save_step(
     True
     """
     return write_step(mesh, path, mode=mode, planar_tolerance=planar_tolerance, colors=colors, name=name,
-                      check=check, **renamed)[0]
+                      check=check, pcurves=pcurves, **renamed)[0]

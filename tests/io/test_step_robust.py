@@ -222,3 +222,23 @@ def test_shell_faces_carry_their_planarity_colours(tmp_path):
     rgb = {tuple(round(float(c), 2) for c in t.split(",")) for t in
            __import__("re").findall(r"COLOUR_RGB\('[^']*',([^)]*)\)", text)}
     assert tuple(round(c, 2) for c in step_mod._PLANAR_RGB) in rgb and len(rgb) >= 2
+
+
+def test_pcurves_are_optional_and_the_shell_reads_back_the_same(tmp_path):
+    # the edges are straight lines on planes and bilinear patches: a reader projects them exactly, so
+    # the file leaves out the edges' curves on each face unless asked (pcurves=True, OCCT's default)
+    m = grid(4, 5, spacing=300.0, height=np.random.default_rng(3).normal(0, 2, (4, 5)))
+    lean = save_step(m, tmp_path / "lean.step", mode="shell", planar_tolerance="2 mm")
+    full = save_step(m, tmp_path / "full.step", mode="shell", planar_tolerance="2 mm", pcurves=True)
+    assert "PCURVE" not in lean.read_text() and "PCURVE" in full.read_text()
+    for path in (lean, full):
+        shape, names, counts = _read_back(path)
+        assert names == panel_labels(m)
+        assert counts.count(2) == len(m.topology.edges) - 14 and counts.count(1) == 14
+        from OCP.BRepCheck import BRepCheck_Analyzer
+
+        assert BRepCheck_Analyzer(shape).IsValid()
+    assert gmsh_counts(lean, full) == [[m.n_faces, len(m.topology.edges)]] * 2
+    with pytest.raises(InputError, match="pcurves: expected true or false, got 'yes'"):
+        save_step(m, tmp_path / "never.step", pcurves="yes")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["full.step", "lean.step"]
