@@ -350,6 +350,15 @@ class Topology:
         return mask
 
 
+def _renumbered_faces(faces: np.ndarray, order: np.ndarray, n: int) -> np.ndarray | None:
+    """``faces`` in the numbering where vertex ``order[i]`` becomes ``i``; None unless ``order`` holds every vertex."""
+    new_index = np.full(n, -1, dtype=np.int64)
+    new_index[order] = np.arange(n)
+    if (new_index < 0).any():
+        return None
+    return new_index[faces]
+
+
 def _grid_shape(faces: np.ndarray, n: int) -> tuple[int, int] | None:
     """``(rows, cols)`` if ``faces`` are the ``(rows-1)(cols-1)`` distinct unit cells of a vertex grid."""
     if len(faces) == 0:
@@ -851,11 +860,9 @@ def as_grid(mesh: QuadMesh) -> QuadMesh | None:
     G = np.empty((rows, cols), dtype=np.int64)
     G[:, j] = seq.T
     order = G.reshape(-1)
-    new_index = np.full(n, -1, dtype=np.int64)
-    new_index[order] = np.arange(n)
-    if (new_index < 0).any():
+    faces = _renumbered_faces(mesh.faces, order, n)
+    if faces is None:
         return None
-    faces = new_index[mesh.faces]
     faces = faces[np.argsort(faces.min(axis=1), kind="stable")]
     if _grid_shape(faces, n) != (rows, cols):
         return None
@@ -931,11 +938,9 @@ def _as_closed_grid(mesh: QuadMesh) -> QuadMesh | None:
     q = (col_pos[:, None] + step[:, None] * np.arange(rows)) % rows  # (cols, rows)
     G = lines.indices[lines.offsets[col_line][:, None] + q].T  # (rows, cols)
     order = G.reshape(-1)
-    new_index = np.full(n, -1, dtype=np.int64)
-    new_index[order] = np.arange(n)
-    if (new_index < 0).any():
+    faces = _renumbered_faces(mesh.faces, order, n)
+    if faces is None:
         return None
-    faces = new_index[mesh.faces]
     wrap = (not is_cylinder, True)
     base = grid_cell_base(faces, rows, cols, wrap_rows=wrap[0], wrap_cols=wrap[1])
     if (base < 0).any():
