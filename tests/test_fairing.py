@@ -341,6 +341,19 @@ def _grid_system(m, free, weight, **kw):
                          _topology=t, **kw)
 
 
+
+def _assert_storage_is_the_system(offsets, data, system, free):
+    """The grid's diagonal storage holds ``system``'s free-index matrix, and identity rows for the fixed vertices."""
+    import scipy.sparse as sp
+
+    n = free.size
+    D = sp.dia_matrix((data, offsets), shape=(n, n)).toarray()
+    fi = system.free_index
+    np.testing.assert_allclose(D[np.ix_(fi, fi)], system.matrix.toarray(), rtol=1e-13, atol=1e-13 * np.abs(D).max())
+    fixed = np.flatnonzero(~free)
+    np.testing.assert_array_equal(D[fixed][:, fixed], np.eye(fixed.size))
+    assert not D[np.ix_(fixed, fi)].any() and not D[np.ix_(fi, fixed)].any()
+
 @given(st.integers(4, 9), st.integers(4, 9), st.floats(0.0, 0.4), st.integers(0, 10_000))
 def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_share, seed):
     """On a vertex grid the normal matrix in diagonal storage (grid numbering, fixed rows
@@ -355,14 +368,7 @@ def test_grid_diagonal_matrix_equals_the_free_index_matrix(rows, cols, fixed_sha
     s = FairingSystem(m.vertices, m.topology.windows, free, 0.7)
     t = m.topology
     offsets, data = grid_pattern(t).normal_matrix(window_coefficients_all(m), free, 0.7)
-    import scipy.sparse as sp
-
-    D = sp.dia_matrix((data, offsets), shape=(m.n_vertices,) * 2).toarray()
-    fi = s.free_index
-    np.testing.assert_allclose(D[np.ix_(fi, fi)], s.matrix.toarray(), rtol=1e-13, atol=1e-13 * np.abs(D).max())
-    fixed = np.flatnonzero(~free)
-    np.testing.assert_array_equal(D[fixed][:, fixed], np.eye(fixed.size))
-    assert not D[np.ix_(fixed, fi)].any() and not D[np.ix_(fi, fixed)].any()
+    _assert_storage_is_the_system(offsets, data, s, free)
 
 
 def window_coefficients_all(m):
@@ -746,7 +752,6 @@ def test_closed_grid_diagonal_storage_equals_the_normal_matrix(seed, rows, cols,
     """On a cylinder or torus grid the periodic diagonals hold exactly AᵀA + ωI of the free vertices
     (windows across the seam included); grids with fewer than 7 vertices around a closed direction
     have no pattern (their diagonals would share offsets) and take the general path."""
-    import scipy.sparse as sp
     from quadnodes.fairing import grid_pattern
     from quadnodes.mesh import torus
 
@@ -765,9 +770,4 @@ def test_closed_grid_diagonal_storage_equals_the_normal_matrix(seed, rows, cols,
         return
     s = FairingSystem(m.vertices, t.windows, free, 0.7)
     offsets, data = pattern.normal_matrix(window_coefficients_all(m), free, 0.7)
-    D = sp.dia_matrix((data, offsets), shape=(m.n_vertices,) * 2).toarray()
-    fi = s.free_index
-    np.testing.assert_allclose(D[np.ix_(fi, fi)], s.matrix.toarray(), rtol=1e-13, atol=1e-13 * np.abs(D).max())
-    fixed = np.flatnonzero(~free)
-    np.testing.assert_array_equal(D[fixed][:, fixed], np.eye(fixed.size))
-    assert not D[np.ix_(fixed, fi)].any() and not D[np.ix_(fi, fixed)].any()
+    _assert_storage_is_the_system(offsets, data, s, free)
