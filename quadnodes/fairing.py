@@ -36,6 +36,7 @@ from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
+from .line_ends import line_end_arms, line_end_measure, line_end_rows
 from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _threshold, _walk_alternation, _window_geometry, window_edges
 
 __all__ = [
@@ -124,8 +125,9 @@ def window_coefficients(vertices: np.ndarray, windows: np.ndarray, *, line_spaci
 #: Scale of the pseudo-windows' rows (:func:`extraordinary_windows`) relative to a window's (energy: its square);
 #: 0.25 measured best of 1, 0.5, 0.25, 0.1 on seeded noise (docs/fairing.md).
 EXTRAORDINARY_SCALE = 0.25
-#: The values of ``extraordinary`` in :func:`fair`.
-EXTRAORDINARY_MODES: tuple[str, ...] = ("fair", "hold")
+#: The values of ``extraordinary`` in :func:`fair`: ``"fair"`` the line-end term of :mod:`quadnodes.line_ends`,
+#: ``"lines"`` the pseudo-windows of :func:`extraordinary_windows`, ``"hold"`` the thesis (neither).
+EXTRAORDINARY_MODES: tuple[str, ...] = ("fair", "lines", "hold")
 #: The values of ``line_spacing`` in :func:`fair` and :func:`window_coefficients`: ``"hold"`` freezes every edge's
 #: length (eq. 32 exactly), ``"fair"`` gives a window's three edges their mean length (:func:`even_lengths`).
 LINE_SPACING_MODES: tuple[str, ...] = ("fair", "hold")
@@ -222,6 +224,13 @@ def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
     w2 = np.stack([arm[i, 1], arm[i, 0], arm[j, 1], arm[j, 2]], axis=1)
     out = np.concatenate([w1[arm[i, 2] >= 0], w2[arm[j, 2] >= 0]])
     return out.astype(np.int64)
+
+
+def _line_end_pairs(topology: object) -> np.ndarray:
+    """The arms that get the line-end term (:mod:`quadnodes.line_ends`): those of every vertex that is
+    no window's middle (extraordinary vertices, middles of lines too short for a window, line ends on
+    the boundary)."""
+    return line_end_arms(topology, ~topology.window_middle)  # type: ignore[attr-defined]
 
 
 def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarray) -> np.ndarray:
@@ -353,6 +362,19 @@ def _line_preconditioner(data: np.ndarray, offsets: np.ndarray, cols: int) -> Li
     return LinePreconditioner(rows, cols_, cols)
 
 
+def _with_rows(rows: sp.spmatrix, vertices: np.ndarray, free: np.ndarray, free_index: np.ndarray, A: sp.csr_matrix,
+               b: np.ndarray, rhs: np.ndarray, active: np.ndarray) -> tuple:
+    """The system with the rows ``rows`` ``(r, n)`` appended: those holding a free vertex, their fixed part
+    moved to ``b`` and ``rhs`` (as for a window with a fixed vertex); ``active`` grows by one flag per row."""
+    R = rows.tocsr()
+    touch = np.asarray(abs(R) @ free.astype(np.float64)).reshape(-1) > 0
+    R = R[touch]
+    Rf = R[:, free_index]
+    Rb = np.asarray(R[:, ~free] @ vertices[~free]).reshape(-1, 3)
+    A = sp.vstack([A, Rf], format="csr")
+    return A, np.vstack([b, Rb]), rhs - Rf.T @ Rb, np.concatenate([active, touch])
+
+
 def _with_weight(AtA: sp.csr_matrix, weight: float) -> sp.csr_matrix:
     """``AᵀA + ω I``, adding ω on the stored diagonal in place (every free vertex is in a
     window, so AᵀA stores each diagonal entry; SciPy would insert a missing one)."""
@@ -460,6 +482,7 @@ class FairingSystem:
         preconditioner: Literal["auto", "lines", "none"] = "auto",
         _inverse_lengths: np.ndarray | None = None,
         _topology: object | None = None,
+        _extra_rows: sp.spmatrix | None = None,
     ) -> None:
         weight = _validate.positive_number(weight, "weight")
         free = np.asarray(free, dtype=bool)
@@ -524,6 +547,9 @@ class FairingSystem:
             wb = np.repeat(b[partial], pf.sum(axis=1), axis=0)
             for j in range(3):
                 rhs[:, j] = -np.bincount(at, weights=w_coef * wb[:, j], minlength=k)
+        if _extra_rows is not None:  # more rows of any width (quadnodes.line_ends), after the windows'
+            A, b, rhs, active = _with_rows(_extra_rows, vertices, free, self.free_index, A, b, rhs, active)
+            self.A, self.b, self.active = A, b, active
         self._rhs = rhs
         if solver not in ("auto", "direct", "cg"):
             raise InputError(f"solver: expected 'auto', 'direct' or 'cg', got {solver!r}")
@@ -817,7 +843,7 @@ def fair(
     fix: Literal["none", "corners", "boundary"] = "corners",
     fixed: ArrayLike | None = None,
     solver: Literal["auto", "direct", "cg"] = "auto",
-    extraordinary: Literal["fair", "hold"] = "fair",
+    extraordinary: Literal["fair", "lines", "hold"] = "fair",
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
     line_spacing: Literal["fair", "hold"] = DEFAULT_LINE_SPACING,
 ) -> tuple[QuadMesh, FairingReport]:
@@ -864,13 +890,18 @@ def fair(
         More vertices that never move.
     solver : {"auto", "direct", "cg"}
         Linear solver, see :class:`FairingSystem`; results agree to about 1e-10.
-    extraordinary : {"fair", "hold"}
+    extraordinary : {"fair", "lines", "hold"}
         ``"hold"``: the thesis exactly — vertices where lines end inside the mesh
-        (extraordinary vertices) are no window's middle and never move.
-        ``"fair"`` (default): they get the pseudo-windows of
-        :func:`extraordinary_windows` in the energy, and one is freed when a
-        vertex next to it is free (see ``docs/fairing.md``). Meshes without
-        extraordinary vertices give the same result either way.
+        (extraordinary vertices) and the middles of lines too short for a window
+        are no window's middle and never move.
+        ``"fair"`` (default): on a mesh with extraordinary vertices, every vertex
+        that is no window's middle gets the 1-ring term of :mod:`quadnodes.line_ends`
+        (the change of mean turning along each of its arms, eq. 30 carried to the
+        ring) and is freed by the same ``detection`` and ``threshold``.
+        ``"lines"``: the pseudo-windows of :func:`extraordinary_windows` (lines
+        continued through the vertex; an extraordinary vertex is freed when a
+        vertex next to it is free). See ``docs/fairing.md``. Meshes without
+        extraordinary vertices give the same result with every setting.
     detection : {"alternating", "thesis"}
         How zigzag vertices are found each iteration (:func:`quadnodes.zigzag.detect`):
         ``"thesis"`` is eq. 30; ``"alternating"`` (default) leaves steady bends alone.
@@ -920,13 +951,16 @@ def fair(
     line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")  # type: ignore[assignment]
     held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
-    xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "fair" else np.empty((0, 4), np.int64)
+    xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "lines" else np.empty((0, 4), np.int64)
     if xw.size:
         # an extraordinary vertex may move when a vertex of its ring is free: arms' first vertices
         xv = xw[:, 1:3].reshape(-1)
         mids = xw[:, 1:3][:, ::-1].reshape(-1)
         ext_mask = topo.extraordinary[xv]
         xv, xn = xv[ext_mask], mids[ext_mask]
+    # line ends and short lines: the vertices that are no window's middle get the 1-ring term of
+    # quadnodes.line_ends along their arms (only where extraordinary vertices are, like the pseudo-windows)
+    ends = _line_end_pairs(topo) if extraordinary == "fair" and topo.extraordinary.any() else np.empty((0, 2), np.int64)
     movable = topo.window_middle & ~held
     if topo.window_middle.any() and not movable.any():
         raise InputError(
@@ -940,6 +974,8 @@ def fair(
 
         ref = as_reference(reference, mesh)
         still = held | ~topo.window_middle  # vertices fairing never moves
+        if ends.size:
+            still[ends.reshape(-1)] = held[ends.reshape(-1)]
         if still.any():
             _, dist = ref.closest(mesh.vertices[still])
             off_reference = float(np.max(dist))
@@ -974,6 +1010,13 @@ def fair(
             free = free | (ring_free & ~held)
             x_geom = _window_geometry(x, xw)
             e_before += EXTRAORDINARY_SCALE**2 * float(x_geom[0].sum())  # the rows are scaled by s
+        if ends.size:
+            free = free | ((line_end_measure(x, topo, ends, detection=detection, line_spacing=line_spacing)
+                            > thresholds[it]) & ~held)
+            end_rows = line_end_rows(x, topo, ends, line_spacing=line_spacing)
+            f_end = end_rows @ x
+            end_energy = np.einsum("ij,ij->i", f_end, f_end)
+            e_before += float(end_energy.sum())
         if not free.any():
             reports.append(
                 IterationReport(it, float(thresholds[it]), float(weights[it]), float(weights[it] * scale),
@@ -984,10 +1027,14 @@ def fair(
                 break
             continue
         w_eff = float(weights[it] * scale)
-        if xw.size:
-            system = FairingSystem(x, np.concatenate([w, xw]), free, w_eff, solver=solver,
-                                   _inverse_lengths=np.concatenate([inverse, EXTRAORDINARY_SCALE * x_geom[1]]))
-            all_dev = np.concatenate([w_energy, EXTRAORDINARY_SCALE**2 * x_geom[0]])
+        if xw.size or ends.size:
+            xs = [w, xw] if xw.size else [w]
+            inv_all = [inverse, EXTRAORDINARY_SCALE * x_geom[1]] if xw.size else [inverse]
+            dev_all = [w_energy, EXTRAORDINARY_SCALE**2 * x_geom[0]] if xw.size else [w_energy]
+            system = FairingSystem(x, np.concatenate(xs), free, w_eff, solver=solver,
+                                   _inverse_lengths=np.concatenate(inv_all),
+                                   _extra_rows=end_rows if ends.size else None)
+            all_dev = np.concatenate(dev_all + ([end_energy] if ends.size else []))
         else:
             system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=inverse,
                                    _topology=topo)

@@ -346,7 +346,7 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          anchor: Literal["current", "input"] = "current",
          fix: FixMode = "corners",
          solver: Literal["auto", "direct", "cg"] = "auto",
-         extraordinary: Literal["fair", "hold"] = "fair",
+         extraordinary: Literal["fair", "lines", "hold"] = "fair",
          detection: Literal["alternating", "thesis"] = "alternating",
          line_spacing: Literal["fair", "hold"] = "fair") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
@@ -373,7 +373,8 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
     solver : str
         Linear solver: direct factorization, conjugate gradients, or auto by size.
     extraordinary : str
-        fair (default: vertices where lines end get a fairness term of their own) or hold (the thesis).
+        fair (default: vertices where lines end or lines are too short for a window get a 1-ring fairness
+        term of their own), lines (lines continued through extraordinary vertices) or hold (the thesis).
     detection : str
         alternating (default: steady bends are no zigzag) or thesis (eq. 30 exactly).
     line_spacing : str

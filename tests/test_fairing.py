@@ -71,11 +71,18 @@ def test_fixed_vertices_never_move(mesh, fix):
     user = np.zeros(mesh.n_vertices, bool)
     user[:: max(1, mesh.n_vertices // 7)] = True
     out, rep = fair(mesh, iterations=3, threshold=0.0, fix=fix, fixed=user)
-    still = user | ~mesh.topology.window_middle
+    still = user.copy()
     if fix == "boundary":
         still |= mesh.topology.boundary_vertices
+    if not mesh.topology.extraordinary.any():  # else line ends get the term of quadnodes.line_ends and may move
+        still |= ~mesh.topology.window_middle
     assert rep.fix == fix and rep.n_fixed >= int(user.sum())
     assert np.array_equal(out.vertices[still], mesh.vertices[still])
+    # the thesis (and the pseudo-windows): what is no window's middle, and no extraordinary vertex, never moves
+    for mode in ("hold", "lines"):
+        out, _ = fair(mesh, iterations=3, threshold=0.0, fix=fix, fixed=user, extraordinary=mode)
+        keep = still | (~mesh.topology.window_middle & (~mesh.topology.extraordinary if mode == "lines" else True))
+        assert np.array_equal(out.vertices[keep], mesh.vertices[keep])
 
 
 @given(meshes(), st.sampled_from([0.001, 0.3, 10.0]), st.sampled_from(["fair", "hold"]))
@@ -87,10 +94,17 @@ def test_energy_does_not_increase_and_outputs_are_finite(mesh, weight, spacing):
     # against the input's own energy with lengths frozen at the input (eq. 30 exactly with line_spacing="hold")
     w = mesh.topology.windows
     e_in = fairing_energy(mesh.vertices, w, line_spacing=spacing)
-    if mesh.topology.extraordinary.any():  # the energy also holds the pseudo-windows' rows (scaled by s)
-        from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
+    if mesh.topology.extraordinary.any():  # the energy also holds the line ends' rows (quadnodes.line_ends)
+        from quadnodes.fairing import EXTRAORDINARY_SCALE, _line_end_pairs, extraordinary_windows
+        from quadnodes.line_ends import line_end_energy
 
-        xw = extraordinary_windows(mesh.vertices, mesh.topology)
+        pairs = _line_end_pairs(mesh.topology)
+        assert rep.iterations[0].energy_before == pytest.approx(
+            e_in + line_end_energy(mesh.vertices, mesh.topology, pairs, line_spacing=spacing))
+        _, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, extraordinary="lines", line_spacing=spacing)
+        for r in rep.iterations:
+            assert r.energy_after <= r.energy_before * (1 + 1e-12) + 1e-15
+        xw = extraordinary_windows(mesh.vertices, mesh.topology)  # or the pseudo-windows' rows (scaled by s)
         assert rep.iterations[0].energy_before == pytest.approx(
             e_in + EXTRAORDINARY_SCALE**2 * fairing_energy(mesh.vertices, xw))
         out, rep = fair(mesh, iterations=3, threshold=0.0, weight=weight, extraordinary="hold", line_spacing=spacing)
@@ -243,11 +257,12 @@ def test_solver_choice_and_report():
 
 @given(meshes(), st.sampled_from(["fair", "hold"]))
 def test_reported_energies_equal_direct_evaluation(mesh, spacing):
-    out, rep = fair(mesh, iterations=1, threshold=0.0, line_spacing=spacing)
-    r = rep.iterations[0]
     w = mesh.topology.windows
-    from quadnodes.fairing import EXTRAORDINARY_SCALE, extraordinary_windows
+    from quadnodes.fairing import EXTRAORDINARY_SCALE, _line_end_pairs, extraordinary_windows
+    from quadnodes.line_ends import line_end_energy
 
+    out, rep = fair(mesh, iterations=1, threshold=0.0, line_spacing=spacing, extraordinary="lines")
+    r = rep.iterations[0]
     xw = extraordinary_windows(mesh.vertices, mesh.topology)  # empty without extraordinary vertices
     s2 = EXTRAORDINARY_SCALE**2  # (the pseudo-windows keep their own lengths)
     assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w, line_spacing=spacing)
@@ -255,6 +270,17 @@ def test_reported_energies_equal_direct_evaluation(mesh, spacing):
     assert r.energy_after == pytest.approx(fairing_energy(out.vertices, w, lengths_from=mesh.vertices, line_spacing=spacing)
                                            + s2 * fairing_energy(out.vertices, xw, lengths_from=mesh.vertices),
                                            rel=1e-8, abs=1e-10)
+    # the default: the line ends' rows (none without extraordinary vertices)
+    out, rep = fair(mesh, iterations=1, threshold=0.0, line_spacing=spacing)
+    r = rep.iterations[0]
+    pairs = _line_end_pairs(mesh.topology) if mesh.topology.extraordinary.any() else np.empty((0, 2), np.int64)
+    t = mesh.topology
+    assert r.energy_before == pytest.approx(fairing_energy(mesh.vertices, w, line_spacing=spacing)
+                                            + line_end_energy(mesh.vertices, t, pairs, line_spacing=spacing),
+                                            rel=1e-9, abs=1e-12)
+    assert r.energy_after == pytest.approx(
+        fairing_energy(out.vertices, w, lengths_from=mesh.vertices, line_spacing=spacing)
+        + line_end_energy(out.vertices, t, pairs, lengths_from=mesh.vertices, line_spacing=spacing), rel=1e-8, abs=1e-10)
 
 
 def test_shared_window_geometry_gives_the_same_system():
