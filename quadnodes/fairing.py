@@ -36,7 +36,7 @@ from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
-from .line_ends import line_end_arms, line_end_measure, line_end_rows
+from .line_ends import line_end_arms, line_end_free, line_end_rows
 from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _threshold, _walk_alternation, _window_geometry, window_edges
 
 __all__ = [
@@ -1011,8 +1011,8 @@ def fair(
             x_geom = _window_geometry(x, xw)
             e_before += EXTRAORDINARY_SCALE**2 * float(x_geom[0].sum())  # the rows are scaled by s
         if ends.size:
-            free = free | ((line_end_measure(x, topo, ends, detection=detection, line_spacing=line_spacing)
-                            > thresholds[it]) & ~held)
+            free = line_end_free(x, topo, ends, free, held, float(thresholds[it]), detection=detection,
+                                 line_spacing=line_spacing)
             end_rows = line_end_rows(x, topo, ends, line_spacing=line_spacing)
             f_end = end_rows @ x
             end_energy = np.einsum("ij,ij->i", f_end, f_end)

@@ -28,7 +28,10 @@ valence 3 or 5, so a regular extraordinary vertex costs nothing.
 Detection follows the same rule as along the lines (:mod:`quadnodes.zigzag`): with
 ``detection="alternating"`` an arm's measure is ``max(0, −t_v · t_j)`` (the turnings of neighbours
 pointing to opposite sides: a zigzag), with ``"thesis"`` eq. 30's ``||t_v − t_j||²/4``; both of its
-vertices count, as both middle points of a window do.
+vertices count, as both middle points of a window do. It is compared with ``LINE_END_MARGIN ×
+threshold`` (clean designs turn unevenly at their stars), and a line end is freed with a free
+neighbour along its arms too, so that the ring a freed vertex is faired against can move with it
+(:func:`line_end_free`).
 """
 
 from __future__ import annotations
@@ -38,12 +41,18 @@ import scipy.sparse as sp
 
 from . import _validate
 
-__all__ = ["RING_SCALE", "ring_arms", "turning_matrix", "line_end_arms", "line_end_rows", "line_end_energy",
-           "line_end_measure"]
+__all__ = ["RING_SCALE", "LINE_END_MARGIN", "ring_arms", "turning_matrix", "line_end_arms", "line_end_rows",
+           "line_end_energy", "line_end_measure", "line_end_free"]
 
 #: Scale ``s`` of the rows (energy: ``s²``) relative to a window's, measured on ``polygon_quads.obj``
 #: (0.2, 0.3, 0.5, 0.75, 1 with every vertex free; ``docs/fairing.md``, "Line ends and short lines").
 RING_SCALE = 0.5
+#: A line end is found when its measure exceeds ``LINE_END_MARGIN × threshold``: the mean turnings of
+#: neighbours of different valence differ on clean designs by their uneven stars — on the clean meshes of
+#: ``tests/data`` up to 0.088 (alternating) and 0.29 (eq. 30), on ``polygon_quads.obj``, against 0.019 and
+#: 0.1+ along its lines — so 4 × the default thresholds (0.12, 0.4) leaves every clean mesh untouched,
+#: while noise of 0.2 h gives medians of 0.15–0.6 (``docs/fairing.md``, "Line ends and short lines").
+LINE_END_MARGIN = 4.0
 
 
 def ring_arms(topology: object) -> np.ndarray:
@@ -234,3 +243,44 @@ def line_end_measure(vertices: np.ndarray, topology: object, pairs: np.ndarray, 
     out = np.zeros(n)
     np.maximum.at(out, pairs.reshape(-1), np.repeat(val, 2))
     return out
+
+
+def line_end_free(vertices: np.ndarray, topology: object, pairs: np.ndarray, free: np.ndarray, held: np.ndarray,
+                  threshold: float, *, detection: str = "alternating", line_spacing: str = "fair") -> np.ndarray:
+    """``free`` with the line ends added: measure above ``LINE_END_MARGIN × threshold``, or a free arm neighbour.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    topology : quadnodes.topology.Topology
+    pairs : (r, 2) int64
+        From :func:`line_end_arms`.
+    free : (n,) bool
+        The vertices found along the lines (:func:`quadnodes.zigzag.detect`).
+    held : (n,) bool
+        Vertices that never move.
+    threshold : float
+    detection, line_spacing : str
+        See :func:`line_end_measure`.
+
+    Returns
+    -------
+    (n,) bool
+        A new mask; ``held`` vertices are never in it (unless already in ``free``).
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> z = np.zeros((3, 3)); z[1, 1] = 0.5; z[0, 1] = z[2, 1] = -0.5
+    >>> m = grid(3, 3, height=z)
+    >>> t = m.topology
+    >>> none = np.zeros(9, bool)
+    >>> line_end_free(m.vertices, t, line_end_arms(t, ~t.window_middle), none, none, 0.03).astype(int).tolist()
+    [0, 1, 0, 1, 1, 1, 0, 1, 0]
+    """
+    found = line_end_measure(vertices, topology, pairs, detection=detection, line_spacing=line_spacing)
+    out = free | ((found > LINE_END_MARGIN * threshold) & ~held)
+    near = np.zeros(out.shape[0], dtype=bool)
+    near[pairs[:, 0][out[pairs[:, 1]]]] = True
+    near[pairs[:, 1][out[pairs[:, 0]]]] = True
+    return out | (near & ~held)
