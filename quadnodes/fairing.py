@@ -37,7 +37,8 @@ from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
 from .line_ends import line_end_arms, line_end_free, line_end_rows
-from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _threshold, _walk_alternation, _window_geometry, window_edges
+from .zigzag import (DEFAULT_DETECTION, DEFAULT_GAPS, DETECTIONS, GAPS_MODES, _detect, _threshold, _walk_alternation,
+                     _window_geometry, line_gaps, window_edges)
 
 __all__ = [
     "DEFAULT_WEIGHT",
@@ -846,6 +847,7 @@ def fair(
     extraordinary: Literal["fair", "lines", "hold"] = "fair",
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
     line_spacing: Literal["fair", "hold"] = DEFAULT_LINE_SPACING,
+    gaps: Literal["fair", "hold"] | None = None,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -912,6 +914,14 @@ def fair(
         a window's three edges get their mean length (:func:`even_lengths`), so
         uneven spacing along a line is faired too, while evenly or linearly graded
         spacing costs nothing. Which vertices are free does not change.
+    gaps : {"fair", "hold"}, optional
+        ``"hold"``: only the vertices the detection finds move (the thesis).
+        ``"fair"``: a vertex between two found vertices of a line moves too
+        (:func:`quadnodes.zigzag.line_gaps`), so broadband noise whose turning
+        happens not to alternate at a vertex is faired with the rest; found
+        regions are filled, not grown (a lone spike is faired as with ``"hold"``).
+        Default: the detection's (:data:`quadnodes.zigzag.DEFAULT_GAPS`: ``"fair"``
+        with ``"alternating"``, ``"hold"`` with ``"thesis"``).
 
     Returns
     -------
@@ -949,6 +959,8 @@ def fair(
     extraordinary = _validate.choice(extraordinary, EXTRAORDINARY_MODES, "extraordinary")  # type: ignore[assignment]
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
     line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")  # type: ignore[assignment]
+    gaps = _validate.choice(DEFAULT_GAPS[detection] if gaps is None else gaps, GAPS_MODES,
+                            "gaps")  # type: ignore[assignment]
     held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
     xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "lines" else np.empty((0, 4), np.int64)
@@ -1002,7 +1014,7 @@ def fair(
             inverse = even_lengths(geometry[1])
             w_energy = _window_energy(x, w, inverse)
         e_before = float(w_energy.sum())
-        free = zz.free
+        free = zz.free if gaps == "hold" else line_gaps(zz.free, w, zz.fixed)
         if xw.size:
             # the ring of an extraordinary vertex: the middle vertices of its pseudo-windows
             ring_free = np.zeros(x.shape[0], dtype=bool)

@@ -155,7 +155,7 @@ def line_end_arms(topology: object, where: np.ndarray) -> np.ndarray:
     return np.unique(np.sort(a, axis=1), axis=0).astype(np.int64)
 
 
-def line_end_rows(vertices: np.ndarray, topology: object, pairs: np.ndarray, *, scale: float = RING_SCALE,
+def line_end_rows(vertices: np.ndarray, topology: object, pairs: np.ndarray, *, scale: float | None = None,
                   line_spacing: str = "fair") -> sp.csr_matrix:
     """The ``(r, n)`` matrix of the rows ``s (t_v − t_j)/2`` for the arms ``pairs``, lengths frozen at ``vertices``.
 
@@ -165,8 +165,8 @@ def line_end_rows(vertices: np.ndarray, topology: object, pairs: np.ndarray, *, 
     topology : quadnodes.topology.Topology
     pairs : (r, 2) int64
         From :func:`line_end_arms`.
-    scale : float
-        ``s``.
+    scale : float, optional
+        ``s``; default :data:`RING_SCALE`.
     line_spacing : {"fair", "hold"}
         See :func:`turning_matrix`.
 
@@ -185,6 +185,7 @@ def line_end_rows(vertices: np.ndarray, topology: object, pairs: np.ndarray, *, 
     0.0
     """
     n = vertices.shape[0]
+    scale = RING_SCALE if scale is None else scale
     T = turning_matrix(vertices, ring_arms(topology), line_spacing=line_spacing)
     r = len(pairs)
     half = 0.5 * scale
@@ -194,7 +195,7 @@ def line_end_rows(vertices: np.ndarray, topology: object, pairs: np.ndarray, *, 
 
 
 def line_end_energy(vertices: np.ndarray, topology: object, pairs: np.ndarray, *,
-                    lengths_from: np.ndarray | None = None, scale: float = RING_SCALE,
+                    lengths_from: np.ndarray | None = None, scale: float | None = None,
                     line_spacing: str = "fair") -> float:
     """``Σ ||f_vj||²`` of the arms ``pairs`` at ``vertices``, lengths frozen at ``lengths_from`` (default: ``vertices``).
 

@@ -24,6 +24,9 @@ __all__ = [
     "DETECTIONS",
     "DEFAULT_DETECTION",
     "DEFAULT_THRESHOLDS",
+    "GAPS_MODES",
+    "DEFAULT_GAPS",
+    "line_gaps",
 ]
 
 #: The values of ``detection``: ``"alternating"`` (turning that flips side) or ``"thesis"`` (eq. 30).
@@ -35,6 +38,48 @@ DEFAULT_DETECTION = "alternating"
 #: meshes of ``tests/data`` and E1–E4 is 0.019 (``polygon_quads.obj``; 0.0015 elsewhere), and broadband noise
 #: below 0.1 is then found too (``docs/fairing.md``, "Thresholds for broadband noise").
 DEFAULT_THRESHOLDS: Mapping[str, float] = MappingProxyType({"alternating": 0.03, "thesis": 0.1})
+
+
+#: The values of ``gaps`` in :func:`quadnodes.fairing.fair`: ``"fair"`` frees a vertex that lies between two
+#: found vertices of a line too (:func:`line_gaps`), ``"hold"`` only the found vertices (the thesis).
+GAPS_MODES: tuple[str, ...] = ("fair", "hold")
+#: ``gaps`` when none is given, per detection: the alternating turning is zero at a vertex whose two
+#: neighbours turn to the same side, so a jittered vertex between two found ones is found only through them
+#: (``"fair"``); eq. 30 is the thesis, which moves only what it finds (``"hold"``) — ``docs/fairing.md``.
+DEFAULT_GAPS: Mapping[str, str] = MappingProxyType({"alternating": "fair", "thesis": "hold"})
+
+
+def line_gaps(free: np.ndarray, windows: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """``free`` with the gaps filled: a vertex whose two neighbours along a line are free becomes free.
+
+    Within a window ``p0 p1 p2 p3``, ``p1`` is freed when ``p0`` and ``p2`` are, ``p2`` when ``p1`` and
+    ``p3`` are. A found region is filled, not grown: a lone spike and the vertices found around it stay
+    as they are.
+
+    Parameters
+    ----------
+    free : (n,) bool
+        Found vertices (:attr:`ZigzagReport.free`).
+    windows : (w, 4) int64
+    fixed : (n,) bool
+        Vertices that never become free (:attr:`ZigzagReport.fixed`: held, or the middle of no window).
+
+    Returns
+    -------
+    (n,) bool
+        A new mask, a superset of ``free``.
+
+    Examples
+    --------
+    >>> w = np.array([[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5]])  # one line of 6 vertices
+    >>> free = np.array([0, 1, 0, 1, 0, 0], bool)
+    >>> line_gaps(free, w, np.array([1, 0, 0, 0, 0, 1], bool)).astype(int).tolist()  # 2 lies between 1 and 3
+    [0, 1, 1, 1, 0, 0]
+    """
+    gap = np.zeros(free.shape[0], dtype=bool)
+    gap[windows[free[windows[:, 0]] & free[windows[:, 2]], 1]] = True
+    gap[windows[free[windows[:, 1]] & free[windows[:, 3]], 2]] = True
+    return free | (gap & ~fixed)
 
 
 def _threshold(threshold: object, detection: str) -> object:

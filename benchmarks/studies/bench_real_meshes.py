@@ -11,10 +11,10 @@ is the mean distance of every vertex from its clean position, in mean edge lengt
 moves vertices, not the correspondence), averaged over the seeds. Methods, each **tuned**: the
 best of its settings on that mesh and noise is shown (the setting beside it):
 
-- ``fair``: ``quadnodes.fair`` with its defaults (``detection="alternating"``,
+- ``fair``: ``quadnodes.fair`` with its defaults (``detection="alternating"``, ``gaps="fair"``,
   ``extraordinary="fair"``, ``line_spacing="fair"``), iterations 1, 3, 5;
-- ``fair (before)``: fair's defaults before issue 16 item 6: ``line_spacing="hold", threshold=0.1``,
-  iterations 1, 3, 5;
+- ``fair (before)``: fair's defaults before issue 16 item 6: ``line_spacing="hold", threshold=0.1,
+  extraordinary="lines", gaps="hold"``, iterations 1, 3, 5;
 - ``fair (thesis)``: ``extraordinary="hold", detection="thesis", line_spacing="hold"`` — the thesis's method,
   iterations 1, 3, 5;
 - ``laplacian``: ``quadnodes.laplacian`` (λ = 0.5, corners held), iterations 1, 2, 4, 8;
@@ -26,7 +26,10 @@ The last columns say whether fair is the best (``zigzag``) or within 20 % of the
 
 ``--studies`` prints instead the measurements behind the defaults (``docs/fairing.md``): detection on the
 clean meshes and on E1–E4 (``quadnodes.report``'s noise and parameters, seed 7), and the pseudo-window
-scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``. ``--spacing`` prints the study behind
+scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``, and the line-end term
+(``extraordinary="hold"|"lines"|"fair"``, its scale ``quadnodes.line_ends.RING_SCALE``) on ``polygon_quads``,
+``rounded_box`` and ``extraordinary_mesh(3)``. ``--gaps`` prints E1–E4 with ``gaps="hold"`` against
+``"fair"`` as ``--spacing`` does for ``line_spacing``. ``--spacing`` prints the study behind
 ``line_spacing="fair"``: E1–E4 as in ``quadnodes compare`` (seeds 7 and 1–5, noise on the corners-held and on the
 interior-only variant), the thesis's parameters and the default weight, ``line_spacing="hold"`` against ``"fair"``.
 
@@ -68,7 +71,8 @@ def _trimesh_taubin(mesh, iterations):
 
 METHODS = {
     "fair": [(f"{k} it", lambda m, k=k: fair(m, iterations=k)[0]) for k in (1, 3, 5)],
-    "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_spacing="hold", threshold=0.1)[0])
+    "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_spacing="hold", threshold=0.1,
+                                                       extraordinary="lines", gaps="hold")[0])
                       for k in (1, 3, 5)],
     "fair (thesis)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, extraordinary="hold", detection="thesis",
                                                        line_spacing="hold", threshold=0.1)[0]) for k in (1, 3, 5)],
@@ -92,7 +96,7 @@ def studies() -> None:
         h = m.mean_edge_length
         cells = []
         for det in ("thesis", "alternating"):
-            out, _ = fair(m, iterations=3, detection=det)
+            out, _ = fair(m, iterations=3, detection=det, gaps="hold")
             cells.append(f"{det} {detect(m, detection=det).n_free} / "
                          f"{np.linalg.norm(out.vertices - m.vertices, axis=1).max() / h:.3f}")
         alt = float(_walk_alternation(m.vertices, m.topology.window_walk).max())
@@ -105,8 +109,8 @@ def studies() -> None:
         noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=7, fix="corners")
         cells = []
         for det in ("thesis", "alternating"):
-            out, _ = fair(noisy, **ex.fair, detection=det)
-            _, crep = fair(clean, **ex.fair, detection=det)
+            out, _ = fair(noisy, **ex.fair, detection=det, gaps="hold")
+            _, crep = fair(clean, **ex.fair, detection=det, gaps="hold")
             cells.append(f"{det} {sum(r.n_free for r in crep.iterations)} / "
                          f"{np.linalg.norm(out.vertices - clean.vertices, axis=1).mean() / h:.3f}")
         print(f"  {name} " + " | ".join(cells))
@@ -127,7 +131,8 @@ def studies() -> None:
                 old = F.EXTRAORDINARY_SCALE
                 F.EXTRAORDINARY_SCALE = 1.0 if s is None else s
                 try:
-                    out, _ = fair(noisy, iterations=5, extraordinary="hold" if s is None else "fair")
+                    out, _ = fair(noisy, iterations=5, extraordinary="hold" if s is None else "lines",
+                                  gaps="hold")
                 finally:
                     F.EXTRAORDINARY_SCALE = old
                 err = np.linalg.norm(out.vertices - m.vertices, axis=1) / h
@@ -137,14 +142,55 @@ def studies() -> None:
         print(f"  {'hold' if s is None else s!s:5s} " + " | ".join(cells))
 
 
-def spacing_study() -> None:
-    """E1–E4 with ``line_spacing="hold"`` (the thesis) and ``"fair"``: the numbers of ``quadnodes compare``."""
+def line_end_study() -> None:
+    """``extraordinary="hold"|"lines"|"fair"`` and the line-end scale ``RING_SCALE`` (``--studies``)."""
+    import sys
+
+    import quadnodes.line_ends as LE
+
+    sys.path.insert(0, str(DATA.parent))
+    from meshes import extraordinary_mesh
+
+    cases = {"polygon_quads.obj": (load(DATA / "polygon_quads.obj"), "corners"),
+             "rounded_box.obj": (load(DATA / "rounded_box.obj"), "corners"),
+             "extraordinary_mesh(3)": (extraordinary_mesh(3), "boundary")}
+    print("extraordinary= and the line-end scale s: mean vertex error / h after fair (1 iteration, seeds 0 and 1) "
+          "for zigzag / normal / jitter noise; vertices that are no window's middle")
+    for name, (m, fix) in cases.items():
+        t = m.topology
+        print(f"  {name}: {m.n_vertices} vertices, {int(t.extraordinary.sum())} extraordinary, "
+              f"{int(t.window_middle.sum())} a window's middle, lines of 3 vertices: "
+              f"{int((t.structure_lines.lengths == 3).sum())} of {len(t.structure_lines.lengths)}")
+    old = LE.RING_SCALE
+    for mode, s in (("hold", None), ("lines", None), ("fair", 0.25), ("fair", 0.5), ("fair", 1.0)):
+        cells = []
+        for name, (m, fix) in cases.items():
+            h = m.mean_edge_length
+            res = []
+            for kind, amp in NOISE.items():
+                errs = []
+                for seed in (0, 1):
+                    noisy, _ = perturb(m, seed=seed, fix=fix, **amp)
+                    LE.RING_SCALE = old if s is None else s
+                    try:
+                        out, _ = fair(noisy, fix=fix, extraordinary=mode)
+                    finally:
+                        LE.RING_SCALE = old
+                    errs.append(np.linalg.norm(out.vertices - m.vertices, axis=1).mean() / h)
+                res.append(f"{np.mean(errs):.3f}")
+            cells.append(f"{name} {'/'.join(res)}")
+        print(f"  {mode:5s} {'' if s is None else s!s:4s} " + " | ".join(cells), flush=True)
+
+
+def spacing_study(setting: str = "line_spacing") -> None:
+    """E1–E4 with ``setting="hold"`` (the thesis) and ``"fair"``: the numbers of ``quadnodes compare``
+    (``line_spacing``: ``--spacing``; ``gaps``: ``--gaps``)."""
     from quadnodes.report import THESIS_EXAMPLES, _boundary_frame, _noisy_example, measure
 
     keys = [("vertex_distance_mean_h", "to clean vertex"), ("surface_distance_mean_h", "to clean surface"),
             ("zigzag_max", "zigzag max"), ("boundary_displacement_max_h", "boundary moved max"),
             ("relief_change_pct", "relief %")]
-    print("E1-E4, mean over seeds 7, 1-5 (worst seed in brackets); hold -> fair")
+    print(f"E1-E4, mean over seeds 7, 1-5 (worst seed in brackets); {setting}: hold -> fair")
     for name in ("E1", "E2", "E3", "E4"):
         ex = THESIS_EXAMPLES[name]
         for fix in ("corners", "boundary"):
@@ -154,7 +200,9 @@ def spacing_study() -> None:
                     _, clean, fine, noisy, _, _ = _noisy_example(name, seed, fix)
                     frame = _boundary_frame(clean)
                     for mode in vals:
-                        out, _ = fair(noisy, **params, line_spacing=mode)
+                        # (the line_spacing study as documented: found vertices only)
+                        pin = {"gaps": "hold"} if setting == "line_spacing" else {}
+                        out, _ = fair(noisy, **params, **{setting: mode}, **pin)
                         row = measure(noisy, out, clean, fine, boundary_frame=frame)
                         vals[mode].append([row[k] for k, _ in keys])
                 h, f = (np.array(vals[m]) for m in ("hold", "fair"))
@@ -170,12 +218,14 @@ def main() -> None:
     ap.add_argument("--markdown", action="store_true", help="print a Markdown table")
     ap.add_argument("--studies", action="store_true", help="the measurements behind the defaults instead")
     ap.add_argument("--spacing", action="store_true", help="the study behind line_spacing='fair' instead")
+    ap.add_argument("--gaps", action="store_true", help="the E1-E4 study behind gaps='fair' instead")
     args = ap.parse_args()
     if args.studies:
         studies()
+        line_end_study()
         return
-    if args.spacing:
-        spacing_study()
+    if args.spacing or args.gaps:
+        spacing_study("gaps" if args.gaps else "line_spacing")
         return
     head = ["mesh", "noise", "noisy"] + list(METHODS) + ["fair vs best peer"]
     rows = []
