@@ -591,8 +591,9 @@ def test_grids_are_unchanged_by_the_extraordinary_setting(seed):
     g = grid(6, 8, height=z)
     for det in ("thesis", "alternating"):
         a, ra = fair(g, iterations=3, extraordinary="hold", detection=det)
-        b, rb = fair(g, iterations=3, extraordinary="fair", detection=det)
-        np.testing.assert_array_equal(a.vertices, b.vertices)
+        for mode in ("fair", "lines"):
+            b, rb = fair(g, iterations=3, extraordinary=mode, detection=det)
+            np.testing.assert_array_equal(a.vertices, b.vertices)
 
 
 def test_unknown_extraordinary_and_detection_are_refused():
@@ -797,3 +798,32 @@ def test_closed_grid_diagonal_storage_equals_the_normal_matrix(seed, rows, cols,
     s = FairingSystem(m.vertices, t.windows, free, 0.7)
     offsets, data = pattern.normal_matrix(window_coefficients_all(m), free, 0.7)
     _assert_storage_is_the_system(offsets, data, s, free)
+
+
+# --- gaps: a vertex between two found vertices of a line ----------------------------------
+
+
+def test_gaps_hold_is_the_default_of_the_thesis_detection_and_a_lone_spike_is_not_spread():
+    z = np.zeros((5, 7)); z[2, 3] = 0.5
+    g = grid(5, 7, height=z)
+    a, ra = fair(g, iterations=2, threshold=0.01)
+    b, rb = fair(g, iterations=2, threshold=0.01, gaps="hold")
+    np.testing.assert_array_equal(a.vertices, b.vertices)  # nothing lies between two found vertices
+    t, _ = fair(g, iterations=2, detection="thesis")
+    u, _ = fair(g, iterations=2, detection="thesis", gaps="hold")
+    np.testing.assert_array_equal(t.vertices, u.vertices)
+    with pytest.raises(InputError, match="gaps"):
+        fair(g, gaps="grow")
+
+
+@given(st.integers(0, 2**31 - 1))
+def test_gaps_fill_broadband_noise_on_grids(seed):
+    from quadnodes.zigzag import line_gaps
+
+    clean = grid(9, 11, height=np.outer(np.sin(np.linspace(0, 2, 9)), np.ones(11)))
+    noisy, _ = perturb(clean, jitter=0.2, seed=seed)
+    found = detect(noisy)
+    filled = line_gaps(found.free, noisy.topology.windows, found.fixed)
+    assert (filled >= found.free).all() and not (filled & found.fixed).any()
+    _, rep = fair(noisy)
+    assert rep.iterations[0].n_free == int(filled.sum())
