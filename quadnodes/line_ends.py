@@ -36,6 +36,8 @@ neighbour along its arms too, so that the ring a freed vertex is faired against 
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -73,13 +75,32 @@ def ring_arms(topology: object) -> np.ndarray:
     >>> ring_arms(grid(2, 2).topology).tolist()  # a single quad: every vertex is on the boundary
     [[0, 1], [0, 2], [1, 0], [1, 3], [2, 0], [2, 3], [3, 1], [3, 2]]
     """
+    try:
+        return _ARMS[topology]
+    except KeyError:
+        pass
     e = topology.edges  # type: ignore[attr-defined]
     be = topology.boundary_edges  # type: ignore[attr-defined]
     bnd = topology.boundary_vertices  # type: ignore[attr-defined]
     d = np.concatenate([e, e[:, ::-1]])
     on_b = np.concatenate([be, be])
     arm = d[~bnd[d[:, 0]] | on_b]
-    return arm[np.lexsort((arm[:, 1], arm[:, 0]))]
+    arm = arm[np.lexsort((arm[:, 1], arm[:, 0]))]
+    arm.setflags(write=False)
+    _ARMS[topology] = arm
+    return arm
+
+
+#: :func:`ring_arms` per topology (made from the topology alone; goes with the mesh).
+_ARMS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _arms_of(topology: object, pairs: np.ndarray) -> np.ndarray:
+    """The arms of the vertices of ``pairs`` only: the rows of ``T`` that the line-end rows use."""
+    arms = ring_arms(topology)
+    used = np.zeros(topology.n_vertices, dtype=bool)  # type: ignore[attr-defined]
+    used[pairs.reshape(-1)] = True
+    return arms[used[arms[:, 0]]]
 
 
 def turning_matrix(vertices: np.ndarray, arms: np.ndarray, *, line_spacing: str = "fair") -> sp.csr_matrix:
@@ -186,7 +207,7 @@ def line_end_rows(vertices: np.ndarray, topology: object, pairs: np.ndarray, *, 
     """
     n = vertices.shape[0]
     scale = RING_SCALE if scale is None else scale
-    T = turning_matrix(vertices, ring_arms(topology), line_spacing=line_spacing)
+    T = turning_matrix(vertices, _arms_of(topology, pairs), line_spacing=line_spacing)
     r = len(pairs)
     half = 0.5 * scale
     S = sp.csr_matrix((np.r_[np.full(r, half), np.full(r, -half)], (np.r_[np.arange(r), np.arange(r)],
@@ -234,7 +255,7 @@ def line_end_measure(vertices: np.ndarray, topology: object, pairs: np.ndarray, 
     """
     detection = _validate.choice(detection, ("alternating", "thesis"), "detection")
     n = vertices.shape[0]
-    t = turning_matrix(vertices, ring_arms(topology), line_spacing=line_spacing) @ vertices
+    t = turning_matrix(vertices, _arms_of(topology, pairs), line_spacing=line_spacing) @ vertices
     a, b = t[pairs[:, 0]], t[pairs[:, 1]]
     if detection == "alternating":
         val = np.maximum(0.0, -np.einsum("ij,ij->i", a, b))
