@@ -36,7 +36,8 @@ from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
-from .zigzag import DEFAULT_DETECTION, DETECTIONS, _detect, _threshold, _walk_alternation, _window_geometry, window_edges
+from .zigzag import (DEFAULT_DETECTION, DETECTIONS, _detect, _threshold, _walk_edges, _window_geometry,
+                     window_edges)
 
 __all__ = [
     "DEFAULT_WEIGHT",
@@ -224,9 +225,18 @@ def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
     return out.astype(np.int64)
 
 
-def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarray) -> np.ndarray:
-    """``||f_i||²`` of every window at ``vertices`` with the inverse lengths ``inverse`` ``(w, 3)``."""
-    d0, d1, d2 = window_edges(vertices, windows)
+def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarray,
+                   walk: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """``||f_i||²`` of every window at ``vertices`` with the inverse lengths ``inverse`` ``(w, 3)``.
+
+    With the topology's ``walk`` (whose windows are ``windows``) the edges are taken along it.
+    """
+    if walk is not None:
+        ext, start = walk
+        e, _ = _walk_edges(vertices, ext)
+        d0, d1, d2 = (np.take(e, start + k, axis=1).T for k in range(3))
+    else:
+        d0, d1, d2 = window_edges(vertices, windows)
     f = d0 * (0.5 * inverse[:, :1])
     f += d2 * (0.5 * inverse[:, 2:])
     f -= d1 * inverse[:, 1:2]
@@ -312,7 +322,8 @@ def grid_pattern(topology: object) -> GridPattern | None:
     shape = topology.grid_shape  # type: ignore[attr-defined]
     pattern = None
     if shape is not None and shape[1] >= 4:  # narrower: no row windows, offsets would collide
-        pattern = GridPattern(*topology.window_walk, topology.n_vertices, shape[1])  # type: ignore[attr-defined]
+        # the windows of topology.structure_lines' order for a grid: row 0, every column, rows 1 …
+        pattern = GridPattern.open_grid(shape[0], shape[1], [(0, 0, 1), (1, 0, shape[1]), (0, 1, shape[0] - 1)])
     closed = topology.closed_grid if shape is None else None  # type: ignore[attr-defined]
     if closed is not None and closed[1] >= (7 if closed[3] else 4) and (closed[0] >= 7 or not closed[2]):
         # a cylinder or torus grid: periodic diagonals for the windows across the seam (at least 7 vertices
@@ -328,7 +339,10 @@ def grid_pattern(topology: object) -> GridPattern | None:
 def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
     """Largest Gershgorin bound (absolute row sum) over ``rows`` (a mask) of a symmetric matrix
     in diagonal storage (a column sum there: ``data[d, j] = M[j - offset_d, j]``)."""
-    return float(np.abs(data).sum(axis=0)[rows].max())
+    total = np.abs(data[0])
+    for row in data[1:]:  # row by row: no (d, n) temporary
+        total += np.abs(row)
+    return float(total[rows].max())
 
 
 def _line_preconditioner(data: np.ndarray, offsets: np.ndarray, cols: int) -> LinePreconditioner:
@@ -955,8 +969,8 @@ def fair(
     for it in range(iterations):
         current = mesh if x is x0 else mesh.with_vertices(x)
         if geometry is None:
-            geometry = _window_geometry(x, w, walk)
-        alt = _walk_alternation(x, walk) if detection == "alternating" else None
+            geometry = _window_geometry(x, w, walk, alternation=detection == "alternating")
+        alt = geometry[2] if detection == "alternating" else None
         zz = _detect(current, float(thresholds[it]), held, geometry[0], fix, alt)
         dev_before = float(zz.window_deviation.sum())
         if line_spacing == "hold":
@@ -964,7 +978,7 @@ def fair(
             w_energy = zz.window_deviation  # lengths frozen at x: each window's term is its eq. 30 deviation
         else:
             inverse = even_lengths(geometry[1])
-            w_energy = _window_energy(x, w, inverse)
+            w_energy = _window_energy(x, w, inverse, walk)
         e_before = float(w_energy.sum())
         free = zz.free
         if xw.size:
@@ -1001,7 +1015,7 @@ def fair(
         x_new[system.free_index] = new_free
         moved = new_free - np.take(x, system.free_index, axis=0)
         disp = np.sqrt(np.einsum("ij,ij->i", moved, moved))
-        geometry = _window_geometry(x_new, w, walk)
+        geometry = _window_geometry(x_new, w, walk, alternation=detection == "alternating")
         reports.append(
             IterationReport(
                 iteration=it,
