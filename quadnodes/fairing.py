@@ -31,7 +31,9 @@ from .errors import InputError
 from .linalg import factorize
 from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner, SymmetricDiagonalBlocks,
                         block_cg, permuted)
+from .linalg import compiled as kernels
 from .linalg.grid import GridPattern
+from .linalg.heap import reused_heap
 from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
@@ -79,6 +81,10 @@ LINES_CONTRAST = 1000.0
 #: process, more than the whole solve of a 300² grid (0.6 s zigzag, 1.2 s broadband) and far
 #: less than what the kernels save at 1000² (36 s -> 10 s broadband, ``benchmarks/perf/bench_core.py``).
 COMPILED_MIN_UNKNOWNS = 250_000
+#: From this many vertices on, fair() serves its large temporaries from the heap instead of fresh
+#: pages (:func:`quadnodes.linalg.heap.reused_heap`): at a million vertices a (3, 2·10⁶) temporary
+#: costs a page fault per 4 KB otherwise.
+HEAP_MIN_VERTICES = 200_000
 #: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
 #: (13 diagonals, 1.3-1.7x faster products than CSR) when at least this share of the
 #: vertices is free (fixed vertices become identity rows there, so their rows cost too).
@@ -609,7 +615,10 @@ class FairingSystem:
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
-                compiled = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines"
+                # the compiled kernels from COMPILED_MIN_UNKNOWNS on (fair() started loading them), or
+                # wherever they are loaded already (a server, a second run): then they cost nothing
+                compiled = (k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines" or kernels.ready()) \
+                    and kernels.wait()
                 lines = self.preconditioner == "lines" or (
                     compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
                 precond = None
@@ -922,6 +931,35 @@ def fair(
     ['iteration 2 freed no vertex', 'stopped after iteration 2 of 3: no vertex above the threshold, and no later threshold is lower']
     """
     _validate.quad_mesh(mesh)
+    settings = dict(iterations=iterations, threshold=threshold, threshold_decay=threshold_decay, weight=weight,
+                    weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor, reference=reference,
+                    fix=fix, fixed=fixed, solver=solver, extraordinary=extraordinary, detection=detection,
+                    line_spacing=line_spacing)
+    if mesh.n_vertices < HEAP_MIN_VERTICES:
+        return _fair(mesh, **settings)  # type: ignore[arg-type]
+    with reused_heap():  # a big mesh's temporaries: reused heap blocks, not fresh pages each time
+        return _fair(mesh, **settings)  # type: ignore[arg-type]
+
+
+def _fair(
+    mesh: QuadMesh,
+    *,
+    iterations: int,
+    threshold: float | Sequence[float] | None,
+    threshold_decay: float,
+    weight: float | Sequence[float],
+    weight_decay: float,
+    weight_scale: Literal["normalized", "raw"],
+    anchor: Literal["current", "input"],
+    reference: object | None,
+    fix: Literal["none", "corners", "boundary"],
+    fixed: ArrayLike | None,
+    solver: Literal["auto", "direct", "cg"],
+    extraordinary: Literal["fair", "hold"],
+    detection: Literal["alternating", "thesis"],
+    line_spacing: Literal["fair", "hold"],
+) -> tuple[QuadMesh, FairingReport]:
+    """:func:`fair` on a validated mesh."""
     iterations = _validate.iteration_count(iterations, "iterations")
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
     thresholds = _validate.schedule(_threshold(threshold, detection), iterations, "threshold", decay=threshold_decay)
@@ -932,8 +970,10 @@ def fair(
     extraordinary = _validate.choice(extraordinary, EXTRAORDINARY_MODES, "extraordinary")  # type: ignore[assignment]
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
     line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")  # type: ignore[assignment]
-    held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
+    if mesh.n_vertices >= COMPILED_MIN_UNKNOWNS and (topo.grid_shape or topo.closed_grid):
+        kernels.warm_up()  # the grid path will want the compiled kernels: load them while we set up
+    held = fixed_vertices(mesh, fix, fixed)
     xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "fair" else np.empty((0, 4), np.int64)
     if xw.size:
         # an extraordinary vertex may move when a vertex of its ring is free: arms' first vertices

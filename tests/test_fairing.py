@@ -622,9 +622,16 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     plain = _grid_system(m, free, w, preconditioner="none")
     plain.solve(m.vertices[free])
     assert plain._cg[1] is None
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # (as in a fresh process)
     small = _grid_system(m, free, w)  # below COMPILED_MIN_UNKNOWNS: SciPy's kernel, no line solves
     small._cg_setup()
     assert small._cg[1] is None and not isinstance(small._cg[0], SymmetricDiagonalBlocks)
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)  # loaded already: compiled at any size
+    loaded = _grid_system(m, free, w)
+    loaded._cg_setup()
+    assert isinstance(loaded._cg[0], SymmetricDiagonalBlocks)
+    assert isinstance(loaded._cg[1], LinePreconditioner) == (noise == "broadband")
+    assert np.abs(loaded.solve(m.vertices[free]) - x).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 100)
     auto = _grid_system(m, free, w)  # "auto" takes the line solves where the matrix has stiff spots
     auto._cg_setup()
