@@ -29,8 +29,8 @@ from numpy.typing import ArrayLike
 from . import _validate
 from .errors import InputError
 from .linalg import factorize
-from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner, SymmetricDiagonalBlocks,
-                        block_cg, permuted)
+from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner,
+                        PathLinePreconditioner, SymmetricDiagonalBlocks, block_cg, permuted)
 from .linalg import compiled as kernels
 from .linalg.grid import GridPattern
 from .linalg.heap import reused_heap
@@ -351,6 +351,47 @@ def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
     return float(total[rows].max())
 
 
+def _csr_gershgorin(M: sp.csr_matrix) -> float:
+    """Largest Gershgorin bound (absolute row sum) of a CSR matrix."""
+    return float(np.add.reduceat(np.abs(M.data), M.indptr[:-1]).max()) if M.nnz else 0.0
+
+
+def _line_paths(lines: object, free_index: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The free unknowns along every structure line: ``(path, starts, closed)`` for
+    :class:`~quadnodes.linalg.cg.PathLinePreconditioner`.
+
+    A new path starts at each line's start and after every vertex that is not free; a closed
+    line with such a vertex is first turned to start there (so no path runs across its seam),
+    a closed line whose vertices are all free is one closed path.
+    """
+    col = np.full(n, -1, dtype=np.int64)
+    col[free_index] = np.arange(free_index.size)
+    flat = lines.indices  # type: ignore[attr-defined]
+    lengths = lines.lengths  # type: ignore[attr-defined]
+    offsets = lines.offsets[:-1]  # type: ignore[attr-defined]
+    line = np.repeat(np.arange(len(lengths)), lengths)
+    c = col[flat]
+    held = c < 0
+    ring = lines.closed  # type: ignore[attr-defined]
+    # a closed line with a held vertex: rotate it to begin at its first held vertex
+    pos = np.arange(flat.size) - offsets[line]
+    first_held = np.full(len(lengths), -1, dtype=np.int64)
+    hv = np.flatnonzero(held[::-1])  # the last write wins: scan backwards for the first
+    first_held[line[::-1][hv]] = pos[::-1][hv]
+    turn = ring & (first_held > 0)
+    if turn.any():
+        shift = np.where(turn, first_held, 0)[line]
+        src = offsets[line] + (pos + shift) % lengths[line]
+        c = c[src]
+        held = c < 0
+    keep = ~held
+    starts = np.ones(flat.size, dtype=bool)
+    starts[1:] = (line[1:] != line[:-1]) | held[:-1]
+    all_free = ring & (np.bincount(line, weights=held, minlength=len(lengths)) == 0)
+    closed = starts & all_free[line]
+    return c[keep], starts[keep], closed[keep]
+
+
 def _line_preconditioner(data: np.ndarray, offsets: np.ndarray, cols: int) -> LinePreconditioner:
     """Row-line and column-line bands of a grid's diagonals (offsets ±1..3 come only from row
     windows, ±cols.. only from column windows), each with the whole diagonal, in the nodes' order.
@@ -443,13 +484,15 @@ class FairingSystem:
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
     preconditioner : {"auto", "lines", "none"}
-        ``"auto"``: block Jacobi at small weights; on a grid's diagonal storage of at
-        least :data:`COMPILED_MIN_UNKNOWNS` unknowns the line preconditioner where the
-        matrix has stiff spots (:data:`LINES_CONTRAST`); else none. ``"lines"`` (on the grid's diagonal storage; elsewhere ``"auto"``):
-        the additive row-line + column-line block preconditioner
-        (:class:`~quadnodes.linalg.cg.LinePreconditioner`), whose step count barely
+        ``"auto"``: block Jacobi at small weights; from :data:`COMPILED_MIN_UNKNOWNS`
+        unknowns on (or wherever the compiled kernels are loaded) the line preconditioner
+        where the matrix has stiff spots (:data:`LINES_CONTRAST`); else none. ``"lines"``:
+        the line preconditioner at any size — on a grid's diagonal storage the additive
+        row-line + column-line blocks (:class:`~quadnodes.linalg.cg.LinePreconditioner`),
+        on any other mesh (``_lines`` given) the same along its structure lines
+        (:class:`~quadnodes.linalg.cg.PathLinePreconditioner`); its step count barely
         depends on the noise or the size (59–60 steps on 300² and 1000² broadband
-        noise against 222 and 473). ``"none"``: plain CG on the grid's storage.
+        noise against 222 and 473). ``"none"``: plain CG.
 
     Attributes
     ----------
@@ -480,6 +523,7 @@ class FairingSystem:
         preconditioner: Literal["auto", "lines", "none"] = "auto",
         _inverse_lengths: np.ndarray | None = None,
         _topology: object | None = None,
+        _lines: object | None = None,
     ) -> None:
         weight = _validate.positive_number(weight, "weight")
         free = np.asarray(free, dtype=bool)
@@ -531,6 +575,8 @@ class FairingSystem:
         b[partial] = np.einsum("wk,wkj->wj", np.where(is_free[partial], 0.0, coef[partial]),
                                np.take(vertices, wp.reshape(-1), axis=0).reshape(wp.shape + (3,)))
         self.weight = weight
+        self._lines = _lines  # the mesh's structure lines (StructureLines): paths for the line preconditioner
+        self._n_vertices = n
         self._windows = win
         self.active = active
         self.A = A
@@ -607,7 +653,7 @@ class FairingSystem:
             mean_diag = float(np.einsum("i,i->", A.data, A.data)) / k
             grid = self._grid is not None and HAS_DIAGONAL_KERNEL and k >= GRID_MIN_FREE * self._grid[2].size
             ratio = GRID_BLOCK_JACOBI_RATIO if grid else BLOCK_JACOBI_RATIO
-            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and not (grid and self.preconditioner != "auto"):
+            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto":
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = permuted(self.matrix, order)
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
@@ -631,7 +677,21 @@ class FairingSystem:
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:
-                self._cg = (RowBlocks(self.matrix), None, None)
+                M = self.matrix
+                precond = None
+                # line solves along the structure lines where the matrix has stiff spots, as on a grid
+                # (compiled sweeps: from COMPILED_MIN_UNKNOWNS on, or wherever the kernels are loaded)
+                lines = self._lines is not None and (self.preconditioner == "lines" or (
+                    self.preconditioner == "auto" and (k >= COMPILED_MIN_UNKNOWNS or kernels.ready())
+                    and _csr_gershgorin(M) > LINES_CONTRAST * self.weight))
+                if lines and kernels.wait():
+                    try:
+                        precond = PathLinePreconditioner(M, *_line_paths(self._lines, self.free_index,
+                                                                         self._n_vertices))
+                    except np.linalg.LinAlgError as exc:  # a band not positive definite: plain CG
+                        if self.preconditioner == "lines":
+                            raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
+                self._cg = (RowBlocks(M), precond, None)
         return self._cg
 
     _cg: tuple | None = None
@@ -1040,11 +1100,12 @@ def _fair(
         w_eff = float(weights[it] * scale)
         if xw.size:
             system = FairingSystem(x, np.concatenate([w, xw]), free, w_eff, solver=solver,
-                                   _inverse_lengths=np.concatenate([inverse, EXTRAORDINARY_SCALE * x_geom[1]]))
+                                   _inverse_lengths=np.concatenate([inverse, EXTRAORDINARY_SCALE * x_geom[1]]),
+                                   _lines=topo.structure_lines)
             all_dev = np.concatenate([w_energy, EXTRAORDINARY_SCALE**2 * x_geom[0]])
         else:
             system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=inverse,
-                                   _topology=topo)
+                                   _topology=topo, _lines=topo.structure_lines)
             all_dev = w_energy
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
