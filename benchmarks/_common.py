@@ -61,6 +61,50 @@ def noisy_torus(rings: int, segments: int, seed: int = 0):
     return t.with_vertices(t.vertices + rng.normal(scale=0.2 * h, size=t.vertices.shape))
 
 
+def cube_sphere(k: int):
+    """A cube-sphere: the six faces of a cube, each a ``k × k`` grid of quads, on the unit sphere.
+
+    ``6k² + 2`` vertices; the eight cube corners have valence 3 (extraordinary), so the mesh is
+    no grid of any kind and fairs on the general (free-index CSR) path. Faces point outwards.
+    """
+    from quadnodes.mesh import QuadMesh
+
+    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    i, j = i.reshape(-1), j.reshape(-1)
+    corners = np.stack([np.stack([i, j]), np.stack([i + 1, j]), np.stack([i + 1, j + 1]), np.stack([i, j + 1])])
+    pts = []  # (6, 4, m, 3) integer lattice corners of every quad, face by face
+    for axis in range(3):
+        for side in (0, k):
+            a, b = [d for d in range(3) if d != axis]
+            q = np.zeros((4, i.size, 3), dtype=np.int64)
+            q[:, :, axis] = side
+            q[:, :, a] = corners[:, 0]
+            q[:, :, b] = corners[:, 1]
+            if (side == k) != ((axis % 2) == 0) ^ (axis == 1) ^ True:
+                q = q[::-1]
+            pts.append(q.transpose(1, 0, 2))
+    lattice = np.concatenate(pts).reshape(-1, 3)
+    key = (lattice[:, 0] * (k + 1) + lattice[:, 1]) * (k + 1) + lattice[:, 2]  # one integer per lattice point
+    ukey, faces = np.unique(key, return_inverse=True)
+    faces = faces.reshape(-1, 4)
+    uniq = np.stack([ukey // (k + 1) ** 2, ukey // (k + 1) % (k + 1), ukey % (k + 1)], axis=1)
+    v = uniq - k / 2.0
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    # orient every face outwards: its normal against its centroid
+    p = v[faces]
+    nrm = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+    flip = np.einsum("ij,ij->i", nrm, p.mean(axis=1)) < 0
+    faces[flip] = faces[flip][:, ::-1]
+    return QuadMesh(v, faces)
+
+
+def noisy_cube_sphere(k: int, seed: int = 0):
+    """:func:`cube_sphere` with broadband noise of 0.2 edge lengths (independent Gaussian per coordinate)."""
+    c = cube_sphere(k)
+    rng = np.random.default_rng(seed)
+    return c.with_vertices(c.vertices + rng.normal(scale=0.2 * c.mean_edge_length, size=c.vertices.shape))
+
+
 def fresh_runs(script: str, args: list[str], repeat: int) -> tuple[dict, list[float]]:
     """Run ``script --row ARGS`` in ``repeat`` fresh processes; the median run's JSON and all wall times."""
     runs = []

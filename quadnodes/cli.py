@@ -279,7 +279,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_watch(args: argparse.Namespace) -> int:
     from .graph.watch import watch
+    from .linalg import compiled
 
+    compiled.warm_up()  # every change re-runs: load the compiled solver kernels once, in the background
     cache = _cache(args)
 
     def on_error(exc: QuadnodesError) -> None:

@@ -29,15 +29,17 @@ from numpy.typing import ArrayLike
 from . import _validate
 from .errors import InputError
 from .linalg import factorize
-from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner, SymmetricDiagonalBlocks,
-                        block_cg, permuted)
+from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner,
+                        PathLinePreconditioner, SymmetricDiagonalBlocks, block_cg, permuted)
+from .linalg import compiled as kernels
 from .linalg.grid import GridPattern
+from .linalg.heap import reused_heap
 from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
 from .topology import fixed_vertices
 from .line_ends import line_end_arms, line_end_free, line_end_rows
-from .zigzag import (DEFAULT_DETECTION, DEFAULT_GAPS, DETECTIONS, GAPS_MODES, _detect, _threshold, _walk_alternation,
+from .zigzag import (DEFAULT_DETECTION, DEFAULT_GAPS, DETECTIONS, GAPS_MODES, _detect, _threshold, _walk_edges,
                      _window_geometry, line_gaps, window_edges)
 
 __all__ = [
@@ -80,6 +82,10 @@ LINES_CONTRAST = 1000.0
 #: process, more than the whole solve of a 300² grid (0.6 s zigzag, 1.2 s broadband) and far
 #: less than what the kernels save at 1000² (36 s -> 10 s broadband, ``benchmarks/perf/bench_core.py``).
 COMPILED_MIN_UNKNOWNS = 250_000
+#: From this many vertices on, fair() serves its large temporaries from the heap instead of fresh
+#: pages (:func:`quadnodes.linalg.heap.reused_heap`): at a million vertices a (3, 2·10⁶) temporary
+#: costs a page fault per 4 KB otherwise.
+HEAP_MIN_VERTICES = 200_000
 #: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
 #: (13 diagonals, 1.3-1.7x faster products than CSR) when at least this share of the
 #: vertices is free (fixed vertices become identity rows there, so their rows cost too).
@@ -234,9 +240,18 @@ def _line_end_pairs(topology: object) -> np.ndarray:
     return line_end_arms(topology, ~topology.window_middle)  # type: ignore[attr-defined]
 
 
-def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarray) -> np.ndarray:
-    """``||f_i||²`` of every window at ``vertices`` with the inverse lengths ``inverse`` ``(w, 3)``."""
-    d0, d1, d2 = window_edges(vertices, windows)
+def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarray,
+                   walk: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """``||f_i||²`` of every window at ``vertices`` with the inverse lengths ``inverse`` ``(w, 3)``.
+
+    With the topology's ``walk`` (whose windows are ``windows``) the edges are taken along it.
+    """
+    if walk is not None:
+        ext, start = walk
+        e, _ = _walk_edges(vertices, ext)
+        d0, d1, d2 = (np.take(e, start + k, axis=1).T for k in range(3))
+    else:
+        d0, d1, d2 = window_edges(vertices, windows)
     f = d0 * (0.5 * inverse[:, :1])
     f += d2 * (0.5 * inverse[:, 2:])
     f -= d1 * inverse[:, 1:2]
@@ -322,7 +337,8 @@ def grid_pattern(topology: object) -> GridPattern | None:
     shape = topology.grid_shape  # type: ignore[attr-defined]
     pattern = None
     if shape is not None and shape[1] >= 4:  # narrower: no row windows, offsets would collide
-        pattern = GridPattern(*topology.window_walk, topology.n_vertices, shape[1])  # type: ignore[attr-defined]
+        # the windows of topology.structure_lines' order for a grid: row 0, every column, rows 1 …
+        pattern = GridPattern.open_grid(shape[0], shape[1], [(0, 0, 1), (1, 0, shape[1]), (0, 1, shape[0] - 1)])
     closed = topology.closed_grid if shape is None else None  # type: ignore[attr-defined]
     if closed is not None and closed[1] >= (7 if closed[3] else 4) and (closed[0] >= 7 or not closed[2]):
         # a cylinder or torus grid: periodic diagonals for the windows across the seam (at least 7 vertices
@@ -338,7 +354,51 @@ def grid_pattern(topology: object) -> GridPattern | None:
 def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
     """Largest Gershgorin bound (absolute row sum) over ``rows`` (a mask) of a symmetric matrix
     in diagonal storage (a column sum there: ``data[d, j] = M[j - offset_d, j]``)."""
-    return float(np.abs(data).sum(axis=0)[rows].max())
+    total = np.abs(data[0])
+    for row in data[1:]:  # row by row: no (d, n) temporary
+        total += np.abs(row)
+    return float(total[rows].max())
+
+
+def _csr_gershgorin(M: sp.csr_matrix) -> float:
+    """Largest Gershgorin bound (absolute row sum) of a CSR matrix."""
+    return float(np.add.reduceat(np.abs(M.data), M.indptr[:-1]).max()) if M.nnz else 0.0
+
+
+def _line_paths(lines: object, free_index: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The free unknowns along every structure line: ``(path, starts, closed)`` for
+    :class:`~quadnodes.linalg.cg.PathLinePreconditioner`.
+
+    A new path starts at each line's start and after every vertex that is not free; a closed
+    line with such a vertex is first turned to start there (so no path runs across its seam),
+    a closed line whose vertices are all free is one closed path.
+    """
+    col = np.full(n, -1, dtype=np.int64)
+    col[free_index] = np.arange(free_index.size)
+    flat = lines.indices  # type: ignore[attr-defined]
+    lengths = lines.lengths  # type: ignore[attr-defined]
+    offsets = lines.offsets[:-1]  # type: ignore[attr-defined]
+    line = np.repeat(np.arange(len(lengths)), lengths)
+    c = col[flat]
+    held = c < 0
+    ring = lines.closed  # type: ignore[attr-defined]
+    # a closed line with a held vertex: rotate it to begin at its first held vertex
+    pos = np.arange(flat.size) - offsets[line]
+    first_held = np.full(len(lengths), -1, dtype=np.int64)
+    hv = np.flatnonzero(held[::-1])  # the last write wins: scan backwards for the first
+    first_held[line[::-1][hv]] = pos[::-1][hv]
+    turn = ring & (first_held > 0)
+    if turn.any():
+        shift = np.where(turn, first_held, 0)[line]
+        src = offsets[line] + (pos + shift) % lengths[line]
+        c = c[src]
+        held = c < 0
+    keep = ~held
+    starts = np.ones(flat.size, dtype=bool)
+    starts[1:] = (line[1:] != line[:-1]) | held[:-1]
+    all_free = ring & (np.bincount(line, weights=held, minlength=len(lengths)) == 0)
+    closed = starts & all_free[line]
+    return c[keep], starts[keep], closed[keep]
 
 
 def _line_preconditioner(data: np.ndarray, offsets: np.ndarray, cols: int) -> LinePreconditioner:
@@ -446,13 +506,15 @@ class FairingSystem:
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
     preconditioner : {"auto", "lines", "none"}
-        ``"auto"``: block Jacobi at small weights; on a grid's diagonal storage of at
-        least :data:`COMPILED_MIN_UNKNOWNS` unknowns the line preconditioner where the
-        matrix has stiff spots (:data:`LINES_CONTRAST`); else none. ``"lines"`` (on the grid's diagonal storage; elsewhere ``"auto"``):
-        the additive row-line + column-line block preconditioner
-        (:class:`~quadnodes.linalg.cg.LinePreconditioner`), whose step count barely
+        ``"auto"``: block Jacobi at small weights; from :data:`COMPILED_MIN_UNKNOWNS`
+        unknowns on (or wherever the compiled kernels are loaded) the line preconditioner
+        where the matrix has stiff spots (:data:`LINES_CONTRAST`); else none. ``"lines"``:
+        the line preconditioner at any size — on a grid's diagonal storage the additive
+        row-line + column-line blocks (:class:`~quadnodes.linalg.cg.LinePreconditioner`),
+        on any other mesh (``_lines`` given) the same along its structure lines
+        (:class:`~quadnodes.linalg.cg.PathLinePreconditioner`); its step count barely
         depends on the noise or the size (59–60 steps on 300² and 1000² broadband
-        noise against 222 and 473). ``"none"``: plain CG on the grid's storage.
+        noise against 222 and 473). ``"none"``: plain CG.
 
     Attributes
     ----------
@@ -483,6 +545,7 @@ class FairingSystem:
         preconditioner: Literal["auto", "lines", "none"] = "auto",
         _inverse_lengths: np.ndarray | None = None,
         _topology: object | None = None,
+        _lines: object | None = None,
         _extra_rows: sp.spmatrix | None = None,
     ) -> None:
         weight = _validate.positive_number(weight, "weight")
@@ -535,6 +598,8 @@ class FairingSystem:
         b[partial] = np.einsum("wk,wkj->wj", np.where(is_free[partial], 0.0, coef[partial]),
                                np.take(vertices, wp.reshape(-1), axis=0).reshape(wp.shape + (3,)))
         self.weight = weight
+        self._lines = _lines  # the mesh's structure lines (StructureLines): paths for the line preconditioner
+        self._n_vertices = n
         self._windows = win
         self.active = active
         self.A = A
@@ -614,7 +679,7 @@ class FairingSystem:
             mean_diag = float(np.einsum("i,i->", A.data, A.data)) / k
             grid = self._grid is not None and HAS_DIAGONAL_KERNEL and k >= GRID_MIN_FREE * self._grid[2].size
             ratio = GRID_BLOCK_JACOBI_RATIO if grid else BLOCK_JACOBI_RATIO
-            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and not (grid and self.preconditioner != "auto"):
+            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto":
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = permuted(self.matrix, order)
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
@@ -622,7 +687,10 @@ class FairingSystem:
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
-                compiled = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines"
+                # the compiled kernels from COMPILED_MIN_UNKNOWNS on (fair() started loading them), or
+                # wherever they are loaded already (a server, a second run): then they cost nothing
+                compiled = (k >= COMPILED_MIN_UNKNOWNS or self.preconditioner == "lines" or kernels.ready()) \
+                    and kernels.wait()
                 lines = self.preconditioner == "lines" or (
                     compiled and self.preconditioner == "auto" and _gershgorin(data, free) > LINES_CONTRAST * self.weight)
                 precond = None
@@ -635,7 +703,21 @@ class FairingSystem:
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:
-                self._cg = (RowBlocks(self.matrix), None, None)
+                M = self.matrix
+                precond = None
+                # line solves along the structure lines where the matrix has stiff spots, as on a grid
+                # (compiled sweeps: from COMPILED_MIN_UNKNOWNS on, or wherever the kernels are loaded)
+                lines = self._lines is not None and (self.preconditioner == "lines" or (
+                    self.preconditioner == "auto" and (k >= COMPILED_MIN_UNKNOWNS or kernels.ready())
+                    and _csr_gershgorin(M) > LINES_CONTRAST * self.weight))
+                if lines and kernels.wait():
+                    try:
+                        precond = PathLinePreconditioner(M, *_line_paths(self._lines, self.free_index,
+                                                                         self._n_vertices))
+                    except np.linalg.LinAlgError as exc:  # a band not positive definite: plain CG
+                        if self.preconditioner == "lines":
+                            raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
+                self._cg = (RowBlocks(M), precond, None)
         return self._cg
 
     _cg: tuple | None = None
@@ -949,6 +1031,36 @@ def fair(
     ['iteration 2 freed no vertex', 'stopped after iteration 2 of 3: no vertex above the threshold, and no later threshold is lower']
     """
     _validate.quad_mesh(mesh)
+    settings = dict(iterations=iterations, threshold=threshold, threshold_decay=threshold_decay, weight=weight,
+                    weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor, reference=reference,
+                    fix=fix, fixed=fixed, solver=solver, extraordinary=extraordinary, detection=detection,
+                    line_spacing=line_spacing, gaps=gaps)
+    if mesh.n_vertices < HEAP_MIN_VERTICES:
+        return _fair(mesh, **settings)  # type: ignore[arg-type]
+    with reused_heap():  # a big mesh's temporaries: reused heap blocks, not fresh pages each time
+        return _fair(mesh, **settings)  # type: ignore[arg-type]
+
+
+def _fair(
+    mesh: QuadMesh,
+    *,
+    iterations: int,
+    threshold: float | Sequence[float] | None,
+    threshold_decay: float,
+    weight: float | Sequence[float],
+    weight_decay: float,
+    weight_scale: Literal["normalized", "raw"],
+    anchor: Literal["current", "input"],
+    reference: object | None,
+    fix: Literal["none", "corners", "boundary"],
+    fixed: ArrayLike | None,
+    solver: Literal["auto", "direct", "cg"],
+    extraordinary: Literal["fair", "lines", "hold"],
+    detection: Literal["alternating", "thesis"],
+    line_spacing: Literal["fair", "hold"],
+    gaps: Literal["fair", "hold"] | None,
+) -> tuple[QuadMesh, FairingReport]:
+    """:func:`fair` on a validated mesh."""
     iterations = _validate.iteration_count(iterations, "iterations")
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
     thresholds = _validate.schedule(_threshold(threshold, detection), iterations, "threshold", decay=threshold_decay)
@@ -961,8 +1073,10 @@ def fair(
     line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")  # type: ignore[assignment]
     gaps = _validate.choice(DEFAULT_GAPS[detection] if gaps is None else gaps, GAPS_MODES,
                             "gaps")  # type: ignore[assignment]
-    held = fixed_vertices(mesh, fix, fixed)
     topo = mesh.topology
+    if mesh.n_vertices >= COMPILED_MIN_UNKNOWNS and (topo.grid_shape or topo.closed_grid):
+        kernels.warm_up()  # the grid path will want the compiled kernels: load them while we set up
+    held = fixed_vertices(mesh, fix, fixed)
     xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "lines" else np.empty((0, 4), np.int64)
     if xw.size:
         # an extraordinary vertex may move when a vertex of its ring is free: arms' first vertices
@@ -1003,8 +1117,8 @@ def fair(
     for it in range(iterations):
         current = mesh if x is x0 else mesh.with_vertices(x)
         if geometry is None:
-            geometry = _window_geometry(x, w, walk)
-        alt = _walk_alternation(x, walk) if detection == "alternating" else None
+            geometry = _window_geometry(x, w, walk, alternation=detection == "alternating")
+        alt = geometry[2] if detection == "alternating" else None
         zz = _detect(current, float(thresholds[it]), held, geometry[0], fix, alt)
         dev_before = float(zz.window_deviation.sum())
         if line_spacing == "hold":
@@ -1012,7 +1126,7 @@ def fair(
             w_energy = zz.window_deviation  # lengths frozen at x: each window's term is its eq. 30 deviation
         else:
             inverse = even_lengths(geometry[1])
-            w_energy = _window_energy(x, w, inverse)
+            w_energy = _window_energy(x, w, inverse, walk)
         e_before = float(w_energy.sum())
         free = zz.free if gaps == "hold" else line_gaps(zz.free, w, zz.fixed)
         if xw.size:
@@ -1044,12 +1158,12 @@ def fair(
             inv_all = [inverse, EXTRAORDINARY_SCALE * x_geom[1]] if xw.size else [inverse]
             dev_all = [w_energy, EXTRAORDINARY_SCALE**2 * x_geom[0]] if xw.size else [w_energy]
             system = FairingSystem(x, np.concatenate(xs), free, w_eff, solver=solver,
-                                   _inverse_lengths=np.concatenate(inv_all),
+                                   _inverse_lengths=np.concatenate(inv_all), _lines=topo.structure_lines,
                                    _extra_rows=end_rows if ends.size else None)
             all_dev = np.concatenate(dev_all + ([end_energy] if ends.size else []))
         else:
             system = FairingSystem(x, w, free, w_eff, solver=solver, _inverse_lengths=inverse,
-                                   _topology=topo)
+                                   _topology=topo, _lines=topo.structure_lines)
             all_dev = w_energy
         if ref is not None:
             target, _ = ref.closest(x[system.free_index])
@@ -1060,7 +1174,7 @@ def fair(
         x_new[system.free_index] = new_free
         moved = new_free - np.take(x, system.free_index, axis=0)
         disp = np.sqrt(np.einsum("ij,ij->i", moved, moved))
-        geometry = _window_geometry(x_new, w, walk)
+        geometry = _window_geometry(x_new, w, walk, alternation=detection == "alternating")
         reports.append(
             IterationReport(
                 iteration=it,

@@ -329,6 +329,9 @@ class Topology:
     @cached_property
     def windows(self) -> np.ndarray:
         """``(w, 4)`` consecutive vertex quadruples of all structure lines (as :func:`windows`)."""
+        shape = self.grid_shape
+        if shape is not None:
+            return _grid_windows(*shape)
         ext, start = self.window_walk
         return ext[start[:, None] + np.arange(4)]
 
@@ -340,11 +343,28 @@ class Topology:
         ``ext[start[i] : start[i] + 4]`` and consecutive windows of a line share
         edges: per-edge quantities are computed once per line edge, not per window.
         """
+        shape = self.grid_shape
+        if shape is not None:  # open lines laid out one after another: windows start at each line's L - 3 first nodes
+            lines = self.structure_lines
+            count = np.maximum(lines.lengths - 3, 0)
+            start = np.repeat(lines.offsets[:-1] - (np.cumsum(count) - count), count)
+            start += np.arange(start.size, dtype=np.int64)
+            start.setflags(write=False)
+            return lines.indices, start
         return _window_walk(self.structure_lines)[:2]
 
     @cached_property
     def window_middle(self) -> np.ndarray:
         """Mask of vertices that are a middle point of at least one window."""
+        shape = self.grid_shape
+        if shape is not None:  # inside a row of at least 4 nodes, or inside a column of at least 4
+            rows, cols = shape
+            mask = np.zeros((rows, cols), dtype=bool)
+            if cols >= 4:
+                mask[:, 1:-1] = True
+            if rows >= 4:
+                mask[1:-1] = True
+            return mask.reshape(-1)
         mask = np.zeros(self.n_vertices, dtype=bool)
         mask[self.windows[:, 1:3].reshape(-1)] = True
         return mask
@@ -370,6 +390,11 @@ def _grid_shape(faces: np.ndarray, n: int) -> tuple[int, int] | None:
     rows = n // cols
     if rows < 2 or (rows - 1) * (cols - 1) != len(faces):
         return None
+    # the common case first: the faces of grid_faces (or its reverse orientation), cell by cell in order
+    base = (np.arange(rows - 1, dtype=np.int64)[:, None] * cols + np.arange(cols - 1)).reshape(-1, 1)
+    rel = faces - base
+    if (rel == (0, 1, cols + 1, cols)).all() or (rel == (0, cols, cols + 1, 1)).all():
+        return rows, cols
     if grid_cells(faces, rows, cols) >= 0 or np.bincount(faces.min(axis=1), minlength=n).max() > 1:
         return None  # not all unit cells, or one cell twice
     return rows, cols
@@ -414,6 +439,24 @@ def _grid_lines(rows: int, cols: int) -> StructureLines:
     for a in (flat, offsets, closed):
         a.setflags(write=False)
     return StructureLines(flat, offsets, closed)
+
+
+def _grid_windows(rows: int, cols: int) -> np.ndarray:
+    """The windows of :func:`_grid_lines`' lines in order, built by index arithmetic (no gather).
+
+    Examples
+    --------
+    >>> _grid_windows(4, 5).tolist()  # row 0, then the columns, then rows 1 … 3
+    [[0, 1, 2, 3], [1, 2, 3, 4], [0, 5, 10, 15], [1, 6, 11, 16], [2, 7, 12, 17], [3, 8, 13, 18], [4, 9, 14, 19], [5, 6, 7, 8], [6, 7, 8, 9], [10, 11, 12, 13], [11, 12, 13, 14], [15, 16, 17, 18], [16, 17, 18, 19]]
+    """
+    kr, kc = max(cols - 3, 0), max(rows - 3, 0)
+    row_base = (np.arange(rows, dtype=np.int64)[:, None] * cols + np.arange(kr)).reshape(rows, kr, 1)
+    col_base = (np.arange(cols, dtype=np.int64)[:, None] + cols * np.arange(kc)).reshape(cols, kc, 1)
+    out = np.empty((rows * kr + cols * kc, 4), dtype=np.int64)
+    out[:kr].reshape(1, kr, 4)[...] = row_base[:1] + np.arange(4)
+    out[kr : kr + cols * kc].reshape(cols, kc, 4)[...] = col_base + cols * np.arange(4)
+    out[kr + cols * kc :].reshape(rows - 1, kr, 4)[...] = row_base[1:] + np.arange(4)
+    return out
 
 
 def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
@@ -674,8 +717,14 @@ def corner_vertices(mesh: QuadMesh, *, angle: float = CORNER_ANGLE) -> np.ndarra
     topo = mesh.topology
     n = mesh.n_vertices
     x = mesh.vertices
-    bnd_he = np.flatnonzero(topo.he_twin < 0)
-    start, end = topo.he_start[bnd_he], topo.he_end[bnd_he]
+    if topo.grid_shape is not None:  # the boundary loop by index arithmetic (the test below is the
+        rows, cols = topo.grid_shape  # same walked either way round)
+        ids = np.arange(n, dtype=np.int64).reshape(rows, cols)
+        start = np.concatenate([ids[0, :-1], ids[:-1, -1], ids[-1, :0:-1], ids[:0:-1, 0]])
+        end = np.roll(start, -1)
+    else:
+        bnd_he = np.flatnonzero(topo.he_twin < 0)
+        start, end = topo.he_start[bnd_he], topo.he_end[bnd_he]
     nxt = np.full(n, -1, dtype=np.int64)
     prv = np.full(n, -1, dtype=np.int64)
     nxt[start] = end

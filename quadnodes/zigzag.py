@@ -164,38 +164,62 @@ def window_alternation(vertices: np.ndarray, windows: np.ndarray) -> np.ndarray:
 def _walk_alternation(vertices: np.ndarray, walk: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """:func:`window_alternation` of the topology's windows along its window walk (each edge once)."""
     ext, start = walk
-    g = np.take(vertices, ext, axis=0)
-    e = g[1:] - g[:-1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        e /= np.sqrt(np.einsum("ij,ij->i", e, e))[:, None]
-    t = e[1:] - e[:-1]
-    a = -np.einsum("ij,ij->i", t[:-1], t[1:])
-    return np.maximum(0.0, np.take(a, start))
+    e, _ = _walk_edges(vertices, ext, unit=True)
+    return _alternation(e, start)
+
+
+def _walk_edges(vertices: np.ndarray, ext: np.ndarray, *, unit: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Edge vectors ``(3, m - 1)`` along the walk ``ext`` (coordinates as rows: every pass below runs on
+    contiguous rows, NumPy is several times slower on an inner dimension of 3) and their inverse lengths;
+    ``unit``: the edges divided by their lengths."""
+    g = np.take(np.ascontiguousarray(vertices.T), ext, axis=1)
+    e = g[:, 1:] - g[:, :-1]  # ext[j] -> ext[j+1]; where two lines meet, a meaningless edge
+    g = g[:, 1:]
+    np.multiply(e, e, out=g)
+    length2 = g[0] + g[1]
+    length2 += g[2]
+    with np.errstate(divide="ignore", invalid="ignore"):  # (that may have length 0)
+        inv = 1.0 / np.sqrt(length2, out=length2)
+        if unit:
+            e *= inv
+    return e, inv
+
+
+def _alternation(u: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """:func:`window_alternation` from the unit edge directions ``u`` ``(3, m - 1)`` along a walk."""
+    t = u[:, 1:] - u[:, :-1]
+    p = t[:, :-1] * t[:, 1:]
+    a = p[0] + p[1]
+    a += p[2]
+    return np.maximum(0.0, -np.take(a, start))
 
 
 def _window_geometry(
-    vertices: np.ndarray, windows: np.ndarray, walk: tuple[np.ndarray, np.ndarray] | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+    vertices: np.ndarray, windows: np.ndarray, walk: tuple[np.ndarray, np.ndarray] | None = None,
+    *, alternation: bool = False,
+) -> tuple[np.ndarray, ...]:
     """Deviation ``(w,)`` of every window and the inverse lengths ``(w, 3)`` of its edges.
 
     One pass serves detection and the fairing coefficients (which freeze these lengths).
     With the topology's ``walk`` (:attr:`quadnodes.topology.Topology.window_walk`, whose
     windows are ``windows``) every line edge is measured once instead of in each of
-    the up to three windows that hold it.
+    the up to three windows that hold it; ``alternation`` (with ``walk``) adds
+    :func:`window_alternation` ``(w,)`` from the same unit directions.
     """
     if walk is not None:
         ext, start = walk
-        g = np.take(vertices, ext, axis=0)
-        e = g[1:] - g[:-1]  # ext[j] -> ext[j+1]; where two lines meet, a meaningless edge
-        with np.errstate(divide="ignore", invalid="ignore"):  # (that may have length 0)
-            inv = 1.0 / np.sqrt(np.einsum("ij,ij->i", e, e))
-            e *= inv[:, None]
-        r = e[:-2] + e[2:]
+        e, inv = _walk_edges(vertices, ext, unit=True)
+        r = e[:, :-2] + e[:, 2:]
         r *= 0.5
-        r -= e[1:-1]
-        dev = np.einsum("ij,ij->i", r, r)
-        inverse = np.stack([np.take(inv[k:], start) for k in range(3)])
-        return np.take(dev, start), inverse.T
+        r -= e[:, 1:-1]
+        r *= r
+        dev = r[0] + r[1]
+        dev += r[2]
+        inverse = np.empty((len(start), 3))
+        for k in range(3):
+            np.take(inv[k:], start, out=inverse[:, k])
+        out = (np.take(dev, start), inverse)
+        return out + (_alternation(e, start),) if alternation else out
     u = window_edges(vertices, windows)
     inverse = np.empty((len(windows), 3))
     for k, d in enumerate(u):

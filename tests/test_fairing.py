@@ -455,8 +455,8 @@ def test_iterations_reuse_the_grid_pattern(monkeypatch):
     from quadnodes.linalg.grid import GridPattern
 
     made = []
-    init = GridPattern.__init__
-    monkeypatch.setattr(GridPattern, "__init__", lambda self, *a: (made.append(1), init(self, *a))[1])
+    open_grid = GridPattern.open_grid
+    monkeypatch.setattr(GridPattern, "open_grid", lambda *a: (made.append(1), open_grid(*a))[1])
     m, _ = perturb(grid(60, 60), tangential=0.2, normal=0.05, seed=7)
     _, rep = fair(m, iterations=3, threshold=0.0)
     assert [r.solver for r in rep.iterations] == ["cg"] * 3 and len(made) == 1
@@ -649,9 +649,16 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     plain = _grid_system(m, free, w, preconditioner="none")
     plain.solve(m.vertices[free])
     assert plain._cg[1] is None
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # (as in a fresh process)
     small = _grid_system(m, free, w)  # below COMPILED_MIN_UNKNOWNS: SciPy's kernel, no line solves
     small._cg_setup()
     assert small._cg[1] is None and not isinstance(small._cg[0], SymmetricDiagonalBlocks)
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)  # loaded already: compiled at any size
+    loaded = _grid_system(m, free, w)
+    loaded._cg_setup()
+    assert isinstance(loaded._cg[0], SymmetricDiagonalBlocks)
+    assert isinstance(loaded._cg[1], LinePreconditioner) == (noise == "broadband")
+    assert np.abs(loaded.solve(m.vertices[free]) - x).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 100)
     auto = _grid_system(m, free, w)  # "auto" takes the line solves where the matrix has stiff spots
     auto._cg_setup()
@@ -798,6 +805,76 @@ def test_closed_grid_diagonal_storage_equals_the_normal_matrix(seed, rows, cols,
     s = FairingSystem(m.vertices, t.windows, free, 0.7)
     offsets, data = pattern.normal_matrix(window_coefficients_all(m), free, 0.7)
     _assert_storage_is_the_system(offsets, data, s, free)
+
+
+def _shuffled(m, seed):
+    """``m`` with its vertices renumbered at random (no grid of any kind any more)."""
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(m.n_vertices)
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(perm.size)
+    return QuadMesh(m.vertices[perm], inv[m.faces])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("kind", ["torus", "extraordinary", "holed", "rounded_box"])
+def test_line_preconditioner_on_any_mesh_equals_the_direct_solve(monkeypatch, threads, kind):
+    """Along the structure lines of a mesh that is no grid (closed lines, lines through held
+    vertices, extraordinary vertices, a hole): CG with the path line preconditioner reaches the
+    direct solve to 1e-8 of the mesh's size, held vertices never move."""
+    from pathlib import Path
+
+    from quadnodes.fairing import _line_paths
+    from quadnodes.io import load
+    from quadnodes.linalg.cg import PathLinePreconditioner
+    from quadnodes.topology import fixed_vertices
+    from quadnodes.zigzag import _window_geometry
+
+    if kind == "torus":
+        from quadnodes.mesh import torus
+
+        m = _shuffled(torus(12, 17), 3)
+    elif kind == "extraordinary":
+        m = extraordinary_mesh()
+    elif kind == "holed":
+        m = l_shape_with_hole()
+    else:
+        m = load(Path(__file__).parent / "data" / "rounded_box.obj")
+    assert m.topology.grid_shape is None and m.topology.closed_grid is None
+    h = m.mean_edge_length
+    m = m.with_vertices(m.vertices + np.random.default_rng(4).normal(scale=0.2 * h, size=m.vertices.shape))
+    if threads > 1:
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    t = m.topology
+    held = fixed_vertices(m, "corners") | (np.random.default_rng(5).random(m.n_vertices) < 0.1)
+    free = t.window_middle & ~held
+    _, inverse = _window_geometry(m.vertices, t.windows, t.window_walk)  # eq. 32's own lengths: stiff spots
+    w = 0.3 / h**2
+    s = FairingSystem(m.vertices, t.windows, free, w, solver="cg", _inverse_lengths=inverse,
+                      preconditioner="lines", _lines=t.structure_lines)
+    x = s.solve(m.vertices[free])
+    assert isinstance(s._cg[1], PathLinePreconditioner)
+    ref = FairingSystem(m.vertices, t.windows, free, w, solver="direct", _inverse_lengths=inverse)
+    d = ref.solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    path, starts, closed = _line_paths(t.structure_lines, s.free_index, m.n_vertices)
+    assert path.size == np.isin(t.structure_lines.indices, s.free_index).sum()  # every free line vertex once
+    assert not closed[~starts].any()
+
+
+def test_line_paths_turn_a_closed_line_to_begin_at_a_held_vertex():
+    from quadnodes.fairing import _line_paths
+    from quadnodes.topology import StructureLines
+
+    # one closed line 0..5 with vertex 2 held, one open line 6..9, one closed line 10..13 all free
+    flat = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13])
+    lines = StructureLines(flat, np.array([0, 6, 10, 14]), np.array([True, False, True]))
+    free_index = np.setdiff1d(np.arange(14), [2])
+    path, starts, closed = _line_paths(lines, free_index, 14)
+    unknown = free_index[path]  # back to vertex ids
+    assert unknown.tolist() == [3, 4, 5, 0, 1, 6, 7, 8, 9, 10, 11, 12, 13]
+    assert np.flatnonzero(starts).tolist() == [0, 5, 9] and np.flatnonzero(closed).tolist() == [9]
 
 
 # --- gaps: a vertex between two found vertices of a line ----------------------------------

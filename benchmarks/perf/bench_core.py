@@ -5,7 +5,9 @@ Every fairing row states its noise: ``zigzag`` (``perturb(tangential=0.2, normal
 highest frequency, the easiest case for CG) or ``broadband`` (independent Gaussian offsets of
 0.2 edge lengths per coordinate, as a scan has); the sheet is ``z = 0.3 sin 3x cos 2y``
 (``benchmarks/_common.py``). ``--torus`` adds a closed torus of about n² vertices with broadband
-noise (no grid diagonals: the free-index CSR path).
+noise (a torus grid: periodic grid diagonals); ``--cube-sphere`` a cube-sphere of about n² vertices
+(six k × k grids on a sphere, eight valence-3 corners: no grid of any kind, the general CSR path)
+with the same noise.
 
 Every row runs in fresh subprocesses (``--repeat``, default 3) and the table shows
 the median run's wall time (the range in brackets) and memory: "peak MB" is that
@@ -32,13 +34,14 @@ Rows
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
 Run:  python benchmarks/perf/bench_core.py [--sizes 100 300 1000] [--noise zigzag broadband]
-            [--only fair taubin ...] [--repeat 3] [--torus]
+            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--warm]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import importlib
 import sys
 import time
@@ -53,6 +56,8 @@ import _common  # noqa: E402
 def _mesh(n: int, noise: str = "zigzag"):
     if noise == "torus":
         return _common.noisy_torus(n, n)
+    if noise == "cube-sphere":
+        return _common.noisy_cube_sphere(max(2, round(n / 6**0.5)))
     return _common.noisy_grid(n, noise)
 
 
@@ -68,6 +73,10 @@ def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
         f = m.faces
         tm = trimesh.Trimesh(m.vertices.copy(), np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]), process=False)
     # modules are loaded before the clock starts: a pipeline that re-runs has them
+    if os.environ.get("QUADNODES_BENCH_WARM"):  # --warm: the compiled kernels too, as a server or watch has them
+        from quadnodes.linalg import compiled
+
+        compiled.wait()
     from quadnodes.fairing import fair
     from quadnodes.smoothing import taubin
     from quadnodes.topology import windows
@@ -156,6 +165,11 @@ def main() -> None:
     ap.add_argument("--noise", nargs="+", choices=_common.NOISES, default=list(_common.NOISES),
                     help="noises of the fairing rows (default: both)")
     ap.add_argument("--torus", action="store_true", help="also fair a noisy torus of about n² vertices")
+    ap.add_argument("--cube-sphere", action="store_true",
+                    help="also fair a noisy cube-sphere of about n² vertices (irregular: no grid)")
+    ap.add_argument("--warm", action="store_true",
+                    help="load the compiled kernels before the clock, as `quadnodes serve`/`watch` and a second "
+                         "run in one process have them (the rows say 'kernels loaded')")
     ap.add_argument("--slow", action="store_true", help="also run SuperLU at sizes above 300")
     ap.add_argument("--only", nargs="+", choices=list(LABELS), help="run only these rows")
     ap.add_argument("--repeat", type=int, default=3,
@@ -165,6 +179,8 @@ def main() -> None:
     if args.row:
         print(json.dumps(run_row(args.row[0], int(args.row[1]), args.row[2])))
         return
+    if args.warm:
+        os.environ["QUADNODES_BENCH_WARM"] = "1"
     print("| mesh | noise | operation | wall time (s), median (range) | peak memory above baseline (MB) | note |")
     print("|---|---|---|---:|---:|---|")
     have = {}
@@ -183,10 +199,13 @@ def main() -> None:
             noises = list(args.noise) if kind in FAIR_KINDS else ["zigzag"]
             if args.torus and kind in FAIR_KINDS:
                 noises.append("torus")
+            if args.cube_sphere and kind in FAIR_KINDS:
+                noises.append("cube-sphere")
             for noise in noises:
                 r, walls = _common.fresh_runs(__file__, [kind, str(n), noise], args.repeat)
-                mesh = f"torus {n}×{n}" if noise == "torus" else f"{n}×{n}"
-                label = "broadband" if noise == "torus" else noise
+                mesh = {"torus": f"torus {n}×{n}", "cube-sphere": f"cube-sphere ~{n}²"}.get(noise, f"{n}×{n}")
+                label = "broadband" if noise in ("torus", "cube-sphere") else noise
+                label += ", kernels loaded" if args.warm else ""
                 print(f"| {mesh} | {label} | {LABELS[kind]} | {r['wall_s']:.3f}{_common.spread(walls)} | "
                       f"{r['peak_mb']:.0f} | {r['note']} |", flush=True)
 

@@ -21,7 +21,7 @@ except ImportError:  # pragma: no cover - then callers use CSR
     _dia_matvec = None
 
 __all__ = ["HAS_DIAGONAL_KERNEL", "DiagonalBlocks", "SymmetricDiagonalBlocks", "BlockJacobi", "LinePreconditioner",
-           "block_cg", "permuted"]
+           "PathLinePreconditioner", "block_cg", "permuted"]
 
 #: Whether SciPy's diagonal-storage kernel is available (else use :class:`RowBlocks`).
 HAS_DIAGONAL_KERNEL = _dia_matvec is not None
@@ -388,6 +388,110 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
             symmetric_diagonal_product(self.upper, self.upper_offsets, X, Y, lo, min(hi, n))
         else:  # pragma: no cover - block_cg's vectors are contiguous
             return super().matvec(X, Y, lo, hi)
+
+
+class PathLinePreconditioner:
+    """Additive line-block preconditioner for any mesh: exact banded solves along paths of unknowns.
+
+    The unknowns of a sparse SPD matrix ``M`` lie on paths (a mesh's structure lines,
+    broken where a fixed vertex drops out), and ``M`` couples unknowns up to ``kd``
+    steps apart along a path through that line's terms. Every path gets the band
+    ``B_p`` of ``M``'s entries between its unknowns up to ``kd`` steps apart, with
+    ``M``'s whole diagonal; ``P⁻¹ = Σ_p E_p B_p⁻¹ E_pᵀ`` (unknowns on no path: ``1/M_ii``).
+    On a grid this is :class:`LinePreconditioner` (rows and columns); here the paths
+    are laid end to end in one band, factorized once (LAPACK ``pbtrf``), and solved
+    by a compiled sweep each way (:func:`~quadnodes.linalg._kernels.path_band_solve`;
+    LAPACK's ``pbtrs`` runs its recurrence through level-2 BLAS calls, about 10× slower
+    here). A coupling of a closed path across its seam (its last and first unknowns) is
+    moved onto the diagonal as its absolute value, so the band stays positive definite
+    where ``M`` is diagonally dominant along it. Applied to all rows at once (``whole``).
+
+    Parameters
+    ----------
+    M : (k, k) sparse, symmetric positive definite
+    path : (S,) int64
+        The paths' unknowns, one path after another.
+    starts : (S,) bool
+        True where a new path begins.
+    closed : (S,) bool, optional
+        True at the start of a closed path (its last unknowns are coupled to its first
+        ones around a seam); default: every path open.
+    kd : int
+        Half-bandwidth along a path (3 for windows of four vertices).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        When a band is not positive definite (then use plain CG).
+    """
+
+    whole = True
+
+    def __init__(self, M: sp.spmatrix, path: np.ndarray, starts: np.ndarray, closed: np.ndarray | None = None,
+                 kd: int = 3) -> None:
+        from scipy.linalg import cholesky_banded
+
+        M = sp.csr_matrix(M)
+        M.sort_indices()
+        k = M.shape[0]
+        path = np.asarray(path, dtype=np.int64)
+        S = path.size
+        keys = np.repeat(np.arange(k, dtype=np.int64), np.diff(M.indptr)) * k + M.indices
+        diag = M.diagonal()
+        band = np.zeros((kd + 1, S))
+        band[kd] = diag[path]
+        starts = np.asarray(starts, dtype=bool)
+        seg = np.cumsum(starts) - 1
+        first = np.flatnonzero(starts)
+        last = np.r_[first[1:], S] - 1
+        if closed is not None:
+            ring = np.asarray(closed, dtype=bool)[first]
+            first, last = first[ring], last[ring]
+        else:
+            first = last = first[:0]
+        for d in range(1, kd + 1):
+            same = seg[:-d] == seg[d:]
+            band[kd - d, d:] = np.where(same, self._lookup(M, keys, path[:-d], path[d:]), 0.0)
+            # a closed path: its last unknowns coupled to its first ones across the seam, d steps
+            # around (last - a with first + b, a + b = d - 1), moved onto both diagonals
+            for b in range(d):
+                i = last - (d - 1 - b)
+                j = first + b
+                ok = i - j > kd  # (nearer pairs are inside the band already)
+                if ok.any():
+                    v = np.abs(self._lookup(M, keys, path[i[ok]], path[j[ok]]))
+                    np.add.at(band[kd], i[ok], v)
+                    np.add.at(band[kd], j[ok], v)
+        self.factor = cholesky_banded(band, lower=False, check_finite=False)
+        self.path = path
+        self.k = k
+        covered = np.zeros(k, dtype=bool)
+        covered[path] = True
+        self._lone = np.flatnonzero(~covered)
+        self._lone_inv = 1.0 / diag[self._lone]
+        self._work = np.empty(S)
+
+    @staticmethod
+    def _lookup(M: sp.csr_matrix, keys: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``M[a, b]`` entry by entry (0 where not stored)."""
+        k = M.shape[0]
+        key = a * k + b
+        pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
+        return np.where(keys[pos] == key, M.data[pos], 0.0)
+
+    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
+        """``Z = P⁻¹ R`` for ``(c, n)`` (``columns``) or ``(n, c)`` arrays (all rows; ``whole``)."""
+        from ._kernels import path_band_solve
+
+        k = self.k
+        Rc = R if columns else np.ascontiguousarray(R[:k].T)
+        Zc = Z if columns else np.empty((R.shape[1], k))
+        Zc[:, :k] = 0.0
+        path_band_solve(self.factor, self.path, Rc, Zc, self._work)
+        if self._lone.size:
+            Zc[:, self._lone] = Rc[:, self._lone] * self._lone_inv
+        if not columns:
+            Z[:k] = Zc[:, :k].T
 
 
 #: The line solves run on the pool's threads from this many nodes on (below, handing the lines

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
@@ -109,11 +110,12 @@ def blas_pinned() -> Iterator[None]:
     except ImportError:  # pragma: no cover - an optional speed-up
         yield
         return
-    if _CONTROLLER is None:
-        import scipy.linalg.blas  # noqa: F401 - load SciPy's BLAS before looking for it
+    import scipy.linalg.blas  # noqa: F401 - load SciPy's BLAS before looking for it
 
-        _CONTROLLER = ThreadpoolController()
-    with _CONTROLLER.limit(limits=1, user_api="blas"):  # type: ignore[attr-defined]
+    # a BLAS library arrives with an extension module: look again when modules were imported since
+    if _CONTROLLER is None or _CONTROLLER[0] != len(sys.modules):  # type: ignore[index]
+        _CONTROLLER = (len(sys.modules), ThreadpoolController())
+    with _CONTROLLER[1].limit(limits=1, user_api="blas"):  # type: ignore[index]
         yield
 
 

@@ -61,6 +61,9 @@ def serve(
     import uvicorn
 
     from ..graph import Cache
+    from ..linalg import compiled
+
+    compiled.warm_up()  # a live editor re-runs: load the compiled solver kernels once, in the background
 
     session = Session(path, out=out, cache=None if cache is None else Cache(cache, max_memory_entries=512))
     token = secrets.token_urlsafe(24)

@@ -180,3 +180,81 @@ def test_line_preconditioner_refuses_a_block_that_is_not_positive_definite():
         LinePreconditioner(band, np.vstack([np.zeros((2, 12)), np.r_[np.zeros(4), 3.0 * np.ones(8)], np.ones(12)]), 4)
     with pytest.raises(ValueError, match="rows of 5"):
         LinePreconditioner(band, band, 5)
+
+
+def _path_matrix(rng, paths, kd, k, closed):
+    """An SPD matrix whose couplings run along the paths (up to kd steps, around a closed path's seam)."""
+    rows, cols, vals = [], [], []
+    for p, c in zip(paths, closed):
+        L = len(p)
+        for d in range(1, kd + 1):
+            pairs = [(i, i + d) for i in range(L - d)] + ([(i, (i + d) % L) for i in range(L - d, L)] if c else [])
+            for i, j in pairs:
+                if p[i] == p[j]:
+                    continue
+                v = rng.uniform(-1.0, 0.2)
+                rows += [p[i], p[j]]
+                cols += [p[j], p[i]]
+                vals += [v, v]
+    A = sp.csr_matrix((vals, (rows, cols)), shape=(k, k))
+    A.sum_duplicates()
+    d = np.asarray(abs(A).sum(axis=1)).ravel() + rng.uniform(0.1, 1.0, size=k)  # diagonally dominant
+    return (A + sp.diags(d)).tocsr()
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000), st.booleans())
+def test_path_line_preconditioner_is_the_sum_of_the_band_inverses(seed, closed):
+    from quadnodes.linalg import compiled
+    from quadnodes.linalg.cg import PathLinePreconditioner
+
+    assert compiled.wait()
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(12, 40))
+    paths = [rng.permutation(k)[: int(rng.integers(5, 12))] for _ in range(int(rng.integers(2, 5)))]
+    flags = [closed and i % 2 == 0 for i in range(len(paths))]
+    M = _path_matrix(rng, paths, 3, k, flags)
+    path = np.concatenate(paths)
+    starts = np.concatenate([np.r_[True, np.zeros(len(p) - 1, bool)] for p in paths])
+    ring = np.concatenate([np.r_[c, np.zeros(len(p) - 1, bool)] for p, c in zip(paths, flags)])
+    P = PathLinePreconditioner(M, path, starts, ring)
+    # reference: every path's band of M (off-diagonals within 3 steps, whole diagonal; a closed path's
+    # couplings across the seam moved onto the diagonal as absolute values), inverted densely, summed
+    D = M.toarray()
+    ref = np.zeros((k, k))
+    for p, c in zip(paths, flags):
+        L = len(p)
+        B = np.diag(D[p, p])
+        for i in range(L):
+            for j in range(i + 1, min(L, i + 4)):
+                B[i, j] = B[j, i] = D[p[i], p[j]]
+            for j in range(i + 4, L):
+                if c and (i + L - j) <= 3:  # around the seam, beyond the band
+                    B[i, i] += abs(D[p[i], p[j]])
+                    B[j, j] += abs(D[p[i], p[j]])
+        E = np.zeros((k, L))
+        E[p, np.arange(L)] = 1.0
+        ref += E @ np.linalg.inv(B) @ E.T
+    lone = np.setdiff1d(np.arange(k), path)
+    ref[lone, lone] += 1.0 / D[lone, lone]
+    R = rng.normal(size=(3, k))
+    Z = np.empty_like(R)
+    P.apply(R, Z, 0, k, True)
+    np.testing.assert_allclose(Z, (ref @ R.T).T, rtol=1e-9, atol=1e-12)
+    Zt = np.empty((k, 3))
+    P.apply(np.ascontiguousarray(R.T), Zt, 0, k, False)
+    np.testing.assert_allclose(Zt, Z.T, rtol=1e-12, atol=1e-14)
+    # as a preconditioner: CG reaches the direct solve
+    blocks = RowBlocks(M)
+    x, steps, res = block_cg(blocks, R.T.copy(), np.zeros((k, 3)), rtol=1e-12, maxiter=500, precond=P)
+    np.testing.assert_allclose(x, np.linalg.solve(D, R.T), atol=1e-9)
+
+
+def test_path_line_preconditioner_refuses_a_band_that_is_not_positive_definite():
+    from quadnodes.linalg import compiled
+    from quadnodes.linalg.cg import PathLinePreconditioner
+
+    assert compiled.wait()
+    M = sp.csr_matrix(np.array([[1.0, 2.0, 0], [2.0, 1.0, 0], [0, 0, 1.0]]))
+    with pytest.raises(np.linalg.LinAlgError):
+        PathLinePreconditioner(M, np.array([0, 1, 2]), np.array([True, False, False]))

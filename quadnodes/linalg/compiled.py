@@ -1,0 +1,80 @@
+"""Loading the compiled kernels once per process, in the background while other work goes on.
+
+The kernels of :mod:`quadnodes.linalg._kernels` are compiled by Numba and cached on disk,
+but loading them still costs about a second per process (importing Numba, setting up
+LLVM, reading the cache): more than a whole 300 × 300 fairing solve. :func:`warm_up` starts
+that load on a daemon thread and returns at once; a caller that will need the kernels
+(a large grid, a long-lived server) starts it early and calls :func:`wait` where it needs
+them, so the load overlaps its own set-up (NumPy's array loops and the LLVM calls release
+the GIL). :func:`ready` says whether the kernels are loaded and cost nothing more to use:
+solvers then take the compiled path at any size.
+
+Examples
+--------
+>>> ready() in (True, False)  # (warm_up() here would change the paths later doctests take)
+True
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+__all__ = ["warm_up", "wait", "ready"]
+
+_LOCK = threading.Lock()
+_THREAD: threading.Thread | None = None
+_STATE: dict[str, object] = {"ready": False, "error": None}
+
+
+def _load() -> None:
+    try:
+        import numpy as np
+
+        from . import _kernels as k
+
+        # the first call of each kernel loads its machine code (about 10 ms each after the first)
+        U = np.ones((2, 8))
+        off = np.array([0, 1], dtype=np.int64)
+        X, Y, Z = np.ones((3, 8)), np.zeros((3, 8)), np.ones((3, 8))
+        out = np.zeros(3)
+        k.symmetric_diagonal_product(U, off, X, Y, 0, 8)
+        k.row_dots(X, Y, 0, 8, out)
+        k.cg_update(Z, Y, X, Y.copy(), out, 0, 8, out.copy())
+        k.cg_direction(Z, X, out, 0, 8)
+        _STATE["ready"] = True
+    except Exception as exc:  # pragma: no cover - Numba missing or broken: the NumPy paths remain
+        _STATE["error"] = exc
+
+
+def _forget_thread() -> None:
+    """A forked child has none of the parent's threads: load again there if it was not done."""
+    global _THREAD
+    if not _STATE["ready"]:
+        _THREAD = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_thread)
+
+
+def warm_up() -> None:
+    """Start loading the compiled kernels on a daemon thread (once per process; returns at once)."""
+    global _THREAD
+    with _LOCK:
+        if _THREAD is None:
+            _THREAD = threading.Thread(target=_load, name="quadnodes-kernels", daemon=True)
+            _THREAD.start()
+
+
+def wait() -> bool:
+    """Load the kernels (or finish loading them) and say whether they can be used."""
+    warm_up()
+    assert _THREAD is not None  # set by warm_up
+    _THREAD.join()
+    return bool(_STATE["ready"])
+
+
+def ready() -> bool:
+    """Whether the kernels are loaded already (using them then costs no load time)."""
+    return bool(_STATE["ready"])
