@@ -929,7 +929,7 @@ def fair(
     extraordinary: Literal["fair", "lines", "hold"] = "fair",
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
     line_spacing: Literal["fair", "hold"] = DEFAULT_LINE_SPACING,
-    gaps: Literal["fair", "hold"] | None = None,
+    gaps: Literal["auto", "fair", "hold"] = "auto",
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -996,14 +996,14 @@ def fair(
         a window's three edges get their mean length (:func:`even_lengths`), so
         uneven spacing along a line is faired too, while evenly or linearly graded
         spacing costs nothing. Which vertices are free does not change.
-    gaps : {"fair", "hold"}, optional
+    gaps : {"auto", "fair", "hold"}
         ``"hold"``: only the vertices the detection finds move (the thesis).
         ``"fair"``: a vertex between two found vertices of a line moves too
         (:func:`quadnodes.zigzag.line_gaps`), so broadband noise whose turning
         happens not to alternate at a vertex is faired with the rest; found
         regions are filled, not grown (a lone spike is faired as with ``"hold"``).
-        Default: the detection's (:data:`quadnodes.zigzag.DEFAULT_GAPS`: ``"fair"``
-        with ``"alternating"``, ``"hold"`` with ``"thesis"``).
+        ``"auto"`` (default): the detection's (:data:`quadnodes.zigzag.DEFAULT_GAPS`:
+        ``"fair"`` with ``"alternating"``, ``"hold"`` with ``"thesis"``).
 
     Returns
     -------
@@ -1058,7 +1058,7 @@ def _fair(
     extraordinary: Literal["fair", "lines", "hold"],
     detection: Literal["alternating", "thesis"],
     line_spacing: Literal["fair", "hold"],
-    gaps: Literal["fair", "hold"] | None,
+    gaps: Literal["auto", "fair", "hold"],
 ) -> tuple[QuadMesh, FairingReport]:
     """:func:`fair` on a validated mesh."""
     iterations = _validate.iteration_count(iterations, "iterations")
@@ -1071,8 +1071,9 @@ def _fair(
     extraordinary = _validate.choice(extraordinary, EXTRAORDINARY_MODES, "extraordinary")  # type: ignore[assignment]
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
     line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")  # type: ignore[assignment]
-    gaps = _validate.choice(DEFAULT_GAPS[detection] if gaps is None else gaps, GAPS_MODES,
-                            "gaps")  # type: ignore[assignment]
+    gaps = _validate.choice(gaps, ("auto",) + GAPS_MODES, "gaps")  # type: ignore[assignment]
+    if gaps == "auto":
+        gaps = DEFAULT_GAPS[detection]  # type: ignore[assignment]
     topo = mesh.topology
     if mesh.n_vertices >= COMPILED_MIN_UNKNOWNS and (topo.grid_shape or topo.closed_grid):
         kernels.warm_up()  # the grid path will want the compiled kernels: load them while we set up

@@ -349,7 +349,7 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          extraordinary: Literal["fair", "lines", "hold"] = "fair",
          detection: Literal["alternating", "thesis"] = "alternating",
          line_spacing: Literal["fair", "hold"] = "fair",
-         gaps: Literal["fair", "hold"] | None = None) -> tuple[QuadMesh, FairingReport]:
+         gaps: Literal["auto", "fair", "hold"] = "auto") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
     with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
 
@@ -382,7 +382,7 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
         fair (default: uneven spacing along a line is faired too) or hold (the thesis: every edge keeps its length).
     gaps : str
         fair (a vertex between two found vertices of a line is faired too) or hold (only what is found moves; the
-        thesis); empty: fair with the alternating detection, hold with the thesis's.
+        thesis); auto (default): fair with the alternating detection, hold with the thesis's.
     """
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,

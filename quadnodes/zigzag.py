@@ -43,7 +43,7 @@ DEFAULT_THRESHOLDS: Mapping[str, float] = MappingProxyType({"alternating": 0.03,
 #: The values of ``gaps`` in :func:`quadnodes.fairing.fair`: ``"fair"`` frees a vertex that lies between two
 #: found vertices of a line too (:func:`line_gaps`), ``"hold"`` only the found vertices (the thesis).
 GAPS_MODES: tuple[str, ...] = ("fair", "hold")
-#: ``gaps`` when none is given, per detection: the alternating turning is zero at a vertex whose two
+#: ``gaps="auto"`` per detection: the alternating turning is zero at a vertex whose two
 #: neighbours turn to the same side, so a jittered vertex between two found ones is found only through them
 #: (``"fair"``); eq. 30 is the thesis, which moves only what it finds (``"hold"``) — ``docs/fairing.md``.
 DEFAULT_GAPS: Mapping[str, str] = MappingProxyType({"alternating": "fair", "thesis": "hold"})
