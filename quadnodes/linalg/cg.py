@@ -200,7 +200,7 @@ def _run_cg(
     if whole:
         precond.apply(R, Z, 0, kp, columns)  # type: ignore[union-attr]
         P[...] = Z
-        rz = dot(R, Z)
+        rz = dot(part(R, 0, k), part(Z, 0, k))  # (the layout of the ranges)
     else:
         rz = sum(p[2] for p in parts)
     tol2 = (rtol * bnorm) ** 2
@@ -297,7 +297,7 @@ def _run_cg(
         rr_new = sum(p[0] for p in parts)
         if whole:
             precond.apply(R, Z, 0, kp, columns)  # type: ignore[union-attr]
-            rz_new = dot(R, Z)
+            rz_new = dot(part(R, 0, k), part(Z, 0, k))
         else:
             rz_new = rr_new if precond is None else sum(p[1] for p in parts)
         scalars[1][...] = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
