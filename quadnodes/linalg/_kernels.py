@@ -200,33 +200,46 @@ def blocked_lines(F: np.ndarray, length: int, pad: float) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
-def path_band_solve(F: np.ndarray, path: np.ndarray, R: np.ndarray, Z: np.ndarray,
+def path_band_solve(F: np.ndarray, dinv: np.ndarray, path: np.ndarray, R: np.ndarray, Z: np.ndarray,
                     work: np.ndarray) -> None:  # pragma: no cover - compiled
-    """``Z[:, path] += B⁻¹ R[:, path]`` for a band ``B = Uᵀ U`` laid out along ``path`` (repeats allowed).
+    """``Z[path] += B⁻¹ R[path]`` for a band ``B = Uᵀ U`` laid out along ``path`` (repeats allowed).
 
     ``F`` is ``U`` in LAPACK's upper band layout (``F[kd - t, j] = U[j - t, j]``, as
-    :func:`scipy.linalg.cholesky_banded` returns it); ``R``, ``Z`` are ``(c, m)`` with
-    ``m`` above every index of ``path``; ``work`` is a ``(len(path),)`` scratch vector.
-    A zero band entry between two stretches of the path decouples them, so many lines
-    laid end to end are solved in one sweep each way.
+    :func:`scipy.linalg.cholesky_banded` returns it), ``dinv`` ``1 / F[kd]``; ``R``, ``Z`` are ``(m, c)`` row-major
+    (all columns of an unknown in one cache line: a path jumps through memory) with ``m``
+    above every index of ``path``; ``work`` is ``(len(path), c)`` scratch. A zero band
+    entry between two stretches of the path decouples them, so many lines laid end to
+    end are solved in one sweep each way.
     """
     kd = F.shape[0] - 1
     S = path.size
+    c = R.shape[1]
     y = work
-    for q in range(R.shape[0]):
-        r = R[q]
-        z = Z[q]
-        for j in range(S):  # Uᵀ y = r along the path
-            acc = r[path[j]]
-            for t in range(1, min(kd, j) + 1):
-                acc -= F[kd - t, j] * y[j - t]
-            y[j] = acc / F[kd, j]
-        for i in range(S - 1, -1, -1):  # U x = y, scattered back
-            acc = y[i]
-            for t in range(1, min(kd, S - 1 - i) + 1):
-                acc -= F[kd - t, i + t] * y[i + t]
-            y[i] = acc / F[kd, i]
-            z[path[i]] += y[i]
+    for j in range(S):  # Uᵀ y = r along the path
+        r = R[path[j]]
+        yj = y[j]
+        for q in range(c):
+            yj[q] = r[q]
+        for t in range(1, min(kd, j) + 1):
+            f = F[kd - t, j]
+            yt = y[j - t]
+            for q in range(c):
+                yj[q] -= f * yt[q]
+        d = dinv[j]
+        for q in range(c):
+            yj[q] *= d
+    for i in range(S - 1, -1, -1):  # U x = y, scattered back
+        yi = y[i]
+        for t in range(1, min(kd, S - 1 - i) + 1):
+            f = F[kd - t, i + t]
+            yt = y[i + t]
+            for q in range(c):
+                yi[q] -= f * yt[q]
+        d = dinv[i]
+        z = Z[path[i]]
+        for q in range(c):
+            yi[q] *= d
+            z[q] += yi[q]
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)

@@ -200,7 +200,7 @@ def _run_cg(
     if whole:
         precond.apply(R, Z, 0, kp, columns)  # type: ignore[union-attr]
         P[...] = Z
-        rz = dot(R, Z)
+        rz = dot(part(R, 0, k), part(Z, 0, k))  # (the layout of the ranges)
     else:
         rz = sum(p[2] for p in parts)
     tol2 = (rtol * bnorm) ** 2
@@ -297,7 +297,7 @@ def _run_cg(
         rr_new = sum(p[0] for p in parts)
         if whole:
             precond.apply(R, Z, 0, kp, columns)  # type: ignore[union-attr]
-            rz_new = dot(R, Z)
+            rz_new = dot(part(R, 0, k), part(Z, 0, k))
         else:
             rz_new = rr_new if precond is None else sum(p[1] for p in parts)
         scalars[1][...] = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
@@ -463,13 +463,14 @@ class PathLinePreconditioner:
                     np.add.at(band[kd], i[ok], v)
                     np.add.at(band[kd], j[ok], v)
         self.factor = cholesky_banded(band, lower=False, check_finite=False)
+        self._dinv = 1.0 / self.factor[kd]
         self.path = path
         self.k = k
         covered = np.zeros(k, dtype=bool)
         covered[path] = True
         self._lone = np.flatnonzero(~covered)
         self._lone_inv = 1.0 / diag[self._lone]
-        self._work = np.empty(S)
+        self._work: np.ndarray | None = None
 
     @staticmethod
     def _lookup(M: sp.csr_matrix, keys: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -484,14 +485,18 @@ class PathLinePreconditioner:
         from ._kernels import path_band_solve
 
         k = self.k
-        Rc = R if columns else np.ascontiguousarray(R[:k].T)
-        Zc = Z if columns else np.empty((R.shape[1], k))
-        Zc[:, :k] = 0.0
-        path_band_solve(self.factor, self.path, Rc, Zc, self._work)
-        if self._lone.size:
-            Zc[:, self._lone] = Rc[:, self._lone] * self._lone_inv
+        Rr = np.ascontiguousarray(R[:, :k].T) if columns else R  # (n, c): one cache line per unknown
+        Zr = np.zeros((k, Rr.shape[1])) if columns else Z
         if not columns:
-            Z[:k] = Zc[:, :k].T
+            Zr[:k] = 0.0
+        work = self._work
+        if work is None or work.shape[1] != Rr.shape[1]:
+            work = self._work = np.empty((self.path.size, Rr.shape[1]))
+        path_band_solve(self.factor, self._dinv, self.path, Rr, Zr, work)
+        if self._lone.size:
+            Zr[self._lone] = Rr[self._lone] * self._lone_inv[:, None]
+        if columns:
+            Z[:, :k] = Zr.T
 
 
 #: The line solves run on the pool's threads from this many nodes on (below, handing the lines

@@ -42,6 +42,9 @@ def _load() -> None:
         k.row_dots(X, Y, 0, 8, out)
         k.cg_update(Z, Y, X, Y.copy(), out, 0, 8, out.copy())
         k.cg_direction(Z, X, out, 0, 8)
+        band = np.ones((4, 8))
+        k.path_band_solve(band, band[3].copy(), np.arange(8, dtype=np.int64), X.T.copy(), np.zeros((8, 3)),
+                          np.empty((8, 3)))
         _STATE["ready"] = True
     except Exception as exc:  # pragma: no cover - Numba missing or broken: the NumPy paths remain
         _STATE["error"] = exc

@@ -244,10 +244,14 @@ def test_path_line_preconditioner_is_the_sum_of_the_band_inverses(seed, closed):
     Zt = np.empty((k, 3))
     P.apply(np.ascontiguousarray(R.T), Zt, 0, k, False)
     np.testing.assert_allclose(Zt, Z.T, rtol=1e-12, atol=1e-14)
-    # as a preconditioner: CG reaches the direct solve
-    blocks = RowBlocks(M)
-    x, steps, res = block_cg(blocks, R.T.copy(), np.zeros((k, 3)), rtol=1e-12, maxiter=500, precond=P)
-    np.testing.assert_allclose(x, np.linalg.solve(D, R.T), atol=1e-9)
+    # as a preconditioner, in both vector layouts: CG reaches the direct solve
+    for columns in (True, False):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(linalg_threads, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
+            blocks = RowBlocks(M)
+            assert blocks.columns == columns
+            x, steps, res = block_cg(blocks, R.T.copy(), np.zeros((k, 3)), rtol=1e-12, maxiter=500, precond=P)
+        np.testing.assert_allclose(x, np.linalg.solve(D, R.T), atol=1e-9)
 
 
 def test_path_line_preconditioner_refuses_a_band_that_is_not_positive_definite():
