@@ -32,17 +32,18 @@ the UTF-16LE text and two zero bytes.
 
 from __future__ import annotations
 
+import io
 import struct
 import uuid
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from itertools import repeat
-from typing import Any
+from itertools import chain, repeat
+from typing import Any, BinaryIO
 
 import numpy as np
 
-__all__ = ["LayoutError", "PanelRecords", "panel_records", "random_ids", "splice_records"]
+__all__ = ["LayoutError", "PanelRecords", "panel_records", "random_ids", "splice_records", "write_records"]
 
 _SHORT, _CRC = 0x80000000, 0x8000
 _HEAD = struct.Struct("<IQ")
@@ -228,13 +229,16 @@ class PanelRecords:
                 columns: Sequence[Sequence[str]], ids: np.ndarray) -> bytes:
         """The records of all panels, in order, as one byte string.
 
+        Every piece of every record is made column by column (one ``map`` or NumPy operation per
+        piece over all panels), and the records are joined once.
+
         Parameters
         ----------
         flags : (m,) bool
             Which template (planar) each panel uses.
         corners : (m, 4, 3) float64
         names : m str
-        columns : one sequence of m texts per key that is not fixed per template
+        columns : one sequence of m texts per key that is not fixed per template, in key order
         ids : (m, 16) uint8
             Object ids as openNURBS stores them (``uuid.UUID.bytes_le``).
         """
@@ -243,56 +247,84 @@ class PanelRecords:
             return b""
         t0, t1 = self.templates
         flags = np.asarray(flags, dtype=bool)
+        idx = flags.astype(np.intp)
+
+        def per_flag(a: Any, b: Any) -> list:
+            """``a`` for a bilinear panel, ``b`` for a planar one."""
+            both = np.empty(2, dtype=object)
+            both[0], both[1] = a, b
+            return both[idx].tolist()
+
         # the surfaces: the template's class chunk with each panel's corners and the data's CRC
         width = len(t0.class_chunk)
         classes = np.empty((m, width), dtype=np.uint8)
-        for flag, t in ((False, t0), (True, t1)):
-            classes[flags == flag] = np.frombuffer(t.class_chunk, dtype=np.uint8)
+        classes[:] = np.frombuffer(t0.class_chunk, dtype=np.uint8)
+        classes[flags] = np.frombuffer(t1.class_chunk, dtype=np.uint8)
         cv = np.ascontiguousarray(corners[:, list(_CV_CORNER)], dtype="<f8").reshape(m, 12)
         classes[:, t0.coord_at:t0.coord_at + 96] = cv.view(np.uint8).reshape(m, 96)
-        data = classes[:, t0.data_at:t0.crc_at]
-        crcs = np.fromiter(map(zlib.crc32, data), dtype="<u4", count=m)
+        crcs = np.fromiter(map(zlib.crc32, classes[:, t0.data_at:t0.crc_at]), dtype="<u4", count=m)
         classes[:, t0.crc_at:t0.crc_at + 4] = crcs.view(np.uint8).reshape(m, 4)
-        class_bytes = classes.tobytes()
-        classes_k = [class_bytes[i:i + width] for i in range(0, m * width, width)]
-        # the attributes: version, id, layer, name, ...
-        pick = [t1 if f else t0 for f in flags.tolist()]
-        id_bytes = ids.astype(np.uint8).tobytes()
-        idk = [id_bytes[i:i + 16] for i in range(0, 16 * m, 16)]
-        attr_bodies = [b"".join((t.attr_parts[0], i, t.attr_parts[1], n, t.attr_parts[2]))
-                       for t, i, n in zip(pick, idk, _wide(names))]
-        attrs = [b"%s%s%s" % (_HEAD.pack(t0.attr_tc, len(b) + 4), b, _crc4(b)) for b in attr_bodies]
-        if t0.strings is None:
-            user = [b""] * m
-        else:
-            user = self._user_data(flags, pick, columns)
-        heads = [t.type_chunk for t in pick]
-        ends = [t.end_chunk for t in pick]
-        bodies = list(map(b"".join, zip(heads, classes_k, attrs, user, ends)))
-        crc = t0.record_crc
-        return b"".join(b"%s%s%s" % (_HEAD.pack(t0.record_tc, len(b) + 4), b, crc) for b in bodies)
+        blob = classes.tobytes()
+        class_k = [blob[i:i + width] for i in range(0, m * width, width)]
+        # the attributes: parts[0] + id + parts[1] + name + parts[2], then their CRC
+        blob = np.ascontiguousarray(ids, dtype=np.uint8).tobytes()
+        id_k = [blob[i:i + 16] for i in range(0, 16 * m, 16)]
+        name_k = _wide(names)
+        p0 = per_flag(t0.attr_parts[0], t1.attr_parts[0])
+        p1 = per_flag(t0.attr_parts[1], t1.attr_parts[1])
+        p2 = per_flag(t0.attr_parts[2], t1.attr_parts[2])
+        crc = map(zlib.crc32, id_k, per_flag(zlib.crc32(t0.attr_parts[0]), zlib.crc32(t1.attr_parts[0])))
+        crc = map(zlib.crc32, name_k, map(zlib.crc32, p1, crc))
+        attr_crc = list(map(_U32.pack, map(zlib.crc32, p2, crc)))
+        n_attr = (np.array(list(map(len, name_k)))
+                  + np.array(per_flag(sum(map(len, t0.attr_parts)), sum(map(len, t1.attr_parts)))) + 20)
+        attr_head = list(map(_HEAD.pack, repeat(t0.attr_tc), n_attr.tolist()))
+        n_record = (len(t0.type_chunk) + width + len(t0.end_chunk) + 4) + 12 + n_attr
+        pieces = [per_flag(t0.type_chunk, t1.type_chunk), class_k, attr_head, p0, id_k, p1, name_k, p2, attr_crc]
+        if t0.strings is not None:
+            user, n_user = self._user_data(idx, per_flag, columns)
+            pieces += user
+            n_record = n_record + 12 + n_user
+        pieces += [per_flag(t0.end_chunk, t1.end_chunk), repeat(t0.record_crc, m)]
+        record_head = map(_HEAD.pack, repeat(t0.record_tc), n_record.tolist())
+        return b"".join(chain.from_iterable(zip(record_head, *pieces)))
 
-    def _user_data(self, flags: np.ndarray, pick: list[_Template], columns: Sequence[Sequence[str]]) -> list[bytes]:
+    def _user_data(self, idx: np.ndarray, per_flag: Callable[[Any, Any], list],
+                   columns: Sequence[Sequence[str]]) -> tuple[list[Any], np.ndarray]:
+        """The columns of pieces of every panel's attribute user data, and its length (header excluded)."""
         s0, s1 = self.templates[0].strings, self.templates[1].strings
-        assert s0 is not None and s1 is not None
-        per_key = []
+        if s0 is None or s1 is None or len(s0.lead) != len(s1.lead) or len(s0.tail) != len(s1.tail):
+            raise LayoutError("the two templates' user data differ in form")
+        m = len(idx)
+        pieces: list[Any] = []
+        n_inner = np.full(m, len(s0.inner_direct) + 4, dtype=np.int64)  # version, count, CRC; + the strings
         col = iter(columns)
-        for i, key in enumerate(self.keys):
+        for i in range(len(self.keys)):
             f0, f1 = s0.fixed[i], s1.fixed[i]
             if f0 is not None and f1 is not None:
-                per_key.append([f1 if f else f0 for f in flags.tolist()])
+                pieces.append(per_flag(f0, f1))
+                n_inner += np.array([len(f0), len(f1)])[idx]
                 continue
+            if f0 is not None or f1 is not None or s0.prefixes[i] != s1.prefixes[i]:
+                raise LayoutError(f"the user string {self.keys[i]!r} is fixed in one template only")
             prefix = s0.prefixes[i]
-            data = [prefix + w for w in _wide(next(col))]
-            per_key.append([b"%s%s%s" % (_HEAD.pack(s0.string_tc, len(d) + 4), d, _crc4(d)) for d in data])
-        lists = list(map(b"".join, zip(*per_key)))
-        out = []
-        for s, body in zip((s1 if f else s0 for f in flags.tolist()), lists):
-            inner = b"%s%s%s%s" % (_HEAD.pack(s.inner_tc, 12 + len(body) + 4), s.inner_direct, body, s.inner_crc)
-            outer = b"%s%s%s" % (_HEAD.pack(s.outer_tc, len(inner) + 4), inner, s.outer_crc)
-            cud = b"%s%s%s" % (_HEAD.pack(s.class_ud_tc, len(s.lead) + len(outer)), s.lead, outer)
-            out.append(b"%s%s%s" % (_HEAD.pack(s.ud_tc, len(cud) + len(s.tail)), cud, s.tail))
-        return out
+            w = _wide(next(col))
+            n = np.array(list(map(len, w))) + (len(prefix) + 4)
+            crc = map(_U32.pack, map(zlib.crc32, w, repeat(zlib.crc32(prefix), m)))
+            pieces += [map(_HEAD.pack, repeat(s0.string_tc), n.tolist()), repeat(prefix, m), w, crc]
+            n_inner += n + 12
+        n_outer = 12 + n_inner + 4
+        n_class = len(s0.lead) + 12 + n_outer
+        n_user = 12 + n_class + len(s0.tail)
+        head = [map(_HEAD.pack, repeat(s0.ud_tc), n_user.tolist()),
+                map(_HEAD.pack, repeat(s0.class_ud_tc), n_class.tolist()),
+                per_flag(s0.lead, s1.lead),
+                map(_HEAD.pack, repeat(s0.outer_tc), n_outer.tolist()),
+                map(_HEAD.pack, repeat(s0.inner_tc), n_inner.tolist()),
+                per_flag(s0.inner_direct, s1.inner_direct)]
+        tail = [per_flag(s0.inner_crc, s1.inner_crc), per_flag(s0.outer_crc, s1.outer_crc),
+                per_flag(s0.tail, s1.tail)]
+        return head + pieces + tail, n_user
 
 
 def panel_records(build: Callable[[Any, np.ndarray, list[str], list[list[str]], list[bytes], list[bool]], None],
@@ -336,10 +368,12 @@ def panel_records(build: Callable[[Any, np.ndarray, list[str], list[list[str]], 
     return records
 
 
-def splice_records(file: bytes, records: bytes, *, after: int) -> bytes:
-    """``file`` (a whole .3dm) with ``records`` inserted into its object table after its first ``after`` records.
+def write_records(f: BinaryIO, file: bytes, batches: Iterable[bytes], *, after: int) -> int:
+    """Write ``file`` (a whole .3dm) to ``f`` with the records of ``batches`` inserted into its object
+    table after its first ``after`` records; return the number of bytes written.
 
-    The object table's length and the end-of-file chunk's file length are updated.
+    The object table's length (patched once the records are written: ``f`` must be seekable) and the
+    end-of-file chunk's file length are updated.
 
     Raises
     ------
@@ -357,11 +391,33 @@ def splice_records(file: bytes, records: bytes, *, after: int) -> bytes:
     if len(recs) <= after or any(c[0] != _OBJECT_RECORD for c in recs[:after]):
         raise LayoutError(f"fewer than {after} records before the table's end")
     at = recs[after][1]
-    n = len(records)
-    head = file[:t0] + _HEAD.pack(tc, t1 - d0 + n) + file[d0:at]
-    rest = bytearray(file[at:])
-    rest[-8:] = struct.pack("<Q", len(file) + n)
-    return b"".join((head, records, bytes(rest)))
+    start = f.tell()
+    f.write(file[:d0])
+    f.write(file[d0:at])
+    n = 0
+    for batch in batches:
+        f.write(batch)
+        n += len(batch)
+    f.write(file[at:-8])
+    f.write(struct.pack("<Q", len(file) + n))
+    end = f.tell()
+    f.seek(start + t0)
+    f.write(_HEAD.pack(tc, t1 - d0 + n))
+    f.seek(end)
+    return end - start
+
+
+def splice_records(file: bytes, records: bytes, *, after: int) -> bytes:
+    """``file`` with ``records`` inserted, as :func:`write_records`, as bytes.
+
+    Raises
+    ------
+    LayoutError
+        As :func:`write_records`.
+    """
+    out = io.BytesIO()
+    write_records(out, file, [records], after=after)
+    return out.getvalue()
 
 
 def random_ids(m: int) -> np.ndarray:

@@ -23,6 +23,7 @@ import os
 import warnings
 from collections import deque
 from pathlib import Path
+from collections.abc import Iterator
 from typing import Any, Literal
 
 import numpy as np
@@ -32,8 +33,8 @@ from ..errors import ExportError, InputError
 from ..flatness import diagonal_distance, planar_panels, resolve_planar_tolerance
 from ..mesh import QuadMesh
 from ..units import UNITS
-from ._3dm_records import LayoutError, panel_records, random_ids, splice_records
-from ._atomic import write_bytes_atomic
+from ._3dm_records import LayoutError, PanelRecords, panel_records, random_ids, write_records
+from ._atomic import write_atomic, write_bytes_atomic
 from ._polygons import quads_from_blocks
 from ..flatness import DEFAULT_PLANAR_TOLERANCE as DEFAULT_PLANAR_TOL
 from .panels import bilinear_area, check_panels, edge_lengths, panel_labels, panel_rows_cols
@@ -106,22 +107,18 @@ def model_3dm(
     >>> len(model.Objects), str(model.Settings.ModelUnitSystem)
     (11, 'UnitSystem.Millimeters')
     """
-    model, layer_index, panel_data = _model_without_panels(mesh, planar_tolerance, lines=False,
-                                                           user_text=user_text)
+    model, layer_index, p = _model_without_panels(mesh, planar_tolerance, lines=False, user_text=user_text)
     if panels:
-        _add_panel_objects(model, layer_index, *panel_data)
+        names, columns = p.texts(0, p.n)
+        _add_panel_objects(model, layer_index, p.keys, p.fixed, p.corners, names, columns, None, p.flags.tolist())
     if lines:
         _add_lines(model, mesh, layer_index["lines"])
     return model
 
 
 def _model_without_panels(mesh: QuadMesh, planar_tolerance: float | str, *, lines: bool,
-                          user_text: bool) -> tuple[Any, dict[str, int], tuple]:
-    """The checked model with layers, the mesh (and the lines), and what the panels need.
-
-    Returns ``(model, layer_index, (keys, fixed, corners, names, columns, ids, flags))`` for
-    :func:`_add_panel_objects` (``ids`` None: rhino3dm makes them).
-    """
+                          user_text: bool) -> tuple[Any, dict[str, int], _Panels]:
+    """The checked model with layers, the mesh (and the lines), and what the panels need."""
     import rhino3dm
 
     _validate.quad_mesh(mesh)
@@ -149,9 +146,7 @@ def _model_without_panels(mesh: QuadMesh, planar_tolerance: float | str, *, line
     model.Objects.AddMesh(rmesh, attrs)
     if lines:
         _add_lines(model, mesh, layer_index["lines"])
-    keys, fixed, names, columns = _panel_texts(mesh, user_text)
-    corners = mesh.vertices[mesh.faces]
-    return model, layer_index, (keys, fixed, corners, names, columns, None, planar.tolist())
+    return model, layer_index, _Panels(mesh, planar, user_text)
 
 
 def _new_model() -> Any:
@@ -180,33 +175,52 @@ def _add_layers(model: Any) -> dict[str, int]:
     return out
 
 
-def _panel_texts(mesh: QuadMesh, user_text: bool) -> tuple[tuple[str, ...], dict[bool, dict[str, str]],
-                                                             list[str], list[list[str]]]:
-    """The user-text keys in order, the values fixed per layer (``planar``), the labels, and one column
-    of texts per other key (numbers as shortest round-trip text), all formatted at once."""
-    u = mesh.unit
-    labels = panel_labels(mesh)
-    if not user_text:
-        return (), {False: {}, True: {}}, labels, []
-    rc = panel_rows_cols(mesh)
-    keys = ("id", "row", "col", "planarity", f"planarity_{u}", f"area_{u}2", f"edges_{u}", "planar")
-    if rc is None:  # Rhino drops a key whose text is empty: no row and col without a grid
-        keys = keys[:1] + keys[3:]
-    m = mesh.n_faces
+class _Panels:
+    """What the panel objects need: corners, layer flags, user-text keys, and their texts on demand.
 
-    def column(fmt: str, *cols: list) -> list[str]:
-        if m == 0:
-            return []
-        return ((fmt + "\0") * m % tuple(x for row in zip(*cols) for x in row)).split("\0")[:-1]
+    ``keys`` are the user-text keys in order, ``fixed[flag]`` the values that are the same for every
+    panel of a layer (``planar``); :meth:`texts` formats the labels and one column of texts per other
+    key (numbers as shortest round-trip text) for a range of panels, each column in one pass.
+    """
 
-    columns = [labels]
-    if rc is not None:
-        columns += [list(map(str, rc[0].tolist())), list(map(str, rc[1].tolist()))]
-    columns += [column("%r", diagonal_distance(mesh).tolist()),
-                column("%r", diagonal_distance(mesh, relative=False).tolist()),
-                column("%r", bilinear_area(mesh).tolist()),
-                column("%r %r %r %r", *edge_lengths(mesh).T.tolist())]
-    return keys, {False: {"planar": "no"}, True: {"planar": "yes"}}, labels, columns
+    def __init__(self, mesh: QuadMesh, planar: np.ndarray, user_text: bool) -> None:
+        u = mesh.unit
+        self.n = mesh.n_faces
+        self.corners = mesh.vertices[mesh.faces]
+        self.flags = np.asarray(planar, dtype=bool)
+        self.labels = panel_labels(mesh)
+        self.keys: tuple[str, ...] = ()
+        self.fixed: dict[bool, dict[str, str]] = {False: {}, True: {}}
+        self.numbers: list[tuple[str, np.ndarray]] = []
+        if not user_text:
+            return
+        rc = panel_rows_cols(mesh)
+        keys = ("id", "row", "col", "planarity", f"planarity_{u}", f"area_{u}2", f"edges_{u}", "planar")
+        if rc is None:  # Rhino drops a key whose text is empty: no row and col without a grid
+            keys = keys[:1] + keys[3:]
+        else:
+            self.numbers += [("%d", rc[0][:, None]), ("%d", rc[1][:, None])]
+        self.keys = keys
+        self.fixed = {False: {"planar": "no"}, True: {"planar": "yes"}}
+        self.numbers += [("%r", diagonal_distance(mesh)[:, None]),
+                         ("%r", diagonal_distance(mesh, relative=False)[:, None]),
+                         ("%r", bilinear_area(mesh)[:, None]),
+                         ("%r %r %r %r", edge_lengths(mesh))]
+
+    def texts(self, start: int, stop: int) -> tuple[list[str], list[list[str]]]:
+        """The labels and the text columns (every key not in ``fixed``, in key order) of panels
+        ``start`` to ``stop``."""
+        names = self.labels[start:stop]
+        if not self.keys:
+            return names, []
+        m = len(names)
+
+        def column(fmt: str, values: np.ndarray) -> list[str]:
+            if m == 0:
+                return []
+            return ((fmt + "\0") * m % tuple(values[start:stop].ravel().tolist())).split("\0")[:-1]
+
+        return names, [names] + [column(fmt, values) for fmt, values in self.numbers]
 
 
 def _add_panel_objects(model: Any, layer_index: dict[str, int], keys: tuple[str, ...],
@@ -325,26 +339,40 @@ def save_3dm(
     engine = _validate.choice(engine, ("fast", "rhino3dm"), "engine")
     v = int(version)
     if engine == "fast" and panels:
-        model, layer_index, panel_data = _model_without_panels(mesh, planar_tolerance, lines=lines,
-                                                               user_text=user_text)
+        model, layer_index, p = _model_without_panels(mesh, planar_tolerance, lines=lines, user_text=user_text)
         try:
-            data = _fast_file(model, layer_index, panel_data, v, path)
+            templates = _templates(layer_index, p, v, path)
         except LayoutError as exc:
             warnings.warn(f"3dm: the fast engine does not recognise rhino3dm's object records ({exc}); "
                           "writing through rhino3dm", RuntimeWarning, stacklevel=2)
             engine = "rhino3dm"
-    if engine == "rhino3dm" or not panels:
-        model = model_3dm(mesh, planar_tolerance=planar_tolerance, panels=panels, lines=lines,
-                          user_text=user_text)
-        data = _file_bytes(model, v, path)
-    return write_bytes_atomic(path, data)
+        else:
+            data = _file_bytes(model, v, path)
+            del model
+            ids = random_ids(p.n)
+
+            def batches() -> Iterator[bytes]:
+                for a in range(0, p.n, _BATCH):
+                    b = min(a + _BATCH, p.n)
+                    names, columns = p.texts(a, b)
+                    yield templates.records(p.flags[a:b], p.corners[a:b], names, columns, ids[a:b])
+
+            def write(tmp: str) -> None:
+                with open(tmp, "wb") as f:
+                    write_records(f, data, batches(), after=1)
+
+            return write_atomic(path, write)
+    model = model_3dm(mesh, planar_tolerance=planar_tolerance, panels=panels, lines=lines, user_text=user_text)
+    return write_bytes_atomic(path, _file_bytes(model, v, path))
 
 
-def _fast_file(model: Any, layer_index: dict[str, int], panel_data: tuple, version: int,
-               path: str | os.PathLike[str]) -> bytes:
-    """The whole file: ``model`` (mesh and lines) written by rhino3dm, the panels' records spliced in
-    after the mesh."""
-    keys, fixed, corners, names, columns, _, flags = panel_data
+_BATCH = 20_000
+"""Panels whose records are made at once (bounds the memory of a large file to about 0.2 GB)."""
+
+
+def _templates(layer_index: dict[str, int], p: _Panels, version: int, path: str | os.PathLike[str]) -> PanelRecords:
+    """The panel record templates, made by rhino3dm in the same way as :func:`model_3dm` adds panels."""
+    keys, fixed = p.keys, p.fixed
 
     def new_model() -> Any:
         m = _new_model()
@@ -355,9 +383,7 @@ def _fast_file(model: Any, layer_index: dict[str, int], panel_data: tuple, versi
     def build(m: Any, c: np.ndarray, n: list[str], cols: list[list[str]], ids: list[bytes], f: list[bool]) -> None:
         _add_panel_objects(m, layer_index, keys, fixed, c, n, cols, ids, f)
 
-    templates = panel_records(build, new_model, lambda m: _file_bytes(m, version, path), keys, fixed)
-    records = templates.records(np.asarray(flags, dtype=bool), corners, names, columns, random_ids(len(flags)))
-    return splice_records(_file_bytes(model, version, path), records, after=1)
+    return panel_records(build, new_model, lambda m: _file_bytes(m, version, path), keys, fixed)
 
 
 def _file_bytes(model: Any, version: int, path: str | os.PathLike[str]) -> bytes:
