@@ -43,7 +43,8 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-__all__ = ["LayoutError", "PanelRecords", "panel_records", "random_ids", "splice_records", "write_records"]
+__all__ = ["LayoutError", "PanelRecords", "PolylineRecords", "panel_records", "polyline_records", "random_ids",
+           "splice_records", "write_records"]
 
 _SHORT, _CRC = 0x80000000, 0x8000
 _HEAD = struct.Struct("<IQ")
@@ -137,13 +138,7 @@ def _sentinel_text(k: int, i: int) -> str:
 def _parse_template(rec: bytes, k: int, keys: Sequence[str], fixed: dict[str, str], ident: bytes,
                     name: str) -> _Template:
     """Split rhino3dm's record of sentinel panel ``k`` into the parts that are the same for every panel."""
-    (rtc, _, r0, r1), = _chunks(rec, 0, len(rec))
-    if rtc != _OBJECT_RECORD or not rtc & _CRC:
-        raise LayoutError(f"record type {rtc:#x}")
-    record_crc = rec[r1 - 4:r1]
-    if record_crc != _crc4(b""):
-        raise LayoutError("the record holds data besides its chunks")
-    parts = _chunks(rec, r0, r1 - 4)
+    rtc, record_crc, parts = _record_parts(rec)
     if len(parts) not in (4, 5):
         raise LayoutError(f"{len(parts)} chunks in a record")
     type_c, class_c, attr_c = parts[:3]
@@ -160,9 +155,21 @@ def _parse_template(rec: bytes, k: int, keys: Sequence[str], fixed: dict[str, st
     if at < 0 or class_chunk.find(cv, at + 1) >= 0:
         raise LayoutError("the corners are not stored once, in CV order")
     data_at, crc_at = data_c[2] - class_c[1], data_c[3] - 4 - class_c[1]
-    if not data_at <= at and at + len(cv) <= crc_at:
+    if not (data_at <= at and at + len(cv) <= crc_at):
         raise LayoutError("the corners lie outside the surface data")
-    # attributes: version, id, layer, name, ...
+    atc, attr_parts = _attributes(rec, attr_c, ident, name)
+    strings = None
+    if len(parts) == 5:
+        strings = _parse_strings(rec, parts[3], k, keys, fixed)
+    elif keys:
+        raise LayoutError("no user data in a record with user text")
+    return _Template(rtc, record_crc, rec[type_c[1]:type_c[3]], class_chunk, at, data_at, crc_at, atc,
+                     attr_parts, strings, rec[end_c[1]:end_c[3]])
+
+
+def _attributes(rec: bytes, attr_c: tuple[int, int, int, int], ident: bytes,
+                name: str) -> tuple[int, tuple[bytes, bytes, bytes]]:
+    """The attributes chunk's type code and its data around the object id and the name."""
     atc = attr_c[0]
     if not atc & _CRC:
         raise LayoutError("the attributes have no CRC")
@@ -171,14 +178,112 @@ def _parse_template(rec: bytes, k: int, keys: Sequence[str], fixed: dict[str, st
     i, j = body.find(ident), body.find(wname)
     if i < 0 or j < i + 16 or body.count(ident) != 1 or body.count(wname) != 1:
         raise LayoutError("the object id and name are not found once in the attributes")
-    attr_parts = (body[:i], body[i + 16:j], body[j + len(wname):])
-    strings = None
-    if len(parts) == 5:
-        strings = _parse_strings(rec, parts[3], k, keys, fixed)
-    elif keys:
-        raise LayoutError("no user data in a record with user text")
-    return _Template(rtc, record_crc, rec[type_c[1]:type_c[3]], class_chunk, at, data_at, crc_at, atc,
-                     attr_parts, strings, rec[end_c[1]:end_c[3]])
+    return atc, (body[:i], body[i + 16:j], body[j + len(wname):])
+
+
+def _record_parts(rec: bytes) -> tuple[int, bytes, list[tuple[int, int, int, int]]]:
+    """The record's type code, its CRC, and its chunks (checked: type first and end last, both short)."""
+    (rtc, _, r0, r1), = _chunks(rec, 0, len(rec))
+    if rtc != _OBJECT_RECORD or not rtc & _CRC:
+        raise LayoutError(f"record type {rtc:#x}")
+    record_crc = rec[r1 - 4:r1]
+    if record_crc != _crc4(b""):
+        raise LayoutError("the record holds data besides its chunks")
+    parts = _chunks(rec, r0, r1 - 4)
+    if len(parts) < 4 or not parts[0][0] & _SHORT or not parts[-1][0] & _SHORT:
+        raise LayoutError("no short type and end chunks around a record")
+    return rtc, record_crc, parts
+
+
+@dataclass(frozen=True)
+class PolylineRecords:
+    """The template of a polyline's object record (the structure lines): its points vary in number.
+
+    The polyline's data (openNURBS ``ON_PolylineCurve::Write``): a version byte, the points (an int32
+    count and the coordinates), the parameters (a count and 0, 1, 2, ...) and the dimension.
+    """
+
+    record_tc: int
+    record_crc: bytes
+    type_chunk: bytes
+    class_tc: int
+    uuid_chunk: bytes
+    data_tc: int
+    lead: bytes
+    tail: bytes
+    class_end: bytes
+    attr_tc: int
+    attr_parts: tuple[bytes, bytes, bytes]
+    end_chunk: bytes
+
+    def records(self, points: Sequence[np.ndarray], names: Sequence[str], ids: np.ndarray) -> bytes:
+        """The records of polylines through ``points[i]`` ``(n_i, 3)``, named ``names[i]``, with object ids
+        ``ids`` ``(k, 16)`` uint8 (``UUID.bytes_le``)."""
+        out = []
+        for pts, name, ident in zip(points, _wide(names), np.ascontiguousarray(ids, dtype=np.uint8)):
+            n = len(pts)
+            data = b"".join((self.lead, _I32.pack(n), np.ascontiguousarray(pts, dtype="<f8").tobytes(),
+                             _I32.pack(n), np.arange(n, dtype="<f8").tobytes(), self.tail))
+            data = b"%s%s%s" % (_HEAD.pack(self.data_tc, len(data) + 4), data, _crc4(data))
+            body = b"".join((self.uuid_chunk, data, self.class_end))
+            klass = _HEAD.pack(self.class_tc, len(body)) + body
+            attr = b"".join((self.attr_parts[0], ident.tobytes(), self.attr_parts[1], name, self.attr_parts[2]))
+            attr = b"%s%s%s" % (_HEAD.pack(self.attr_tc, len(attr) + 4), attr, _crc4(attr))
+            body = b"".join((self.type_chunk, klass, attr, self.end_chunk))
+            out.append(b"%s%s%s" % (_HEAD.pack(self.record_tc, len(body) + 4), body, self.record_crc))
+        return b"".join(out)
+
+
+def polyline_records(build: Callable[[Any, list[np.ndarray], list[str], list[bytes]], None],
+                     new_model: Callable[[], Any], encode: Callable[[Any], bytes]) -> PolylineRecords:
+    """The polyline record template made by rhino3dm: ``build(model, points, names, ids)`` adds
+    polylines to a model from ``new_model()`` exactly as the rhino3dm engine does.
+
+    Raises
+    ------
+    LayoutError
+        If rhino3dm's records of two sentinel polylines cannot be rebuilt exactly from the template.
+    """
+    model = new_model()
+    points = [1.0e9 + np.arange(9, dtype=np.float64).reshape(3, 3) * 1.375,
+              -2.0e7 + np.arange(15, dtype=np.float64).reshape(5, 3) * 0.625]
+    names = ["qn\u00e9line0", "qn\u00e9line\U0001d538long1"]
+    idents = [uuid.UUID(int=(0x51AD0DE5 << 96) + 0x4000_8000_0000_0000_0100 + k) for k in (0, 1)]
+    build(model, points, names, [u.bytes_le for u in idents])
+    file = encode(model)
+    table = [c for c in _chunks(file, 32, len(file)) if c[0] == _OBJECT_TABLE]
+    if len(table) != 1:
+        raise LayoutError("no single object table")
+    recs = [file[c0:c1] for tc, c0, _, c1 in _chunks(file, table[0][2], table[0][3]) if tc == _OBJECT_RECORD]
+    if len(recs) != 2:
+        raise LayoutError(f"{len(recs)} object records for two polylines")
+    rec = recs[0]
+    rtc, record_crc, parts = _record_parts(rec)
+    if len(parts) != 4:
+        raise LayoutError(f"{len(parts)} chunks in a polyline record")
+    type_c, class_c, attr_c, end_c = parts
+    inner = _chunks(rec, class_c[2], class_c[3])
+    if len(inner) != 3 or class_c[0] & _CRC:
+        raise LayoutError("a polyline's class chunk is not (id, data, end)")
+    uuid_c, data_c, cend_c = inner
+    if not data_c[0] & _CRC:
+        raise LayoutError("the polyline data has no CRC")
+    data = rec[data_c[2]:data_c[3] - 4]
+    pts = points[0].astype("<f8").tobytes()
+    at = data.find(pts)
+    if at < 4 or _I32.unpack_from(data, at - 4)[0] != 3:
+        raise LayoutError("the polyline's points are not stored once after their count")
+    after = _I32.pack(3) + np.arange(3, dtype="<f8").tobytes()
+    if not data[at + len(pts):].startswith(after):
+        raise LayoutError("the polyline's parameters are not 0, 1, 2, ...")
+    atc, attr_parts = _attributes(rec, attr_c, idents[0].bytes_le, names[0])
+    template = PolylineRecords(rtc, record_crc, rec[type_c[1]:type_c[3]], class_c[0], rec[uuid_c[1]:uuid_c[3]],
+                               data_c[0], data[:at - 4], data[at + len(pts) + len(after):],
+                               rec[cend_c[1]:cend_c[3]], atc, attr_parts, rec[end_c[1]:end_c[3]])
+    ids = np.frombuffer(b"".join(u.bytes_le for u in idents), dtype=np.uint8).reshape(2, 16)
+    if template.records(points, names, ids) != b"".join(recs):
+        raise LayoutError("the polyline records rebuilt from their parts differ from rhino3dm's")
+    return template
 
 
 def _parse_strings(rec: bytes, ud: tuple[int, int, int, int], k: int, keys: Sequence[str],

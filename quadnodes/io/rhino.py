@@ -33,7 +33,8 @@ from ..errors import ExportError, InputError
 from ..flatness import diagonal_distance, planar_panels, resolve_planar_tolerance
 from ..mesh import QuadMesh
 from ..units import UNITS
-from ._3dm_records import LayoutError, PanelRecords, panel_records, random_ids, write_records
+from ._3dm_records import (LayoutError, PanelRecords, PolylineRecords, panel_records, polyline_records, random_ids,
+                           write_records)
 from ._atomic import write_atomic, write_bytes_atomic
 from ._polygons import quads_from_blocks
 from ..flatness import DEFAULT_PLANAR_TOLERANCE as DEFAULT_PLANAR_TOL
@@ -272,21 +273,34 @@ def _add_panel_objects(model: Any, layer_index: dict[str, int], keys: tuple[str,
         add(template, attrs)
 
 
-def _add_lines(model: Any, mesh: QuadMesh, layer: int) -> None:
-    import rhino3dm
-
+def _line_points(mesh: QuadMesh) -> tuple[list[np.ndarray], list[str]]:
+    """The points ``(n, 3)`` of every structure line (a closed one repeats its first point) and its name."""
     from ..topology import structure_lines
 
     lines = structure_lines(mesh)
     v = mesh.vertices
+    points = [v[np.append(idx, idx[0]) if closed else idx] for idx, closed in zip(lines, lines.closed.tolist())]
+    return points, [f"L_{i}" for i in range(len(points))]
+
+
+def _add_lines(model: Any, mesh: QuadMesh, layer: int) -> None:
+    _add_polylines(model, layer, *_line_points(mesh), None)
+
+
+def _add_polylines(model: Any, layer: int, points: list[np.ndarray], names: list[str],
+                   ids: list[bytes] | None) -> None:
+    import uuid
+
+    import rhino3dm
+
     P3 = rhino3dm.Point3d
-    for i, (idx, closed) in enumerate(zip(lines, lines.closed.tolist())):
-        if closed:
-            idx = np.append(idx, idx[0])
+    for k, (pts, name) in enumerate(zip(points, names)):
         attrs = rhino3dm.ObjectAttributes()
-        attrs.Name = f"L_{i}"
+        attrs.Name = name
         attrs.LayerIndex = layer
-        model.Objects.AddPolyline(list(map(P3, *v[idx].T.tolist())), attrs)
+        if ids is not None:
+            attrs.Id = uuid.UUID(bytes_le=ids[k])
+        model.Objects.AddPolyline(list(map(P3, *np.asarray(pts).T.tolist())), attrs)
 
 
 def save_3dm(
@@ -339,9 +353,10 @@ def save_3dm(
     engine = _validate.choice(engine, ("fast", "rhino3dm"), "engine")
     v = int(version)
     if engine == "fast" and panels:
-        model, layer_index, p = _model_without_panels(mesh, planar_tolerance, lines=lines, user_text=user_text)
+        model, layer_index, p = _model_without_panels(mesh, planar_tolerance, lines=False, user_text=user_text)
         try:
             templates = _templates(layer_index, p, v, path)
+            line_template = _line_template(layer_index, v, path) if lines else None
         except LayoutError as exc:
             warnings.warn(f"3dm: the fast engine does not recognise rhino3dm's object records ({exc}); "
                           "writing through rhino3dm", RuntimeWarning, stacklevel=2)
@@ -356,6 +371,9 @@ def save_3dm(
                     b = min(a + _BATCH, p.n)
                     names, columns = p.texts(a, b)
                     yield templates.records(p.flags[a:b], p.corners[a:b], names, columns, ids[a:b])
+                if line_template is not None:
+                    points, names = _line_points(mesh)
+                    yield line_template.records(points, names, random_ids(len(points)))
 
             def write(tmp: str) -> None:
                 with open(tmp, "wb") as f:
@@ -368,6 +386,21 @@ def save_3dm(
 
 _BATCH = 20_000
 """Panels whose records are made at once (bounds the memory of a large file to about 0.2 GB)."""
+
+
+def _line_template(layer_index: dict[str, int], version: int, path: str | os.PathLike[str]) -> PolylineRecords:
+    """The structure-line record template, made by rhino3dm in the same way as :func:`model_3dm` adds lines."""
+
+    def new_model() -> Any:
+        m = _new_model()
+        if _add_layers(m) != layer_index:
+            raise LayoutError("the template's layers differ from the model's")
+        return m
+
+    def build(m: Any, points: list[np.ndarray], names: list[str], ids: list[bytes]) -> None:
+        _add_polylines(m, layer_index["lines"], points, names, ids)
+
+    return polyline_records(build, new_model, lambda m: _file_bytes(m, version, path))
 
 
 def _templates(layer_index: dict[str, int], p: _Panels, version: int, path: str | os.PathLike[str]) -> PanelRecords:
