@@ -482,10 +482,10 @@ def load_3dm(
 
     p = Path(os.fspath(path))
     if not p.is_file():
-        raise InputError(f"cannot read {str(p)!r}: no such file")
+        raise InputError(f"cannot read {str(p)!r}: {'a folder, not a file' if p.is_dir() else 'no such file'}")
     model = rhino3dm.File3dm.Read(str(p))
     if model is None:
-        raise InputError(f"{p}: not a .3dm file rhino3dm can read")
+        raise InputError(f"{p}: not a .3dm file rhino3dm can read (or a damaged one: a CRC error, cut short)")
     meshes = [(o.Attributes.Name, o.Geometry, o.Attributes.GetUserString("grid_shape"))
               for o in model.Objects if isinstance(o.Geometry, rhino3dm.Mesh)]
     if name is not None:
