@@ -465,6 +465,17 @@ def panel_records(build: Callable[[Any, np.ndarray, list[str], list[list[str]], 
         rec = file[c0:c1]
         t = _parse_template(rec, k, keys, fixed[bool(k)], idents[k].bytes_le, names[k])
         out.append(t)
+    t0, t1 = out
+    same = ("record_tc", "record_crc", "coord_at", "data_at", "crc_at", "attr_tc")
+    if (any(getattr(t0, a) != getattr(t1, a) for a in same)
+            or [len(t.class_chunk) for t in out] != [len(t1.class_chunk)] * 2
+            or len(t0.type_chunk) != len(t1.type_chunk) or len(t0.end_chunk) != len(t1.end_chunk)
+            or (t0.strings is None) != (t1.strings is None)
+            or (t0.strings is not None and t1.strings is not None
+                and (t0.strings.string_tc, t0.strings.ud_tc, t0.strings.class_ud_tc, t0.strings.outer_tc,
+                     t0.strings.inner_tc) != (t1.strings.string_tc, t1.strings.ud_tc, t1.strings.class_ud_tc,
+                                               t1.strings.outer_tc, t1.strings.inner_tc))):
+        raise LayoutError("the planar and the bilinear panel's records differ in form")
     records = PanelRecords((out[0], out[1]), tuple(keys))
     ids = np.frombuffer(b"".join(u.bytes_le for u in idents), dtype=np.uint8).reshape(2, 16)
     again = records.records(np.array([False, True]), corners, names, columns, ids)
