@@ -215,6 +215,10 @@ def test_bad_input_leaves_nothing(tmp_path, monkeypatch):
         save_3dm(m, tmp_path / "t.3dm", planar_tolerance="2 parsecs")
     with pytest.raises(InputError, match="version"):
         save_3dm(m, tmp_path / "v.3dm", version=3)
+    with pytest.raises(InputError, match="engine: expected one of 'fast', 'rhino3dm'"):
+        save_3dm(m, tmp_path / "e.3dm", engine="Fast")
+    with pytest.raises(ExportError, match=r"panel 0 \(P_0_0\) is degenerate"):  # both engines check first
+        save_3dm(flat, tmp_path / "d.3dm", engine="rhino3dm")
     assert sorted(os.listdir(tmp_path)) == ["file"]
 
 
