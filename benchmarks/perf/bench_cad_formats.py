@@ -19,7 +19,11 @@ time of an idle machine when other jobs share the cores — and the file size):
 ``--stages`` prints, instead, where the time of ``save_3dm`` (fast engine) goes, stage by stage (CPU time
 of this process, best of ``--repeat``).
 
-Run:  python benchmarks/perf/bench_cad_formats.py [--repeat 3] [--stages]   (about a minute)
+``--large N`` writes, instead, the .3dm of an N × N vertex grid (the same height field) once and prints its CPU
+time, the process's peak memory before and after, and the file size (the panels' records are written in batches,
+so the peak should not grow with N beyond the mesh's own arrays).
+
+Run:  python benchmarks/perf/bench_cad_formats.py [--repeat 3] [--stages | --large N]   (about a minute)
 """
 
 from __future__ import annotations
@@ -39,11 +43,28 @@ from quadnodes.mesh import QuadMesh, grid
 TOL = "0.01 mm"
 
 
-def _mesh() -> QuadMesh:
-    y, x = np.meshgrid(np.linspace(-1, 1, 101), np.linspace(-1, 1, 101), indexing="ij")
+def _mesh(n: int = 101) -> QuadMesh:
+    y, x = np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n), indexing="ij")
     z = 8000.0 * (0.6 * x * x - 0.4 * y * y + 0.2 * np.sin(3 * x) * y)
-    z[:, :51] = 0.0
-    return grid(101, 101, spacing=1000.0, height=z)
+    z[:, : n // 2 + 1] = 0.0
+    return grid(n, n, spacing=1000.0, height=z)
+
+
+def large(n: int) -> None:
+    """One fast-engine .3dm of an n x n vertex grid: CPU time, peak memory, file size."""
+    import resource
+
+    mesh = _mesh(n)
+    save_3dm(grid(3, 3), Path(tempfile.gettempdir()) / "qn-warm.3dm")
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    with tempfile.TemporaryDirectory() as folder:
+        c = time.process_time()
+        p = save_3dm(mesh, Path(folder) / "large.3dm", planar_tolerance=TOL)
+        cpu = time.process_time() - c
+        size = os.path.getsize(p) / 1e6
+    after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"| panels | CPU [s] | peak memory before / after [MB] | size [MB] |\n|---:|---:|---:|---:|\n"
+          f"| {mesh.n_faces:,} | {cpu:.1f} | {before:.0f} / {after:.0f} | {size:.0f} |")
 
 
 def _best(repeat: int, fn, *args, **kwargs):
@@ -115,8 +136,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--stages", action="store_true", help="where the time of save_3dm goes")
+    parser.add_argument("--large", type=int, default=0, metavar="N", help="one .3dm of an N x N vertex grid")
     args = parser.parse_args()
     repeat = args.repeat
+    if args.large:
+        large(args.large)
+        return
     if args.stages:
         print(f"save_3dm stages, {_mesh().n_faces:,} panels, best of {repeat}, load average {os.getloadavg()[0]:.1f}\n")
         stages(_mesh(), repeat)
