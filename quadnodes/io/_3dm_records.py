@@ -1,13 +1,14 @@
-"""The panel surfaces of a .3dm file as object records written all at once (``save_3dm(engine="fast")``).
+"""Panel surfaces and structure lines of a .3dm file as object records written at once (``save_3dm(engine="fast")``).
 
 rhino3dm adds an object to a model in about seventeen Python calls per panel (corners, name, eight user
 strings, ``AddSurface``), each 2–8 µs, and ``File3dm.Encode`` then writes every record chunk by chunk:
-about 2.5 s for 10,000 panels. Here the records of all panels are written with NumPy and byte joins, from
-**templates**: the records that the installed rhino3dm itself writes, in the same call, for one panel of
-each layer, with sentinel values where the panels differ (the four corners, the object id, the name, the
-user-text values). The template is rebuilt from its parts and compared byte for byte with rhino3dm's
-record before it is used; if the installed openNURBS lays a record out otherwise, :class:`LayoutError` is
-raised and ``save_3dm`` writes through rhino3dm instead (slower, the same file).
+about 3 s of CPU for 10,000 panels. Here the records of all panels are written with NumPy and byte joins,
+from **templates**: the records that the installed rhino3dm itself writes, in the same call, for one panel
+of each layer (and two polylines), with sentinel values where the objects differ (the corners or points,
+the object id, the name, the user-text values). A template is rebuilt from its parts and compared byte
+for byte with rhino3dm's records before it is used; if the installed openNURBS lays a record out
+otherwise, :class:`LayoutError` is raised and ``save_3dm`` writes through rhino3dm instead (slower, the
+same file).
 
 A .3dm file is a sequence of chunks: a 4-byte type code, then an 8-byte length (files of version 5 and
 later) and that many bytes of data — or, for a *short* chunk (type code bit ``0x80000000``), an 8-byte

@@ -15,6 +15,11 @@
 
 Which panels are planar is decided by :func:`quadnodes.flatness.planar_panels` (the same test as the
 STEP exporter and the schedule). :func:`load_3dm` reads a Rhino mesh back into a :class:`QuadMesh`.
+
+rhino3dm writes the document, the layers and the mesh; the panels' and lines' object records are, by
+default (``engine="fast"``), written by :mod:`quadnodes.io._3dm_records` from records rhino3dm writes
+for sentinel objects in the same call — the same file as adding every object through rhino3dm
+(:func:`model_3dm`, ``engine="rhino3dm"``), about four times faster.
 """
 
 from __future__ import annotations
@@ -325,7 +330,7 @@ def save_3dm(
         the file. ``"fast"`` (the default) lets rhino3dm write the file without the panels and
         writes the panels' object records all at once from templates that rhino3dm writes for
         one panel of each layer in the same call (:mod:`quadnodes.io._3dm_records`): the same
-        content, several times faster for many panels. Should the installed rhino3dm lay the
+        content, about four times faster for many panels. Should the installed rhino3dm lay the
         records out in a way the fast engine does not recognise, it warns and writes through
         rhino3dm.
 
