@@ -173,14 +173,22 @@ def degenerate_panels(mesh: QuadMesh) -> tuple[np.ndarray, list[str]]:
     ([True, False], ['zero area (all four corners on one line)'])
     """
     _validate.quad_mesh(mesh)
-    edges = edge_lengths(mesh)
+    with np.errstate(over="ignore"):
+        edges = edge_lengths(mesh)
     longest = edges.max(axis=1)
     short = edges <= 1e-12 * longest[:, None]
-    flat = bilinear_area(mesh) <= 1e-12 * longest * longest
-    mask = short.any(axis=1) | flat | ~(longest > 0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        area = bilinear_area(mesh)
+    # sizes beyond about 1e76 overflow the area (1e154 the squared lengths): not a zero edge, a mesh too large
+    huge = ~np.isfinite(edges).all(axis=1) | ~np.isfinite(area)
+    flat = area <= 1e-12 * longest * longest
+    mask = short.any(axis=1) | flat | ~(longest > 0) | huge
     reasons = []
     for k in np.flatnonzero(mask).tolist():
-        if short[k].any():
+        if huge[k]:
+            reasons.append("its size overflows double precision (an edge length or its area is infinite; "
+                           "scale the mesh down)")
+        elif short[k].any():
             e = int(np.flatnonzero(short[k])[0])
             reasons.append(f"edge {e}-{(e + 1) % 4} has zero length")
         else:

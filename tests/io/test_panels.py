@@ -41,6 +41,24 @@ def test_degenerate_panels_name_the_reason():
         m.with_vertices(v)
 
 
+def test_a_mesh_too_large_for_double_precision_is_named_so_not_zero_edged(tmp_path):
+    import warnings
+
+    from quadnodes.errors import ExportError
+    from quadnodes.io.rhino import save_3dm
+
+    m = grid(3, 3, spacing=1e200)  # finite coordinates, but squared lengths overflow
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow warnings either
+        mask, why = degenerate_panels(m)
+    assert mask.all() and set(why) == {"its size overflows double precision (an edge length or its area is "
+                                       "infinite; scale the mesh down)"}
+    with pytest.raises(ExportError, match="panel 0 .* overflows double precision"):
+        save_3dm(m, tmp_path / "huge.3dm")
+    assert list(tmp_path.iterdir()) == []
+    assert not degenerate_panels(grid(3, 3, spacing=1e60))[0].any()  # large, but its area is representable
+
+
 @given(grids(), st.floats(0.1, 10.0))
 def test_corner_moves_are_half_the_gap_and_scale(m, s):
     planar = np.ones(m.n_faces, bool)

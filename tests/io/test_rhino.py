@@ -172,8 +172,25 @@ def test_files_without_a_mesh_or_with_several(tmp_path):
     with pytest.raises(InputError, match="holds 2 meshes .*pass name="):
         load(tmp_path / "two.3dm")
     assert load(tmp_path / "two.3dm", name="quad mesh").n_faces == 4
-    with pytest.raises(InputError, match="cannot read"):
+    with pytest.raises(InputError, match="cannot read .*no such file"):
         load(tmp_path / "missing.3dm")
+    (tmp_path / "folder.3dm").mkdir()
+    with pytest.raises(InputError, match="cannot read .*a folder, not a file"):
+        load(tmp_path / "folder.3dm")
+
+
+def test_a_damaged_file_is_refused_not_read_in_part(tmp_path):
+    """rhino3dm's reader checks every chunk's CRC: one changed byte or a cut makes the file unreadable."""
+    p = save_3dm(wavy(), tmp_path / "w.3dm")
+    data = p.read_bytes()
+    label = "P_2_3".encode("utf-16-le")
+    at = data.index(label)  # in a panel's user text (the fast engine's records)
+    (tmp_path / "flip.3dm").write_bytes(data[:at + 2] + b"X" + data[at + 3:])
+    (tmp_path / "cut.3dm").write_bytes(data[: len(data) * 9 // 10])
+    for name in ("flip.3dm", "cut.3dm"):
+        assert rhino3dm.File3dm.Read(str(tmp_path / name)) is None
+        with pytest.raises(InputError, match="not a .3dm file rhino3dm can read .*damaged"):
+            load(tmp_path / name)
 
 
 def test_bad_input_leaves_nothing(tmp_path, monkeypatch):
@@ -198,6 +215,10 @@ def test_bad_input_leaves_nothing(tmp_path, monkeypatch):
         save_3dm(m, tmp_path / "t.3dm", planar_tolerance="2 parsecs")
     with pytest.raises(InputError, match="version"):
         save_3dm(m, tmp_path / "v.3dm", version=3)
+    with pytest.raises(InputError, match="engine: expected one of 'fast', 'rhino3dm'"):
+        save_3dm(m, tmp_path / "e.3dm", engine="Fast")
+    with pytest.raises(ExportError, match=r"panel 0 \(P_0_0\) is degenerate"):  # both engines check first
+        save_3dm(flat, tmp_path / "d.3dm", engine="rhino3dm")
     assert sorted(os.listdir(tmp_path)) == ["file"]
 
 
