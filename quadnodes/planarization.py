@@ -49,7 +49,7 @@ from .mesh import QuadMesh
 from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
-from .linalg import QuadraticProblem, regularization
+from .linalg import Factorization, QuadraticProblem, factorize, regularization
 from .topology import adjacency, fixed_vertices
 from .flatness import DEFAULT_PLANAR_TOLERANCE, resolve_planar_tolerance
 
@@ -414,6 +414,7 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
 def _newton(
     x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
     h: float, closest: Any, tol: float, max_steps: int, relative: bool = True, keep: bool = False,
+    start: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[float], int]:
     """Planarity as a hard constraint: Gauss–Newton (SQP) steps on the fairness and closeness energy.
 
@@ -453,7 +454,7 @@ def _newton(
     rr = np.broadcast_to(np.arange(m)[:, None, None], (m, 4, 3))
     cc = 3 * ca[:, :, None] + np.arange(3)
     use = np.broadcast_to((ca >= 0)[:, :, None], (m, 4, 3))
-    X = X0.copy()
+    X = X0.copy() if start is None else (start - centre) / h
     history: list[float] = []
     steps = 0
     if keep:
@@ -467,7 +468,7 @@ def _newton(
                 return False
             return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
 
-        last_sound, last_sound_p = X0, float(quad_diagonal_distance(X0, faces, relative=relative).max()) * (
+        last_sound, last_sound_p = X.copy(), float(quad_diagonal_distance(X, faces, relative=relative).max()) * (
             1.0 if relative else h)
     for steps in range(1, max_steps + 1):
         target = (closest(X * h + centre)[0] - centre) / h
@@ -506,6 +507,211 @@ def _newton(
     return out, history, steps
 
 
+#: Gauss–Newton (``method="gauss-newton"``): the planarity weight it starts at (in units where the mean edge is 1,
+#: the weight of the squared signed relative planarity of every quad) and its growth when a weight is settled.
+GN_START_WEIGHT = 1e3
+GN_WEIGHT_GROWTH = 4.0
+#: ... when an accepted step lowers the energy by less than this share (the weight is settled).
+GN_SETTLED = 1e-2
+#: ``method="gauss-newton"`` starts from this many local/global iterations at the starting planarity weight.
+GN_WARMUP = 10
+
+
+#: Gauss–Newton solves: conjugate gradients preconditioned by the last factorization, to this relative
+#: residual in at most this many steps, else the matrix is factorized anew.
+GN_CG_RTOL = 1e-4
+GN_CG_STEPS = 25
+
+
+def _pcg(K: sp.csr_matrix, b: np.ndarray, precondition: Any, rtol: float, maxiter: int) -> tuple[np.ndarray, bool]:
+    """Preconditioned conjugate gradients for ``K z = b`` from ``z = 0``; whether ``||r|| ≤ rtol ||b||``."""
+    z = np.zeros_like(b)
+    r = b.copy()
+    nb = float(np.linalg.norm(b))
+    if nb == 0.0:
+        return z, True
+    y = precondition(r)
+    d = y.copy()
+    ry = float(r @ y)
+    for _ in range(maxiter):
+        Kd = K @ d
+        dKd = float(d @ Kd)
+        if not dKd > 0:
+            return z, False
+        a = ry / dKd
+        z += a * d
+        r -= a * Kd
+        if float(np.linalg.norm(r)) <= rtol * nb:
+            return z, True
+        y = precondition(r)
+        ry, ry_old = float(r @ y), ry
+        d = y + (ry / ry_old) * d
+    return z, False
+
+
+def _vertex_normals(X: np.ndarray, faces: np.ndarray, gather: sp.csr_matrix) -> np.ndarray:
+    """Unit vertex normals: the sum of the vector areas of the quads around each vertex."""
+    p = X[faces]
+    a = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+    v = gather @ np.repeat(a, 4, axis=0)
+    nv = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.divide(v, nv, out=np.zeros_like(v), where=nv > 0)
+
+
+def _gauss_newton(
+    x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
+    h: float, closest: Any, tol: float, max_steps: int, relative: bool = True, keep: bool = True,
+    start: np.ndarray | None = None,
+) -> tuple[np.ndarray, list[float], int, float, int]:
+    """Planarity by penalty: Gauss–Newton steps along the vertex normals with a growing weight and a trust region.
+
+    Minimizes ``E = w_f ||A x||² + w_c ||x − t||² + w_i ||x − x⁰||² + W Σ_f c_f(x)²`` (units of the
+    mean edge length ``h``; ``c_f`` the signed relative planarity of :func:`_planarity_constraints`,
+    ``t`` the closest points, held during a step) over moves ``Δ_i = δ_i n_i`` of the free vertices
+    along their normals: one scalar unknown per vertex, so each step is one sparse symmetric positive
+    definite solve of the size of the local/global matrix,
+    ``(Nᵀ H N + W (G N)ᵀ(G N) + μ I) δ = −Nᵀ ∇E`` (Levenberg–Marquardt damping ``μ``).
+    A step is taken only if it lowers ``E`` and — with ``keep`` — leaves the mesh sound (no quad convex
+    in ``x0`` non-convex, no edge below :data:`KEPT_EDGE_RATIO` of its length in ``x0``); else ``μ``
+    grows ×4 and the step is solved again (a trust region). When a step lowers ``E`` by less than 1 %,
+    the weight at hand is settled and ``W`` grows by :data:`GN_WEIGHT_GROWTH` (continuation from
+    :data:`GN_START_WEIGHT`), until every quad meets ``tol``. Tangential moves are left to the
+    local/global iteration that provides ``start``.
+
+    Returns the positions, the maximum planarity after every step, the number of steps, the final
+    weight ``W`` and the number of factorizations.
+    """
+    w_f, w_c, w_i = weights
+    n = len(x0)
+    centre = x0.mean(axis=0)
+    X0 = (x0 - centre) / h
+    k = fi.size
+    free = np.zeros(n, dtype=bool)
+    free[fi] = True
+    col = np.full(n, -1, dtype=np.int64)
+    col[fi] = np.arange(k)
+    F = (F * h**2).tocsr()
+    Fff, Ffx = F[fi][:, fi].tocsr(), F[fi][:, ~free]
+    H0 = (w_f * Fff + (w_c + w_i) * sp.identity(k)).tocoo()
+    H0 = sp.coo_matrix((H0.data, (H0.row, H0.col)), shape=(k, k))
+    fixed_F = w_f * (Ffx @ X0[~free]) if Ffx.shape[1] else np.zeros((k, 3))
+    cols = col[faces]
+    active = (cols >= 0).any(axis=1)
+    fa, ca = faces[active], cols[active]
+    m = len(fa)
+    use = ca >= 0
+    g_rows = np.broadcast_to(np.arange(m)[:, None], (m, 4))[use]
+    g_cols = ca[use]
+    m4 = faces.size
+    gather = sp.csr_matrix((np.ones(m4), (faces.reshape(-1), np.arange(m4))), shape=(n, m4))
+    # sums the (m, 4) per-corner values of the active quads into the free unknowns
+    gather_free = sp.csr_matrix((np.ones(g_cols.size), (g_cols, np.flatnonzero(use.reshape(-1)))), shape=(k, 4 * m))
+    X = X0.copy() if start is None else (start - centre) / h
+    scale = 1.0 if relative else h
+
+    def planarity(Y: np.ndarray) -> float:
+        return float(quad_diagonal_distance(Y, faces, relative=relative).max()) * scale
+
+    edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    min_len = KEPT_EDGE_RATIO * np.linalg.norm(X0[edges[:, 1]] - X0[edges[:, 0]], axis=1)
+    convex0 = _validate.corner_turns(X0, faces)[0] == 0
+
+    def sound(Y: np.ndarray) -> bool:
+        if (np.linalg.norm(Y[edges[:, 1]] - Y[edges[:, 0]], axis=1) < min_len).any():
+            return False
+        return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
+
+    guard = keep and sound(X)  # an unsound start (shape="free") is not held to the bounds
+
+    def target(Y: np.ndarray) -> np.ndarray:
+        return (closest(Y * h + centre)[0] - centre) / h
+
+    def energy(Y: np.ndarray, T: np.ndarray, W: float) -> float:
+        Yf = Y[fi]
+        c = _planarity_constraints(Y, fa)[0]
+        return float(w_f * np.sum(Y * (F @ Y)) + w_c * np.sum((Yf - T[fi]) ** 2)
+                     + w_i * np.sum((Yf - X0[fi]) ** 2) + W * np.sum(c * c))
+
+    lu: Factorization | None = None
+
+    def solve(K: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        """``K⁻¹ b``: conjugate gradients preconditioned by the last factorization, else a new one.
+
+        Between steps ``K`` changes a little (normals, gradients, damping, a weight ×4), so the last
+        factorization is a close preconditioner; a Gauss–Newton step needs no exact solve.
+        """
+        nonlocal lu, facts
+        if lu is not None:
+            z, ok = _pcg(K, b, lu.solve, GN_CG_RTOL, GN_CG_STEPS)
+            if ok:
+                return z
+        lu = factorize(K, kind="spd", what="planarize (Gauss-Newton step)")
+        facts += 1
+        return lu.solve(b)
+
+    W = GN_START_WEIGHT
+    mu = 1e-3
+    T = target(X)
+    E = energy(X, T, W)
+    history: list[float] = []
+    steps = facts = 0
+    # unknowns: one per free vertex (its move along its normal), three (x, y, z) for the free corners of
+    # quads with two or more held corners — along a held boundary a move along the normal alone flattens
+    # such a quad only by twisting its neighbours (their rows of G cancel), so it needs to slide
+    near_held = ~free
+    near_held[faces[(~free)[faces].sum(axis=1) >= 2]] = True
+    three = near_held[fi]
+    width = np.where(three, 3, 1)
+    first = np.concatenate([[0], np.cumsum(width)[:-1]])
+    dof = int(width.sum())
+    k3, k1 = np.flatnonzero(three), np.flatnonzero(~three)
+    b_rows = np.concatenate([(3 * k1[:, None] + np.arange(3)).ravel(), (3 * k3[:, None] + np.arange(3)).ravel()])
+    b_cols = np.concatenate([np.repeat(first[k1], 3), (first[k3][:, None] + np.arange(3)).ravel()])
+    Hk = sp.kron(sp.csr_matrix(H0), sp.identity(3), format="csr")
+    rr = np.broadcast_to(np.arange(m)[:, None, None], (m, 4, 3))
+    cc = 3 * ca[:, :, None] + np.arange(3)
+    use3 = np.broadcast_to(use[:, :, None], (m, 4, 3))
+    eye = sp.identity(dof, format="csr")
+    for steps in range(1, max_steps + 1):
+        c, grad = _planarity_constraints(X, fa)
+        nv = _vertex_normals(X, faces, gather)[fi]
+        B = sp.csr_matrix((np.concatenate([nv[k1].ravel(), np.ones(3 * k3.size)]), (b_rows, b_cols)),
+                          shape=(3 * k, dof))
+        GB = (sp.csr_matrix((grad[use3], (rr[use3], cc[use3])), shape=(m, 3 * k)) @ B).tocsr()
+        Xf = X[fi]
+        g3 = w_f * (Fff @ Xf) + fixed_F + w_c * (Xf - T[fi]) + w_i * (Xf - X0[fi])
+        g3 += W * (gather_free @ (grad * c[:, None, None]).reshape(-1, 3))
+        gr = B.T @ g3.reshape(-1)
+        M = (B.T @ Hk @ B + W * (GB.T @ GB)).tocsr()
+        accepted = False
+        while mu <= 1e8:
+            Y = X.copy()
+            Y[fi] -= (B @ solve(M + mu * eye, gr)).reshape(k, 3)
+            if not guard or sound(Y):
+                TY = target(Y)
+                EY = energy(Y, TY, W)
+                if EY < E:
+                    accepted = True
+                    break
+            mu *= 4.0
+        if not accepted:
+            break  # no sound step lowers the energy at any damping: stop where we are
+        drop = (E - EY) / max(abs(E), 1e-300)
+        X, T, E = Y, TY, EY
+        mu = max(mu / 3.0, 1e-6)
+        pmax = planarity(X)
+        history.append(pmax)
+        report_progress(min(steps / max_steps, 1.0), f"Gauss-Newton step {steps}: planarity max {pmax:.2e}")
+        if pmax <= tol:
+            break
+        if drop < GN_SETTLED:
+            W *= GN_WEIGHT_GROWTH
+            E = energy(X, T, W)
+    out = x0.copy()  # fixed vertices exactly as given
+    out[fi] = X[fi] * h + centre
+    return out, history, steps, W, facts
+
+
 @_validate.renamed(tolerance="planar_tolerance")
 def planarize(
     mesh: QuadMesh,
@@ -522,7 +728,7 @@ def planarize(
     reference_samples: int = 4,
     adapt: bool = True,
     anderson: int = 5,
-    method: Literal["auto", "local-global", "newton"] = "auto",
+    method: Literal["auto", "local-global", "gauss-newton", "newton"] = "auto",
     newton_steps: int = 30,
     shape: Shape = "keep",
 ) -> tuple[QuadMesh, PlanarizeReport]:
@@ -623,7 +829,7 @@ def planarize(
     for value, name in ((w_f, "fairness_weight"), (w_c, "closeness_weight"), (w_i, "input_weight")):
         if value < 0:
             raise InputError(f"{name}: expected a number >= 0, got {value!r}")
-    method = _validate.choice(method, ("auto", "local-global", "newton"), "method")
+    method = _validate.choice(method, ("auto", "local-global", "gauss-newton", "newton"), "method")
     newton_steps = _validate.positive_int(newton_steps, "newton_steps")
     shape = _validate.choice(shape, ("keep", "free"), "shape")
     if not isinstance(adapt, (bool, np.bool_)):
@@ -721,6 +927,13 @@ def planarize(
         met = bool(steps_h) and steps_h[-1] <= tol
         return finish(x, met, its, history + steps_h, w_p, facts + len(steps_h), "newton", steps)
 
+    def run_gauss_newton(start: np.ndarray, its: int, history: list[float], facts: int,
+                         guarded: int) -> tuple[QuadMesh, PlanarizeReport]:
+        x, steps_h, steps, weight, f_gn = _gauss_newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol,
+                                                        newton_steps, relative, keep=shape == "keep", start=start)
+        met = bool(steps_h) and steps_h[-1] <= tol
+        return finish(x, met, its, history + steps_h, weight, facts + f_gn, "gauss-newton", steps, guarded=guarded)
+
     if method == "newton":
         return run_newton(0, [], 0)
     C = _centering_matrix(faces, n) / h**2
@@ -757,13 +970,16 @@ def planarize(
         lin = -((w_p / h**2) * qv + (w_c / h**2) * target + (w_i / h**2) * x0)
         return lu.solve(lin, Y=xfix)[fi]
 
+    # method="gauss-newton": a few plain local/global steps at the starting weight (fair, near the
+    # surface, the noise's zigzags out), then the Gauss–Newton continuation takes over
+    lg_cap = min(max_iterations, GN_WARMUP) if method == "gauss-newton" else max_iterations
     x = x0.copy()
     xf = x0[fi]
     acc = _Anderson(anderson) if anderson else None
     history: list[float] = []
     converged = False
     it = last_change = 0
-    for it in range(1, max_iterations + 1):
+    for it in range(1, lg_cap + 1):
         g = step(x)
         xf = acc.update(xf, g) if acc is not None else g
         x[fi] = xf
@@ -774,6 +990,8 @@ def planarize(
         if pmax <= tol:
             converged = True
             break
+        if method == "gauss-newton":
+            continue
         if adapt and it - last_change >= 10 and pmax > 0.99 * history[-10]:
             if w_p * 2.0 > MAX_WEIGHT_GROWTH * planarity_weight:
                 break  # stalled at the largest weight: the tolerance is out of reach with these constraints
@@ -784,16 +1002,20 @@ def planarize(
             if acc is not None:
                 acc.reset()
     result = finish(x, converged, it, history, w_p, facts, guarded=guarded)
-    if converged or method != "auto" or fi.size > NEWTON_LIMIT:
+    if converged or method == "local-global":
         return result
-    other = run_newton(it, history, facts)
+    tried = ["local-global", "gauss-newton"]
+    results = [result, run_gauss_newton(x, it, history, facts, guarded)]
+    if method == "auto" and not results[-1][1].converged and fi.size <= NEWTON_LIMIT:
+        results.append(run_newton(it, history, facts))
+        tried.append("newton")
 
     def rank(r: PlanarizeReport) -> tuple[bool, bool, float]:
         # converged first, then a sound mesh (nothing folded or collapsed), then the flatter
         return (not r.converged, bool(r.nonconvex or r.collapsed_edges), r.planarity_max)
 
-    chosen = other if rank(other[1]) < rank(result[1]) else result
-    return chosen[0], replace(chosen[1], methods_tried=["local-global", "newton"])
+    chosen = min(results, key=lambda r: rank(r[1]))  # the first of equals: local/global before the others
+    return chosen[0], replace(chosen[1], methods_tried=tried)
 
 
 def _quality(before: QuadMesh, after: QuadMesh) -> dict[str, Any]:

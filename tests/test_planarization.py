@@ -233,7 +233,7 @@ def test_newton_meets_the_tolerance_with_fixed_vertices_untouched(seed):
     np.testing.assert_array_equal(sound.vertices[c], m.vertices[c])
 
 
-def test_auto_falls_back_to_newton_where_local_global_stalls():
+def test_auto_falls_back_to_gauss_newton_where_local_global_stalls():
     # a noisy boundary held fixed: the projection iteration stalls near 3e-3 (docs/planarize.md)
     from quadnodes import surfaces
 
@@ -244,10 +244,12 @@ def test_auto_falls_back_to_newton_where_local_global_stalls():
     # Newton reaches the tolerance only by folding two quads next to the held boundary
     nw, rep_nw = planarize(faired, fix="boundary", method="newton", shape="free")
     assert rep_nw.planarity_max <= 1e-3 and rep_nw.nonconvex and not rep_nw.converged
-    # auto tries both (and reports both) but returns the sound mesh, not the flatter folded one
+    # auto continues from the stalled local/global mesh with Gauss–Newton steps that never fold a quad
+    # (issue 15): planar and sound, so Newton from the input is not needed (every method tried is reported)
     out, rep = planarize(faired, fix="boundary", shape="free")
-    assert rep.methods_tried == ["local-global", "newton"]  # every method tried is reported (issue 16)
-    assert rep.method == "local-global" and rep.nonconvex == []
+    assert rep.methods_tried == ["local-global", "gauss-newton"]
+    assert rep.method == "gauss-newton" and rep.converged and rep.nonconvex == []
+    assert rep.planarity_max <= 1e-3 and rep.edge_length_ratio_min > 0.3
     _check_quality(faired, out, rep)
     assert rep.iterations == rep_lg.iterations  # the local/global iterations it tried first
     b = clean.topology.boundary_vertices
