@@ -26,8 +26,11 @@ It alternates a *local* step (project every quad, find closest points) with a
 on the weights, so its factorization is reused while they stay fixed). When
 the planarity stops improving before the tolerance is met, the planarity
 weight is doubled (and the matrix factorized again). Where that still ends above
-the tolerance, ``method="auto"`` takes Gauss–Newton (SQP) steps from the input
-instead, with planarity as a hard constraint (:func:`_newton`). Weights are relative to
+the tolerance, ``method="auto"`` continues from there with penalty Gauss–Newton
+steps along the vertex normals and a growing planarity weight that never fold a
+quad (:func:`_gauss_newton`; alone: ``method="gauss-newton"``), and if that misses
+too, Gauss–Newton (SQP) steps from the input with planarity as a hard
+constraint (:func:`_newton`). Weights are relative to
 the mean edge length ``h`` of the input, so ``planarize(s·P) == s·planarize(P)``.
 Fixed vertices never move.
 """
@@ -50,6 +53,7 @@ from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
 from .linalg import Factorization, QuadraticProblem, factorize, regularization
+from .linalg.quadratic import DIRECT_LIMIT
 from .topology import adjacency, fixed_vertices
 from .flatness import DEFAULT_PLANAR_TOLERANCE, resolve_planar_tolerance
 
@@ -60,7 +64,8 @@ __all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "kept_shape_
 DEFAULT_TOLERANCE = DEFAULT_PLANAR_TOLERANCE
 #: With a reference surface, a weak pull to the input positions keeps vertices from sliding far along it.
 DEFAULT_INPUT_WEIGHT = 0.01
-#: ``method="auto"`` tries Newton steps after an unconverged local/global run up to this many free vertices.
+#: ``method="auto"`` tries Gauss–Newton (then Newton) steps after an unconverged local/global run up to this
+#: many free vertices (each step factorizes a matrix of that size).
 NEWTON_LIMIT = 20000
 #: The adaptive planarity weight grows at most this much over its start value.
 MAX_WEIGHT_GROWTH = 1e6
@@ -515,6 +520,11 @@ GN_WEIGHT_GROWTH = 4.0
 GN_SETTLED = 1e-2
 #: ``method="gauss-newton"`` starts from this many local/global iterations at the starting planarity weight.
 GN_WARMUP = 10
+#: A Gauss–Newton step may not make any structure-line window turn more than this many times the most any
+#: window turned in the input or at the start of the steps (thesis eq. 30).
+GN_LINE_GROWTH = 2.0
+#: ... or than this, if larger: a tenth of the thesis's zigzag threshold (eq. 30 deviation 0.1), about a 6° kink.
+GN_LINE_FLOOR = 0.01
 
 
 #: Gauss–Newton solves: conjugate gradients preconditioned by the last factorization, to this relative
@@ -561,7 +571,7 @@ def _vertex_normals(X: np.ndarray, faces: np.ndarray, gather: sp.csr_matrix) -> 
 def _gauss_newton(
     x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
     h: float, closest: Any, tol: float, max_steps: int, relative: bool = True, keep: bool = True,
-    start: np.ndarray | None = None,
+    start: np.ndarray | None = None, windows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[float], int, float, int]:
     """Planarity by penalty: Gauss–Newton steps along the vertex normals with a growing weight and a trust region.
 
@@ -571,11 +581,14 @@ def _gauss_newton(
     along their normals: one scalar unknown per vertex, so each step is one sparse symmetric positive
     definite solve of the size of the local/global matrix,
     ``(Nᵀ H N + W (G N)ᵀ(G N) + μ I) δ = −Nᵀ ∇E`` (Levenberg–Marquardt damping ``μ``).
-    A step is taken only if it lowers ``E`` and — with ``keep`` — leaves the mesh sound (no quad convex
-    in ``x0`` non-convex, no edge below :data:`KEPT_EDGE_RATIO` of its length in ``x0``); else ``μ``
-    grows ×4 and the step is solved again (a trust region). When a step lowers ``E`` by less than 1 %,
+    A step is taken only if it lowers ``E`` and — with ``keep`` — leaves the mesh sound (no quad
+    convex in ``x0`` non-convex, no edge below :data:`KEPT_EDGE_RATIO` of its length in ``x0``); else
+    ``μ`` grows ×4 and the step is solved again (a trust region). When a step lowers ``E`` by less than 1 %,
     the weight at hand is settled and ``W`` grows by :data:`GN_WEIGHT_GROWTH` (continuation from
-    :data:`GN_START_WEIGHT`), until every quad meets ``tol``. Tangential moves are left to the
+    :data:`GN_START_WEIGHT`), until every quad meets ``tol`` and no structure-line window (``windows``)
+    bends more than :data:`GN_LINE_GROWTH` times the most one bent in ``x0`` or at the start (or
+    :data:`GN_LINE_FLOOR`, if larger). The iterates may pass through such a kink; if the last one
+    has one, the last iterate without is returned. Tangential moves are left to the
     local/global iteration that provides ``start``.
 
     Returns the positions, the maximum planarity after every step, the number of steps, the final
@@ -621,6 +634,22 @@ def _gauss_newton(
             return False
         return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
 
+    # the structure lines may not kink: no window may turn more than GN_LINE_GROWTH times the most any
+    # window turned in the input or at the start, or GN_LINE_FLOOR (Gauss–Newton can buy planarity with a
+    # sharp bend where a quad has a single free corner, which the fairness energy alone, against a growing
+    # W, does not stop)
+    if windows is not None and len(windows):
+        from .zigzag import window_deviation
+
+        line_bound = max(GN_LINE_GROWTH * max(float(window_deviation(X0, windows).max()),
+                                              float(window_deviation(X, windows).max())), GN_LINE_FLOOR)
+
+        def lines_ok(Y: np.ndarray) -> bool:
+            return bool(window_deviation(Y, windows).max() <= line_bound)
+    else:
+        def lines_ok(Y: np.ndarray) -> bool:
+            return True
+
     guard = keep and sound(X)  # an unsound start (shape="free") is not held to the bounds
 
     def target(Y: np.ndarray) -> np.ndarray:
@@ -651,6 +680,7 @@ def _gauss_newton(
 
     W = GN_START_WEIGHT
     mu = 1e-3
+    last_fair, last_fair_p = X, planarity(X)
     T = target(X)
     E = energy(X, T, W)
     history: list[float] = []
@@ -702,11 +732,17 @@ def _gauss_newton(
         pmax = planarity(X)
         history.append(pmax)
         report_progress(min(steps / max_steps, 1.0), f"Gauss-Newton step {steps}: planarity max {pmax:.2e}")
-        if pmax <= tol:
+        fair_now = lines_ok(X)
+        if fair_now:
+            last_fair, last_fair_p = X, pmax
+        if pmax <= tol and fair_now:
             break
         if drop < GN_SETTLED:
             W *= GN_WEIGHT_GROWTH
             E = energy(X, T, W)
+    if last_fair is not X:  # the last steps bent a line too far: back to the last iterate that did not
+        X = last_fair
+        history.append(last_fair_p)
     out = x0.copy()  # fixed vertices exactly as given
     out[fi] = X[fi] * h + centre
     return out, history, steps, W, facts
@@ -770,16 +806,24 @@ def planarize(
         History length of the Anderson acceleration of the local/global
         iteration (0: plain iteration). When an accelerated step made the
         fixed-point residual grow, the history restarts with a plain step.
-    method : {"auto", "local-global", "newton"}
-        ``"local-global"``: the projection iteration above. ``"newton"``:
+    method : {"auto", "local-global", "gauss-newton", "newton"}
+        ``"local-global"``: the projection iteration above. ``"gauss-newton"``:
+        :data:`GN_WARMUP` local/global steps at the starting weight, then
+        penalty Gauss–Newton steps (:func:`_gauss_newton`): the planarity of every
+        quad as a squared penalty whose weight grows until the tolerance is met,
+        moves along the vertex normals (all three coordinates next to held
+        vertices), one sparse solve of the local/global matrix's size per step, a
+        step taken only if it lowers the energy and — with ``shape="keep"`` —
+        folds no quad and shortens no edge below the shape bounds. ``"newton"``:
         planarity as a hard constraint, Gauss–Newton (SQP) steps on the fairness
-        and closeness energy, one sparse KKT factorization per step (few steps,
-        each costlier; ``w_p`` and ``adapt`` unused). ``"auto"`` (default):
-        local/global, and when it ends above the tolerance with at most
-        :data:`NEWTON_LIMIT` free vertices, Newton from the input; the result
-        that meets the tolerance (else the flatter one) is returned.
+        and closeness energy from the input, one sparse KKT factorization per step
+        (``w_p`` and ``adapt`` unused). ``"auto"`` (default): local/global, and
+        when it ends above the tolerance with at most :data:`NEWTON_LIMIT` free
+        vertices, Gauss–Newton from its result, then (if that misses too) Newton
+        from the input; the converged result (else the sound one, else the
+        flatter) is returned, local/global first among equals.
     newton_steps : int
-        Cap on Newton steps (>= 1).
+        Cap on Newton and on Gauss–Newton steps (>= 1).
     shape : {"keep", "free"}
         ``"keep"`` (default): no quad convex in the input may turn into a dart or a
         bow-tie, and no edge may shrink below :data:`KEPT_EDGE_RATIO` of its input
@@ -930,7 +974,8 @@ def planarize(
     def run_gauss_newton(start: np.ndarray, its: int, history: list[float], facts: int,
                          guarded: int) -> tuple[QuadMesh, PlanarizeReport]:
         x, steps_h, steps, weight, f_gn = _gauss_newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol,
-                                                        newton_steps, relative, keep=shape == "keep", start=start)
+                                                        newton_steps, relative, keep=shape == "keep", start=start,
+                                                        windows=w if len(w) else None)
         met = bool(steps_h) and steps_h[-1] <= tol
         return finish(x, met, its, history + steps_h, weight, facts + f_gn, "gauss-newton", steps, guarded=guarded)
 
@@ -945,8 +990,12 @@ def planarize(
         # ½ xᵀQx − xᵀ(...): the held vertices move to the right-hand side inside the engine;
         # only the held vertices pin the mesh when w_c + w_i == 0 (checked above): kept definite by a shift
         Q = (wp * C + w_f * F + (w_c + w_i) * I).tocsr()
-        return QuadraticProblem(Q, known=known, method="direct", shift=1e-10 if w_c + w_i == 0 else 0.0,
-                                what="planarize (local/global step)")
+        return QuadraticProblem(Q, known=known, method="cg" if large else "direct",
+                                shift=1e-10 if w_c + w_i == 0 else 0.0, what="planarize (local/global step)")
+
+    # above DIRECT_LIMIT free vertices the global step is conjugate gradients started from the current
+    # positions (a factorization of a million unknowns takes minutes); below it, one factorization per weight
+    large = fi.size > DIRECT_LIMIT
 
     lu = factor(w_p)
     facts = 1
@@ -968,7 +1017,7 @@ def planarize(
         qv = gather @ q.reshape(-1, 3)
         target, _ = closest(x)
         lin = -((w_p / h**2) * qv + (w_c / h**2) * target + (w_i / h**2) * x0)
-        return lu.solve(lin, Y=xfix)[fi]
+        return lu.solve(lin, Y=xfix, guess=x[fi] if large else None)[fi]
 
     # method="gauss-newton": a few plain local/global steps at the starting weight (fair, near the
     # surface, the noise's zigzags out), then the Gauss–Newton continuation takes over
@@ -1002,11 +1051,11 @@ def planarize(
             if acc is not None:
                 acc.reset()
     result = finish(x, converged, it, history, w_p, facts, guarded=guarded)
-    if converged or method == "local-global":
+    if converged or method == "local-global" or (method == "auto" and fi.size > NEWTON_LIMIT):
         return result
     tried = ["local-global", "gauss-newton"]
     results = [result, run_gauss_newton(x, it, history, facts, guarded)]
-    if method == "auto" and not results[-1][1].converged and fi.size <= NEWTON_LIMIT:
+    if method == "auto" and not results[-1][1].converged:
         results.append(run_newton(it, history, facts))
         tried.append("newton")
 

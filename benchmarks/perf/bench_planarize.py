@@ -84,12 +84,13 @@ import _common  # noqa: E402
 
 EXAMPLES = ("E1", "E2", "E3", "E4")
 FREEFORM = "F100"
-KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "qn_newton", "igl_default", "igl_tol")
+KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "qn_gn", "qn_newton", "igl_default", "igl_tol")
 LABELS = {
     "input": "input (faired)",
     "qn_mesh": "quadnodes, reference = clean mesh",
     "qn_face": "quadnodes, reference = face",
     "qn_none": "quadnodes, no reference",
+    "qn_gn": "quadnodes Gauss–Newton, reference = clean mesh",
     "qn_newton": "quadnodes Newton, reference = clean mesh",
     "igl_default": "libigl, maxIter 100, threshold 5e-3 (default)",
     "igl_tol": "libigl, maxIter 1000, threshold 1e-3",
@@ -133,17 +134,21 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
     _ = faired.topology.windows  # built before timing, like the input of a graph node (cached on the mesh)
     base = _common.rss_mb()
     t = time.perf_counter()
+    cpu = time.process_time()
     iters = "—"
     if kind == "input":
         out = faired
     elif kind.startswith("qn_"):
-        ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean}[kind]
-        out, rep = planarize(faired, reference=ref, method="newton" if kind == "qn_newton" else "auto", shape=shape)
+        ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean, "qn_gn": clean}[kind]
+        method = {"qn_newton": "newton", "qn_gn": "gauss-newton"}.get(kind, "auto")
+        out, rep = planarize(faired, reference=ref, method=method, shape=shape)
         met = "met" if rep.converged else "NOT met"
         if rep.method == "newton" and kind != "qn_newton":
             iters = f"{rep.iterations} + {rep.newton_steps} Newton ({met})"
         elif rep.method == "newton":
             iters = f"{rep.newton_steps} Newton steps ({met})"
+        elif rep.method == "gauss-newton":
+            iters = f"{rep.iterations} + {rep.newton_steps} Gauss–Newton ({rep.factorizations} fact., {met})"
         else:
             iters = f"{rep.iterations} ({rep.factorizations} fact., {met})"
     else:
@@ -151,6 +156,7 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
         v = igl.planarize_quad_mesh(faired.vertices, faired.faces, max_iter, thr)
         out = faired.with_vertices(np.ascontiguousarray(v, dtype=np.float64))
     wall = time.perf_counter() - t
+    cpu = time.process_time() - cpu
     peak = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base, 0.0)
     h = clean.mean_edge_length
     pl = diagonal_distance(out)
@@ -173,13 +179,67 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
         "surface_max_h": float(ds.max()), "surface_mean_h": float(ds.mean()),
         "moved_max_h": float(moved.max()), "zigzag_mean": float(zz.mean()),
         "iterations": iters, "wall_s": None if kind == "input" else wall,
+        "cpu_s": None if kind == "input" else cpu,
         "peak_mb": None if kind == "input" else peak,
         "size": f"{clean.grid_shape[0]}×{clean.grid_shape[1]}",
     }
 
 
+def _big_case(size: int):
+    """(clean, faired) of the F100 recipe at ``size × size`` (no 4× finer sample: 16 M points at 1000)."""
+    from quadnodes import surfaces
+    from quadnodes.fairing import fair
+    from quadnodes.noise import perturb
+
+    face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
+    clean = surfaces.sample(face, size, size)
+    noisy, _ = perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")
+    faired, _ = fair(noisy, iterations=3)
+    return clean, faired
+
+
+def run_iteration(size: int) -> dict:
+    """One local/global iteration on the F100 recipe at ``size × size``, reference = clean mesh.
+
+    ``planarize(faired, reference=clean, method="local-global", adapt=False)`` with
+    ``max_iterations`` 1 and then 3, in this process: one iteration is half the difference
+    (wall and CPU), the set-up (matrices, the reference's search structure, the first
+    factorization or CG set-up) is the rest of the first call. Peak MB: this process's peak
+    resident memory above its memory before the first call.
+    """
+    from quadnodes.planarization import planarize
+
+    clean, faired = _big_case(size)
+    _ = faired.topology.windows
+    base = _common.rss_mb()
+    runs = []
+    for its in (1, 3):
+        t, c = time.perf_counter(), time.process_time()
+        _, rep = planarize(faired, reference=clean, method="local-global", adapt=False, max_iterations=its)
+        runs.append((time.perf_counter() - t, time.process_time() - c, rep))
+    (w1, c1, r1), (w3, c3, r3) = runs
+    return {"size": f"{size}×{size}", "free": int(faired.n_vertices - r1.n_fixed),
+            "iteration_wall_s": (w3 - w1) / 2, "iteration_cpu_s": (c3 - c1) / 2,
+            "setup_wall_s": w1 - (w3 - w1) / 2, "setup_cpu_s": c1 - (c3 - c1) / 2,
+            "planarity_after_3": r3.planarity_max, "peak_mb": max(_common.peak_mb() - base, 0.0)}
+
+
+def _iteration_table(sizes: list[int]) -> None:
+    print("| mesh | free vertices | global step | one iteration wall (s) | one iteration CPU (s) "
+          "| set-up wall (s) | set-up CPU (s) | planarity after 3 | peak MB |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
+    for size in sizes:
+        out = subprocess.run([sys.executable, __file__, "--iteration-row", str(size)],
+                             capture_output=True, text=True, check=True)
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        solver = "SuperLU, factorized once" if r["free"] <= 20000 else "CG from the current positions"
+        print(f"| F{size} ({r['size']}) | {r['free']} | {solver} | {r['iteration_wall_s']:.2f} "
+              f"| {r['iteration_cpu_s']:.2f} | {r['setup_wall_s']:.2f} | {r['setup_cpu_s']:.2f} "
+              f"| {r['planarity_after_3']:.2e} | {r['peak_mb']:.0f} |", flush=True)
+
+
 HEADER = ("| method | planarity max | planarity mean | to clean surface max (h) | to clean surface mean (h) "
-          "| moved max (h) | zigzag mean | edge ratio min | folded | iterations | wall time (s) | peak MB |")
+          "| moved max (h) | zigzag mean | edge ratio min | folded | iterations | wall time (s) | CPU time (s) | peak MB |")
 
 
 def main() -> None:
@@ -191,10 +251,21 @@ def main() -> None:
                     help="planarize's shape setting for the quadnodes rows (default keep)")
     ap.add_argument("--shapes", action="store_true",
                     help="compare shape='free' and shape='keep' on every quadnodes row (one table)")
+    ap.add_argument("--iteration", action="store_true",
+                    help="instead of the tables: one local/global iteration on the F100 recipe at 100×100 and "
+                         "(with --big) 1000×1000, wall and CPU time, peak memory")
+    ap.add_argument("--big", action="store_true", help="with --iteration: add 1000×1000 (~6 min to build)")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--iteration-row", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
         print(json.dumps(run_row(args.row[0], args.row[1], args.shape)))
+        return
+    if args.iteration_row:
+        print(json.dumps(run_iteration(args.iteration_row)))
+        return
+    if args.iteration:
+        _iteration_table([100] + ([1000] if args.big else []))
         return
     cases = list(EXAMPLES) + ([] if args.quick else [FREEFORM])
     if args.shapes:
@@ -211,13 +282,14 @@ def main() -> None:
             r = json.loads(out.stdout.strip().splitlines()[-1])
             worst = max(worst, r["igl_measure_diff"])
             wall = "—" if r["wall_s"] is None else f"{r['wall_s']:.2f}"
+            cpu = "—" if r["cpu_s"] is None else f"{r['cpu_s']:.2f}"
             peak = "—" if r["peak_mb"] is None else f"{r['peak_mb']:.0f}"
             lines.append(f"| {LABELS[kind]} | {r['planarity_max']:.2e} | {r['planarity_mean']:.2e} "
                          f"| {r['surface_max_h']:.3f} | {r['surface_mean_h']:.3f} | {r['moved_max_h']:.3f} "
                          f"| {r['zigzag_mean']:.2e} | {r['edge_ratio_min']:.3f} | {r['folded']} "
-                         f"| {r['iterations']} | {wall} | {peak} |")
+                         f"| {r['iterations']} | {wall} | {cpu} | {peak} |")
             if len(lines) == 1:
-                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|")
+                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|")
             print(lines[-1], flush=True)
         if name == FREEFORM and not args.slow:
             print("\n(libigl at threshold 1e-3 skipped on this mesh: run with --slow)")
