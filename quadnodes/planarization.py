@@ -520,8 +520,8 @@ GN_WEIGHT_GROWTH = 4.0
 GN_SETTLED = 1e-2
 #: ``method="gauss-newton"`` starts from this many local/global iterations at the starting planarity weight.
 GN_WARMUP = 10
-#: A Gauss–Newton step may not make any structure-line window turn more than this many times the most any
-#: window turned in the input or at the start of the steps (thesis eq. 30).
+#: Gauss–Newton returns no mesh where a structure-line window turns more than this many times the most any
+#: window turned in the input (thesis eq. 30) ...
 GN_LINE_GROWTH = 2.0
 #: ... or than this, if larger: a tenth of the thesis's zigzag threshold (eq. 30 deviation 0.1), about a 6° kink.
 GN_LINE_FLOOR = 0.01
@@ -580,15 +580,16 @@ def _gauss_newton(
     ``t`` the closest points, held during a step) over moves ``Δ_i = δ_i n_i`` of the free vertices
     along their normals: one scalar unknown per vertex, so each step is one sparse symmetric positive
     definite solve of the size of the local/global matrix,
-    ``(Nᵀ H N + W (G N)ᵀ(G N) + μ I) δ = −Nᵀ ∇E`` (Levenberg–Marquardt damping ``μ``).
+    ``(Nᵀ H N + W (G N)ᵀ(G N) + μ D) δ = −Nᵀ ∇E`` (Levenberg–Marquardt damping ``μ``, ``D`` the
+    matrix's diagonal).
     A step is taken only if it lowers ``E`` and — with ``keep`` — leaves the mesh sound (no quad
     convex in ``x0`` non-convex, no edge below :data:`KEPT_EDGE_RATIO` of its length in ``x0``); else
     ``μ`` grows ×4 and the step is solved again (a trust region). When a step lowers ``E`` by less than 1 %,
     the weight at hand is settled and ``W`` grows by :data:`GN_WEIGHT_GROWTH` (continuation from
     :data:`GN_START_WEIGHT`), until every quad meets ``tol`` and no structure-line window (``windows``)
-    bends more than :data:`GN_LINE_GROWTH` times the most one bent in ``x0`` or at the start (or
+    bends more than :data:`GN_LINE_GROWTH` times the most one bent in ``x0`` (or
     :data:`GN_LINE_FLOOR`, if larger). The iterates may pass through such a kink; if the last one
-    has one, the last iterate without is returned. Tangential moves are left to the
+    has one, the last iterate without is returned (or the start). Tangential moves are left to the
     local/global iteration that provides ``start``.
 
     Returns the positions, the maximum planarity after every step, the number of steps, the final
@@ -635,14 +636,13 @@ def _gauss_newton(
         return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
 
     # the structure lines may not kink: no window may turn more than GN_LINE_GROWTH times the most any
-    # window turned in the input or at the start, or GN_LINE_FLOOR (Gauss–Newton can buy planarity with a
+    # window turned in the input, or GN_LINE_FLOOR (Gauss–Newton can buy planarity with a
     # sharp bend where a quad has a single free corner, which the fairness energy alone, against a growing
     # W, does not stop)
     if windows is not None and len(windows):
         from .zigzag import window_deviation
 
-        line_bound = max(GN_LINE_GROWTH * max(float(window_deviation(X0, windows).max()),
-                                              float(window_deviation(X, windows).max())), GN_LINE_FLOOR)
+        line_bound = max(GN_LINE_GROWTH * float(window_deviation(X0, windows).max()), GN_LINE_FLOOR)
 
         def lines_ok(Y: np.ndarray) -> bool:
             return bool(window_deviation(Y, windows).max() <= line_bound)
@@ -701,7 +701,6 @@ def _gauss_newton(
     rr = np.broadcast_to(np.arange(m)[:, None, None], (m, 4, 3))
     cc = 3 * ca[:, :, None] + np.arange(3)
     use3 = np.broadcast_to(use[:, :, None], (m, 4, 3))
-    eye = sp.identity(dof, format="csr")
     for steps in range(1, max_steps + 1):
         c, grad = _planarity_constraints(X, fa)
         nv = _vertex_normals(X, faces, gather)[fi]
@@ -713,10 +712,16 @@ def _gauss_newton(
         g3 += W * (gather_free @ (grad * c[:, None, None]).reshape(-1, 3))
         gr = B.T @ g3.reshape(-1)
         M = (B.T @ Hk @ B + W * (GB.T @ GB)).tocsr()
+        # Marquardt's damping μ·diag(M), plus a floor far below the matrix's scale (an unknown the energy
+        # leaves free, e.g. a vertex whose quads' areas cancel): definite at every weight
+        diag, floor = M.diagonal(), regularization(M, 1e-10)
         accepted = False
         while mu <= 1e8:
             Y = X.copy()
-            Y[fi] -= (B @ solve(M + mu * eye, gr)).reshape(k, 3)
+            try:
+                Y[fi] -= (B @ solve((M + sp.diags(mu * diag + floor)).tocsr(), gr)).reshape(k, 3)
+            except InputError:  # numerically singular even so: stop where we are
+                break
             if not guard or sound(Y):
                 TY = target(Y)
                 EY = energy(Y, TY, W)
