@@ -67,6 +67,10 @@ DEFAULT_INPUT_WEIGHT = 0.01
 #: ``method="auto"`` tries Gauss–Newton (then Newton) steps after an unconverged local/global run up to this
 #: many free vertices (each step factorizes a matrix of that size).
 NEWTON_LIMIT = 20000
+#: Above ``DIRECT_LIMIT`` free vertices the global step is CG from the current positions, to this relative
+#: residual (the next local step projects the result anyway; 1e-8 of the right-hand side is far below the
+#: planarity tolerance's scale).
+LARGE_RTOL = 1e-8
 #: The adaptive planarity weight grows at most this much over its start value.
 MAX_WEIGHT_GROWTH = 1e6
 #: An edge shorter than this share of its input length counts as collapsed: the result is not converged.
@@ -995,7 +999,7 @@ def planarize(
         # ½ xᵀQx − xᵀ(...): the held vertices move to the right-hand side inside the engine;
         # only the held vertices pin the mesh when w_c + w_i == 0 (checked above): kept definite by a shift
         Q = (wp * C + w_f * F + (w_c + w_i) * I).tocsr()
-        return QuadraticProblem(Q, known=known, method="cg" if large else "direct",
+        return QuadraticProblem(Q, known=known, method="cg" if large else "direct", rtol=LARGE_RTOL,
                                 shift=1e-10 if w_c + w_i == 0 else 0.0, what="planarize (local/global step)")
 
     # above DIRECT_LIMIT free vertices the global step is conjugate gradients started from the current

@@ -19,6 +19,10 @@ Rows
 - quadnodes, reference = face: the same with ``reference=`` the build123d face
   (sampled 4× finer inside ``planarize``; the sampling is part of the time);
 - quadnodes, no reference: ``planarize(faired)`` — closeness to the input vertices;
+- quadnodes Gauss–Newton: ``planarize(faired, reference=clean, method="gauss-newton")``
+  — 10 local/global steps, then penalty Gauss–Newton steps along the vertex normals
+  with a growing planarity weight (issue 15); the iterations column gives both counts
+  and the factorizations;
 - quadnodes Newton: ``planarize(faired, reference=clean, method="newton")`` —
   planarity as a hard constraint, Gauss–Newton/SQP steps (one KKT factorization
   each); on F100 only with ``--slow``. (The default ``method="auto"`` rows above
@@ -50,6 +54,8 @@ Columns
 - edge ratio min: the shortest edge relative to its length in the faired input;
   folded: quads convex in the faired input that are darts or bow-ties in the
   result (``quadnodes.flatness.nonconvex_panels``) — a sound result has none;
+- CPU time: this process's CPU time during the call (the machine is shared: wall time
+  grows with the load, CPU time much less);
 - wall time: the planarization call only (mesh construction, noise, fairing, the
   mesh's structure lines and module imports excluded); peak MB: that row's subprocess peak resident memory (ru_maxrss) minus
   its resident memory just before the call.
@@ -62,7 +68,14 @@ quadnodes rows use ``shape="keep"`` (the default) unless ``--shape free`` is giv
 and ``shape="keep"`` one after the other in one process, so both see the same
 machine load, and whether the two results are bit-identical.
 
+``--iteration``: instead of the tables, one local/global iteration (wall, CPU, set-up,
+peak memory) on the F100 recipe at 100×100, and with ``--big`` at 1000×1000 (built
+without the 4× finer sample; ~6 min to build on 2 cores): see :func:`run_iteration`.
+Above 20,000 free vertices the global step is conjugate gradients started from the
+current positions instead of a factorization.
+
 Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
+      python benchmarks/perf/bench_planarize.py --iteration [--big]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
@@ -199,43 +212,54 @@ def _big_case(size: int):
 
 
 def run_iteration(size: int) -> dict:
-    """One local/global iteration on the F100 recipe at ``size × size``, reference = clean mesh.
+    """Local/global iterations on the F100 recipe at ``size × size``, reference = clean mesh.
 
     ``planarize(faired, reference=clean, method="local-global", adapt=False)`` with
-    ``max_iterations`` 1 and then 3, in this process: one iteration is half the difference
-    (wall and CPU), the set-up (matrices, the reference's search structure, the first
-    factorization or CG set-up) is the rest of the first call. Peak MB: this process's peak
-    resident memory above its memory before the first call.
+    ``max_iterations`` 11 (100×100) or 3 (1000×1000). Every iteration ends with one call of
+    ``quad_diagonal_distance`` (the stop test, in this and in earlier versions of the module),
+    so the time between consecutive calls is one iteration: the median of those differences
+    (wall and CPU) is reported; set-up is the time to the first call minus one iteration (matrices,
+    the reference's search structure, the first factorization or CG set-up). Peak MB: this
+    process's peak resident memory above its memory before the call.
     """
-    from quadnodes.planarization import planarize
+    import quadnodes.planarization as P
 
     clean, faired = _big_case(size)
     _ = faired.topology.windows
+    stamps: list[tuple[float, float]] = []
+    measure = P.quad_diagonal_distance
+
+    def stamped(*args, **kwargs):
+        out = measure(*args, **kwargs)
+        stamps.append((time.perf_counter(), time.process_time()))
+        return out
+
+    P.quad_diagonal_distance = stamped
     base = _common.rss_mb()
-    runs = []
-    for its in (1, 3):
-        t, c = time.perf_counter(), time.process_time()
-        _, rep = planarize(faired, reference=clean, method="local-global", adapt=False, max_iterations=its)
-        runs.append((time.perf_counter() - t, time.process_time() - c, rep))
-    (w1, c1, r1), (w3, c3, r3) = runs
-    return {"size": f"{size}×{size}", "free": int(faired.n_vertices - r1.n_fixed),
-            "iteration_wall_s": (w3 - w1) / 2, "iteration_cpu_s": (c3 - c1) / 2,
-            "setup_wall_s": w1 - (w3 - w1) / 2, "setup_cpu_s": c1 - (c3 - c1) / 2,
-            "planarity_after_3": r3.planarity_max, "peak_mb": max(_common.peak_mb() - base, 0.0)}
+    t, c = time.perf_counter(), time.process_time()
+    _, rep = P.planarize(faired, reference=clean, method="local-global", adapt=False,
+                         max_iterations=11 if size <= 300 else 3)
+    P.quad_diagonal_distance = measure
+    st = np.array(stamps)
+    step_wall, step_cpu = np.median(np.diff(st[:, 0])), np.median(np.diff(st[:, 1]))
+    return {"size": f"{size}×{size}", "free": int(faired.n_vertices - rep.n_fixed), "iterations": len(stamps),
+            "iteration_wall_s": float(step_wall), "iteration_cpu_s": float(step_cpu),
+            "setup_wall_s": float(st[0, 0] - t - step_wall), "setup_cpu_s": float(st[0, 1] - c - step_cpu),
+            "planarity_after": rep.planarity_max, "peak_mb": max(_common.peak_mb() - base, 0.0)}
 
 
 def _iteration_table(sizes: list[int]) -> None:
-    print("| mesh | free vertices | global step | one iteration wall (s) | one iteration CPU (s) "
-          "| set-up wall (s) | set-up CPU (s) | planarity after 3 | peak MB |")
-    print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
+    print("| mesh | free vertices | global step | iterations | one iteration wall (s) | one iteration CPU (s) "
+          "| set-up wall (s) | set-up CPU (s) | planarity after | peak MB |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|")
     for size in sizes:
         out = subprocess.run([sys.executable, __file__, "--iteration-row", str(size)],
                              capture_output=True, text=True, check=True)
         r = json.loads(out.stdout.strip().splitlines()[-1])
         solver = "SuperLU, factorized once" if r["free"] <= 20000 else "CG from the current positions"
-        print(f"| F{size} ({r['size']}) | {r['free']} | {solver} | {r['iteration_wall_s']:.2f} "
-              f"| {r['iteration_cpu_s']:.2f} | {r['setup_wall_s']:.2f} | {r['setup_cpu_s']:.2f} "
-              f"| {r['planarity_after_3']:.2e} | {r['peak_mb']:.0f} |", flush=True)
+        print(f"| F{size} ({r['size']}) | {r['free']} | {solver} | {r['iterations']} | {r['iteration_wall_s']:.3f} "
+              f"| {r['iteration_cpu_s']:.3f} | {r['setup_wall_s']:.2f} | {r['setup_cpu_s']:.2f} "
+              f"| {r['planarity_after']:.2e} | {r['peak_mb']:.0f} |", flush=True)
 
 
 HEADER = ("| method | planarity max | planarity mean | to clean surface max (h) | to clean surface mean (h) "
