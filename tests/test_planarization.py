@@ -433,3 +433,20 @@ def test_gauss_newton_never_returns_a_folded_quad(seed, noise, fix):
     held = m.topology.corner_vertices if fix == "corners" else (
         m.topology.boundary_vertices if fix == "boundary" else np.array([], dtype=np.int64))
     np.testing.assert_array_equal(out.vertices[held], m.vertices[held])
+
+
+def test_large_meshes_take_the_cg_global_step_with_the_direct_result(monkeypatch):
+    # above DIRECT_LIMIT free vertices the global step is CG from the current positions (a factorization
+    # of 10⁶ unknowns is out of reach): the same iterates as the factorized step, to the CG tolerance
+    import quadnodes.planarization as P
+
+    m, _ = perturb(hypar(9), tangential=0.1, normal=0.1, seed=5)
+    direct, rep_d = planarize(m, method="local-global", max_iterations=40, adapt=False)
+    monkeypatch.setattr(P, "DIRECT_LIMIT", 10)
+    cg, rep_c = planarize(m, method="local-global", max_iterations=40, adapt=False)
+    assert rep_c.iterations == rep_d.iterations
+    np.testing.assert_allclose(cg.vertices, direct.vertices, rtol=0, atol=1e-6 * m.mean_edge_length)
+    # auto tries no fallback there (each Gauss–Newton or Newton step would factorize)
+    monkeypatch.setattr(P, "NEWTON_LIMIT", 10)
+    _, rep = planarize(m, max_iterations=5)
+    assert rep.methods_tried == ["local-global"]
