@@ -400,7 +400,7 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
               planar_tolerance: float | str = DEFAULT_TOLERANCE, max_iterations: int = 2000,
               planarity_weight: float = 1.0, fairness_weight: float = 0.1, closeness_weight: float = 0.1,
               input_weight: float | None = None, fix: FixMode = "corners",
-              reference_samples: int = 4, method: Literal["auto", "local-global", "newton"] = "auto",
+              reference_samples: int = 4, method: Literal["auto", "local-global", "gauss-newton", "newton"] = "auto",
               newton_steps: int = 30, shape: Literal["keep", "free"] = "keep") -> tuple[QuadMesh, PlanarizeReport]:
     """Make every quad planar (within planar_tolerance: relative, or a length such as "2 mm") while keeping
     structure lines fair and the vertices close to a reference surface (a face or a mesh; they may slide
@@ -427,7 +427,9 @@ def planarize(mesh: QuadMesh, reference: QuadMesh | Face | None = None, fixed: n
     reference_samples : int
         Reference surface sampled this many times finer than the mesh for closest points.
     method : str
-        local-global projection, newton steps with planarity as a hard constraint, or auto (newton where it stalls).
+        local-global projection, newton steps with planarity as a hard constraint, gauss-newton (a planarity
+        penalty with a growing weight, steps that fold nothing), or auto (gauss-newton, then newton, where
+        local-global stalls).
     newton_steps : int
         Most Newton steps.
     shape : str

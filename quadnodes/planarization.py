@@ -26,8 +26,11 @@ It alternates a *local* step (project every quad, find closest points) with a
 on the weights, so its factorization is reused while they stay fixed). When
 the planarity stops improving before the tolerance is met, the planarity
 weight is doubled (and the matrix factorized again). Where that still ends above
-the tolerance, ``method="auto"`` takes Gauss–Newton (SQP) steps from the input
-instead, with planarity as a hard constraint (:func:`_newton`). Weights are relative to
+the tolerance, ``method="auto"`` continues from there with penalty Gauss–Newton
+steps along the vertex normals and a growing planarity weight that never fold a
+quad (:func:`_gauss_newton`; alone: ``method="gauss-newton"``), and if that misses
+too, Gauss–Newton (SQP) steps from the input with planarity as a hard
+constraint (:func:`_newton`). Weights are relative to
 the mean edge length ``h`` of the input, so ``planarize(s·P) == s·planarize(P)``.
 Fixed vertices never move.
 """
@@ -49,7 +52,8 @@ from .mesh import QuadMesh
 from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
-from .linalg import QuadraticProblem, regularization
+from .linalg import Factorization, QuadraticProblem, factorize, regularization
+from .linalg.quadratic import DIRECT_LIMIT
 from .topology import adjacency, fixed_vertices
 from .flatness import DEFAULT_PLANAR_TOLERANCE, resolve_planar_tolerance
 
@@ -60,8 +64,13 @@ __all__ = ["planarize", "PlanarizeReport", "quad_plane_projection", "kept_shape_
 DEFAULT_TOLERANCE = DEFAULT_PLANAR_TOLERANCE
 #: With a reference surface, a weak pull to the input positions keeps vertices from sliding far along it.
 DEFAULT_INPUT_WEIGHT = 0.01
-#: ``method="auto"`` tries Newton steps after an unconverged local/global run up to this many free vertices.
+#: ``method="auto"`` tries Gauss–Newton (then Newton) steps after an unconverged local/global run up to this
+#: many free vertices (each step factorizes a matrix of that size).
 NEWTON_LIMIT = 20000
+#: Above ``DIRECT_LIMIT`` free vertices the global step is CG from the current positions, to this relative
+#: residual (the next local step projects the result anyway; 1e-8 of the right-hand side is far below the
+#: planarity tolerance's scale).
+LARGE_RTOL = 1e-8
 #: The adaptive planarity weight grows at most this much over its start value.
 MAX_WEIGHT_GROWTH = 1e6
 #: An edge shorter than this share of its input length counts as collapsed: the result is not converged.
@@ -414,6 +423,7 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
 def _newton(
     x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
     h: float, closest: Any, tol: float, max_steps: int, relative: bool = True, keep: bool = False,
+    start: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[float], int]:
     """Planarity as a hard constraint: Gauss–Newton (SQP) steps on the fairness and closeness energy.
 
@@ -453,7 +463,7 @@ def _newton(
     rr = np.broadcast_to(np.arange(m)[:, None, None], (m, 4, 3))
     cc = 3 * ca[:, :, None] + np.arange(3)
     use = np.broadcast_to((ca >= 0)[:, :, None], (m, 4, 3))
-    X = X0.copy()
+    X = X0.copy() if start is None else (start - centre) / h
     history: list[float] = []
     steps = 0
     if keep:
@@ -467,7 +477,7 @@ def _newton(
                 return False
             return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
 
-        last_sound, last_sound_p = X0, float(quad_diagonal_distance(X0, faces, relative=relative).max()) * (
+        last_sound, last_sound_p = X.copy(), float(quad_diagonal_distance(X, faces, relative=relative).max()) * (
             1.0 if relative else h)
     for steps in range(1, max_steps + 1):
         target = (closest(X * h + centre)[0] - centre) / h
@@ -506,6 +516,247 @@ def _newton(
     return out, history, steps
 
 
+#: Gauss–Newton (``method="gauss-newton"``): the planarity weight it starts at (in units where the mean edge is 1,
+#: the weight of the squared signed relative planarity of every quad) and its growth when a weight is settled.
+GN_START_WEIGHT = 1e3
+GN_WEIGHT_GROWTH = 4.0
+#: ... when an accepted step lowers the energy by less than this share (the weight is settled).
+GN_SETTLED = 1e-2
+#: ``method="gauss-newton"`` starts from this many local/global iterations at the starting planarity weight.
+GN_WARMUP = 10
+#: Gauss–Newton returns no mesh where a structure-line window turns more than this many times the most any
+#: window turned in the input (thesis eq. 30) ...
+GN_LINE_GROWTH = 2.0
+#: ... or than this, if larger: a tenth of the thesis's zigzag threshold (eq. 30 deviation 0.1), about a 6° kink.
+GN_LINE_FLOOR = 0.01
+
+
+#: Gauss–Newton solves: conjugate gradients preconditioned by the last factorization, to this relative
+#: residual in at most this many steps, else the matrix is factorized anew.
+GN_CG_RTOL = 1e-4
+GN_CG_STEPS = 25
+
+
+def _pcg(K: sp.csr_matrix, b: np.ndarray, precondition: Any, rtol: float, maxiter: int) -> tuple[np.ndarray, bool]:
+    """Preconditioned conjugate gradients for ``K z = b`` from ``z = 0``; whether ``||r|| ≤ rtol ||b||``."""
+    z = np.zeros_like(b)
+    r = b.copy()
+    nb = float(np.linalg.norm(b))
+    if nb == 0.0:
+        return z, True
+    y = precondition(r)
+    d = y.copy()
+    ry = float(r @ y)
+    for _ in range(maxiter):
+        Kd = K @ d
+        dKd = float(d @ Kd)
+        if not dKd > 0:
+            return z, False
+        a = ry / dKd
+        z += a * d
+        r -= a * Kd
+        if float(np.linalg.norm(r)) <= rtol * nb:
+            return z, True
+        y = precondition(r)
+        ry, ry_old = float(r @ y), ry
+        d = y + (ry / ry_old) * d
+    return z, False
+
+
+def _vertex_normals(X: np.ndarray, faces: np.ndarray, gather: sp.csr_matrix) -> np.ndarray:
+    """Unit vertex normals: the sum of the vector areas of the quads around each vertex."""
+    p = X[faces]
+    a = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+    v = gather @ np.repeat(a, 4, axis=0)
+    nv = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.divide(v, nv, out=np.zeros_like(v), where=nv > 0)
+
+
+def _gauss_newton(
+    x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
+    h: float, closest: Any, tol: float, max_steps: int, relative: bool = True, keep: bool = True,
+    start: np.ndarray | None = None, windows: np.ndarray | None = None,
+) -> tuple[np.ndarray, list[float], int, float, int]:
+    """Planarity by penalty: Gauss–Newton steps along the vertex normals with a growing weight and a trust region.
+
+    Minimizes ``E = w_f ||A x||² + w_c ||x − t||² + w_i ||x − x⁰||² + W Σ_f c_f(x)²`` (units of the
+    mean edge length ``h``; ``c_f`` the signed relative planarity of :func:`_planarity_constraints`,
+    ``t`` the closest points, held during a step) over moves ``Δ_i = δ_i n_i`` of the free vertices
+    along their normals: one scalar unknown per vertex, so each step is one sparse symmetric positive
+    definite solve of the size of the local/global matrix,
+    ``(Nᵀ H N + W (G N)ᵀ(G N) + μ D) δ = −Nᵀ ∇E`` (Levenberg–Marquardt damping ``μ``, ``D`` the
+    matrix's diagonal).
+    A step is taken only if it lowers ``E`` and — with ``keep`` — leaves the mesh sound (no quad
+    convex in ``x0`` non-convex, no edge below :data:`KEPT_EDGE_RATIO` of its length in ``x0``); else
+    ``μ`` grows ×4 and the step is solved again (a trust region). When a step lowers ``E`` by less than 1 %,
+    the weight at hand is settled and ``W`` grows by :data:`GN_WEIGHT_GROWTH` (continuation from
+    :data:`GN_START_WEIGHT`), until every quad meets ``tol`` and no structure-line window (``windows``)
+    bends more than :data:`GN_LINE_GROWTH` times the most one bent in ``x0`` (or
+    :data:`GN_LINE_FLOOR`, if larger). The iterates may pass through such a kink; if the last one
+    has one, the last iterate without is returned (or the start). Tangential moves are left to the
+    local/global iteration that provides ``start``.
+
+    Returns the positions, the maximum planarity after every step, the number of steps, the final
+    weight ``W`` and the number of factorizations.
+    """
+    w_f, w_c, w_i = weights
+    n = len(x0)
+    centre = x0.mean(axis=0)
+    X0 = (x0 - centre) / h
+    k = fi.size
+    free = np.zeros(n, dtype=bool)
+    free[fi] = True
+    col = np.full(n, -1, dtype=np.int64)
+    col[fi] = np.arange(k)
+    F = (F * h**2).tocsr()
+    Fff, Ffx = F[fi][:, fi].tocsr(), F[fi][:, ~free]
+    H0 = (w_f * Fff + (w_c + w_i) * sp.identity(k)).tocoo()
+    H0 = sp.coo_matrix((H0.data, (H0.row, H0.col)), shape=(k, k))
+    fixed_F = w_f * (Ffx @ X0[~free]) if Ffx.shape[1] else np.zeros((k, 3))
+    cols = col[faces]
+    active = (cols >= 0).any(axis=1)
+    fa, ca = faces[active], cols[active]
+    m = len(fa)
+    use = ca >= 0
+    g_rows = np.broadcast_to(np.arange(m)[:, None], (m, 4))[use]
+    g_cols = ca[use]
+    m4 = faces.size
+    gather = sp.csr_matrix((np.ones(m4), (faces.reshape(-1), np.arange(m4))), shape=(n, m4))
+    # sums the (m, 4) per-corner values of the active quads into the free unknowns
+    gather_free = sp.csr_matrix((np.ones(g_cols.size), (g_cols, np.flatnonzero(use.reshape(-1)))), shape=(k, 4 * m))
+    X = X0.copy() if start is None else (start - centre) / h
+    scale = 1.0 if relative else h
+
+    def planarity(Y: np.ndarray) -> float:
+        return float(quad_diagonal_distance(Y, faces, relative=relative).max()) * scale
+
+    edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    min_len = KEPT_EDGE_RATIO * np.linalg.norm(X0[edges[:, 1]] - X0[edges[:, 0]], axis=1)
+    convex0 = _validate.corner_turns(X0, faces)[0] == 0
+
+    def sound(Y: np.ndarray) -> bool:
+        if (np.linalg.norm(Y[edges[:, 1]] - Y[edges[:, 0]], axis=1) < min_len).any():
+            return False
+        return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
+
+    # the structure lines may not kink: no window may turn more than GN_LINE_GROWTH times the most any
+    # window turned in the input, or GN_LINE_FLOOR (Gauss–Newton can buy planarity with a
+    # sharp bend where a quad has a single free corner, which the fairness energy alone, against a growing
+    # W, does not stop)
+    if windows is not None and len(windows):
+        from .zigzag import window_deviation
+
+        line_bound = max(GN_LINE_GROWTH * float(window_deviation(X0, windows).max()), GN_LINE_FLOOR)
+
+        def lines_ok(Y: np.ndarray) -> bool:
+            return bool(window_deviation(Y, windows).max() <= line_bound)
+    else:
+        def lines_ok(Y: np.ndarray) -> bool:
+            return True
+
+    guard = keep and sound(X)  # an unsound start (shape="free") is not held to the bounds
+
+    def target(Y: np.ndarray) -> np.ndarray:
+        return (closest(Y * h + centre)[0] - centre) / h
+
+    def energy(Y: np.ndarray, T: np.ndarray, W: float) -> float:
+        Yf = Y[fi]
+        c = _planarity_constraints(Y, fa)[0]
+        return float(w_f * np.sum(Y * (F @ Y)) + w_c * np.sum((Yf - T[fi]) ** 2)
+                     + w_i * np.sum((Yf - X0[fi]) ** 2) + W * np.sum(c * c))
+
+    lu: Factorization | None = None
+
+    def solve(K: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        """``K⁻¹ b``: conjugate gradients preconditioned by the last factorization, else a new one.
+
+        Between steps ``K`` changes a little (normals, gradients, damping, a weight ×4), so the last
+        factorization is a close preconditioner; a Gauss–Newton step needs no exact solve.
+        """
+        nonlocal lu, facts
+        if lu is not None:
+            z, ok = _pcg(K, b, lu.solve, GN_CG_RTOL, GN_CG_STEPS)
+            if ok:
+                return z
+        lu = factorize(K, kind="spd", what="planarize (Gauss-Newton step)")
+        facts += 1
+        return lu.solve(b)
+
+    W = GN_START_WEIGHT
+    mu = 1e-3
+    last_fair, last_fair_p = X, planarity(X)
+    T = target(X)
+    E = energy(X, T, W)
+    history: list[float] = []
+    steps = facts = 0
+    # unknowns: one per free vertex (its move along its normal), three (x, y, z) for the free corners of
+    # quads with two or more held corners — along a held boundary a move along the normal alone flattens
+    # such a quad only by twisting its neighbours (their rows of G cancel), so it needs to slide
+    near_held = ~free
+    near_held[faces[(~free)[faces].sum(axis=1) >= 2]] = True
+    three = near_held[fi]
+    width = np.where(three, 3, 1)
+    first = np.concatenate([[0], np.cumsum(width)[:-1]])
+    dof = int(width.sum())
+    k3, k1 = np.flatnonzero(three), np.flatnonzero(~three)
+    b_rows = np.concatenate([(3 * k1[:, None] + np.arange(3)).ravel(), (3 * k3[:, None] + np.arange(3)).ravel()])
+    b_cols = np.concatenate([np.repeat(first[k1], 3), (first[k3][:, None] + np.arange(3)).ravel()])
+    Hk = sp.kron(sp.csr_matrix(H0), sp.identity(3), format="csr")
+    rr = np.broadcast_to(np.arange(m)[:, None, None], (m, 4, 3))
+    cc = 3 * ca[:, :, None] + np.arange(3)
+    use3 = np.broadcast_to(use[:, :, None], (m, 4, 3))
+    for steps in range(1, max_steps + 1):
+        c, grad = _planarity_constraints(X, fa)
+        nv = _vertex_normals(X, faces, gather)[fi]
+        B = sp.csr_matrix((np.concatenate([nv[k1].ravel(), np.ones(3 * k3.size)]), (b_rows, b_cols)),
+                          shape=(3 * k, dof))
+        GB = (sp.csr_matrix((grad[use3], (rr[use3], cc[use3])), shape=(m, 3 * k)) @ B).tocsr()
+        Xf = X[fi]
+        g3 = w_f * (Fff @ Xf) + fixed_F + w_c * (Xf - T[fi]) + w_i * (Xf - X0[fi])
+        g3 += W * (gather_free @ (grad * c[:, None, None]).reshape(-1, 3))
+        gr = B.T @ g3.reshape(-1)
+        M = (B.T @ Hk @ B + W * (GB.T @ GB)).tocsr()
+        # Marquardt's damping μ·diag(M), plus a floor far below the matrix's scale (an unknown the energy
+        # leaves free, e.g. a vertex whose quads' areas cancel): definite at every weight
+        diag, floor = M.diagonal(), regularization(M, 1e-10)
+        accepted = False
+        while mu <= 1e8:
+            Y = X.copy()
+            try:
+                Y[fi] -= (B @ solve((M + sp.diags(mu * diag + floor)).tocsr(), gr)).reshape(k, 3)
+            except InputError:  # numerically singular even so: stop where we are
+                break
+            if not guard or sound(Y):
+                TY = target(Y)
+                EY = energy(Y, TY, W)
+                if EY < E:
+                    accepted = True
+                    break
+            mu *= 4.0
+        if not accepted:
+            break  # no sound step lowers the energy at any damping: stop where we are
+        drop = (E - EY) / max(abs(E), 1e-300)
+        X, T, E = Y, TY, EY
+        mu = max(mu / 3.0, 1e-6)
+        pmax = planarity(X)
+        history.append(pmax)
+        report_progress(min(steps / max_steps, 1.0), f"Gauss-Newton step {steps}: planarity max {pmax:.2e}")
+        fair_now = lines_ok(X)
+        if fair_now:
+            last_fair, last_fair_p = X, pmax
+        if pmax <= tol and fair_now:
+            break
+        if drop < GN_SETTLED:
+            W *= GN_WEIGHT_GROWTH
+            E = energy(X, T, W)
+    if last_fair is not X:  # the last steps bent a line too far: back to the last iterate that did not
+        X = last_fair
+        history.append(last_fair_p)
+    out = x0.copy()  # fixed vertices exactly as given
+    out[fi] = X[fi] * h + centre
+    return out, history, steps, W, facts
+
+
 @_validate.renamed(tolerance="planar_tolerance")
 def planarize(
     mesh: QuadMesh,
@@ -522,7 +773,7 @@ def planarize(
     reference_samples: int = 4,
     adapt: bool = True,
     anderson: int = 5,
-    method: Literal["auto", "local-global", "newton"] = "auto",
+    method: Literal["auto", "local-global", "gauss-newton", "newton"] = "auto",
     newton_steps: int = 30,
     shape: Shape = "keep",
 ) -> tuple[QuadMesh, PlanarizeReport]:
@@ -564,16 +815,24 @@ def planarize(
         History length of the Anderson acceleration of the local/global
         iteration (0: plain iteration). When an accelerated step made the
         fixed-point residual grow, the history restarts with a plain step.
-    method : {"auto", "local-global", "newton"}
-        ``"local-global"``: the projection iteration above. ``"newton"``:
+    method : {"auto", "local-global", "gauss-newton", "newton"}
+        ``"local-global"``: the projection iteration above. ``"gauss-newton"``:
+        :data:`GN_WARMUP` local/global steps at the starting weight, then
+        penalty Gauss–Newton steps (:func:`_gauss_newton`): the planarity of every
+        quad as a squared penalty whose weight grows until the tolerance is met,
+        moves along the vertex normals (all three coordinates next to held
+        vertices), one sparse solve of the local/global matrix's size per step, a
+        step taken only if it lowers the energy and — with ``shape="keep"`` —
+        folds no quad and shortens no edge below the shape bounds. ``"newton"``:
         planarity as a hard constraint, Gauss–Newton (SQP) steps on the fairness
-        and closeness energy, one sparse KKT factorization per step (few steps,
-        each costlier; ``w_p`` and ``adapt`` unused). ``"auto"`` (default):
-        local/global, and when it ends above the tolerance with at most
-        :data:`NEWTON_LIMIT` free vertices, Newton from the input; the result
-        that meets the tolerance (else the flatter one) is returned.
+        and closeness energy from the input, one sparse KKT factorization per step
+        (``w_p`` and ``adapt`` unused). ``"auto"`` (default): local/global, and
+        when it ends above the tolerance with at most :data:`NEWTON_LIMIT` free
+        vertices, Gauss–Newton from its result, then (if that misses too) Newton
+        from the input; the converged result (else the sound one, else the
+        flatter) is returned, local/global first among equals.
     newton_steps : int
-        Cap on Newton steps (>= 1).
+        Cap on Newton and on Gauss–Newton steps (>= 1).
     shape : {"keep", "free"}
         ``"keep"`` (default): no quad convex in the input may turn into a dart or a
         bow-tie, and no edge may shrink below :data:`KEPT_EDGE_RATIO` of its input
@@ -623,7 +882,7 @@ def planarize(
     for value, name in ((w_f, "fairness_weight"), (w_c, "closeness_weight"), (w_i, "input_weight")):
         if value < 0:
             raise InputError(f"{name}: expected a number >= 0, got {value!r}")
-    method = _validate.choice(method, ("auto", "local-global", "newton"), "method")
+    method = _validate.choice(method, ("auto", "local-global", "gauss-newton", "newton"), "method")
     newton_steps = _validate.positive_int(newton_steps, "newton_steps")
     shape = _validate.choice(shape, ("keep", "free"), "shape")
     if not isinstance(adapt, (bool, np.bool_)):
@@ -721,6 +980,14 @@ def planarize(
         met = bool(steps_h) and steps_h[-1] <= tol
         return finish(x, met, its, history + steps_h, w_p, facts + len(steps_h), "newton", steps)
 
+    def run_gauss_newton(start: np.ndarray, its: int, history: list[float], facts: int,
+                         guarded: int) -> tuple[QuadMesh, PlanarizeReport]:
+        x, steps_h, steps, weight, f_gn = _gauss_newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol,
+                                                        newton_steps, relative, keep=shape == "keep", start=start,
+                                                        windows=w if len(w) else None)
+        met = bool(steps_h) and steps_h[-1] <= tol
+        return finish(x, met, its, history + steps_h, weight, facts + f_gn, "gauss-newton", steps, guarded=guarded)
+
     if method == "newton":
         return run_newton(0, [], 0)
     C = _centering_matrix(faces, n) / h**2
@@ -732,8 +999,12 @@ def planarize(
         # ½ xᵀQx − xᵀ(...): the held vertices move to the right-hand side inside the engine;
         # only the held vertices pin the mesh when w_c + w_i == 0 (checked above): kept definite by a shift
         Q = (wp * C + w_f * F + (w_c + w_i) * I).tocsr()
-        return QuadraticProblem(Q, known=known, method="direct", shift=1e-10 if w_c + w_i == 0 else 0.0,
-                                what="planarize (local/global step)")
+        return QuadraticProblem(Q, known=known, method="cg" if large else "direct", rtol=LARGE_RTOL,
+                                shift=1e-10 if w_c + w_i == 0 else 0.0, what="planarize (local/global step)")
+
+    # above DIRECT_LIMIT free vertices the global step is conjugate gradients started from the current
+    # positions (a factorization of a million unknowns takes minutes); below it, one factorization per weight
+    large = fi.size > DIRECT_LIMIT
 
     lu = factor(w_p)
     facts = 1
@@ -755,15 +1026,18 @@ def planarize(
         qv = gather @ q.reshape(-1, 3)
         target, _ = closest(x)
         lin = -((w_p / h**2) * qv + (w_c / h**2) * target + (w_i / h**2) * x0)
-        return lu.solve(lin, Y=xfix)[fi]
+        return lu.solve(lin, Y=xfix, guess=x[fi] if large else None)[fi]
 
+    # method="gauss-newton": a few plain local/global steps at the starting weight (fair, near the
+    # surface, the noise's zigzags out), then the Gauss–Newton continuation takes over
+    lg_cap = min(max_iterations, GN_WARMUP) if method == "gauss-newton" else max_iterations
     x = x0.copy()
     xf = x0[fi]
     acc = _Anderson(anderson) if anderson else None
     history: list[float] = []
     converged = False
     it = last_change = 0
-    for it in range(1, max_iterations + 1):
+    for it in range(1, lg_cap + 1):
         g = step(x)
         xf = acc.update(xf, g) if acc is not None else g
         x[fi] = xf
@@ -774,6 +1048,8 @@ def planarize(
         if pmax <= tol:
             converged = True
             break
+        if method == "gauss-newton":
+            continue
         if adapt and it - last_change >= 10 and pmax > 0.99 * history[-10]:
             if w_p * 2.0 > MAX_WEIGHT_GROWTH * planarity_weight:
                 break  # stalled at the largest weight: the tolerance is out of reach with these constraints
@@ -784,16 +1060,20 @@ def planarize(
             if acc is not None:
                 acc.reset()
     result = finish(x, converged, it, history, w_p, facts, guarded=guarded)
-    if converged or method != "auto" or fi.size > NEWTON_LIMIT:
+    if converged or method == "local-global" or (method == "auto" and fi.size > NEWTON_LIMIT):
         return result
-    other = run_newton(it, history, facts)
+    tried = ["local-global", "gauss-newton"]
+    results = [result, run_gauss_newton(x, it, history, facts, guarded)]
+    if method == "auto" and not results[-1][1].converged:
+        results.append(run_newton(it, history, facts))
+        tried.append("newton")
 
     def rank(r: PlanarizeReport) -> tuple[bool, bool, float]:
         # converged first, then a sound mesh (nothing folded or collapsed), then the flatter
         return (not r.converged, bool(r.nonconvex or r.collapsed_edges), r.planarity_max)
 
-    chosen = other if rank(other[1]) < rank(result[1]) else result
-    return chosen[0], replace(chosen[1], methods_tried=["local-global", "newton"])
+    chosen = min(results, key=lambda r: rank(r[1]))  # the first of equals: local/global before the others
+    return chosen[0], replace(chosen[1], methods_tried=tried)
 
 
 def _quality(before: QuadMesh, after: QuadMesh) -> dict[str, Any]:

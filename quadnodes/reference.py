@@ -9,8 +9,9 @@ A face is sampled once on a fine grid of its parameters (the vectorized B-spline
 or closed-form path of :func:`quadnodes.surfaces.sample`) and handled like a
 reference mesh. Each quad is split into two triangles; a point's closest point
 is searched among the triangles around its nearest reference vertex (a k-d
-tree query, then one vectorized point-triangle projection of trimesh for all
-candidates) — exact whenever the foot point lies in a quad around that vertex,
+tree query, then one vectorized point-triangle region test for all candidates,
+:func:`_triangle_coordinates`, with each triangle's own dot products computed
+once; points in blocks of :data:`CHUNK`) — exact whenever the foot point lies in a quad around that vertex,
 which holds for points within about an edge length of a smooth, evenly sampled
 surface (the tests compare with trimesh's exhaustive search), and about 10×
 faster than that search. The answer is the closest point on the piecewise-flat fine
@@ -34,6 +35,8 @@ __all__ = ["Reference", "as_reference"]
 
 #: Nearest reference vertices whose quads are searched for each point.
 NEAREST = 1
+#: Points handled at once by :meth:`Reference.closest` (bounds its temporary arrays).
+CHUNK = 16384
 
 
 class Reference:
@@ -61,7 +64,6 @@ class Reference:
         self.mesh = _validate.quad_mesh(mesh, "reference")
         self.source = source
         f = mesh.faces
-        self._tris = mesh.vertices[np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])]  # (2m, 3, 3)
         # faces around each vertex, padded with -1 (rows of a ragged incidence list)
         m = len(f)
         flat = f.reshape(-1)
@@ -74,6 +76,15 @@ class Reference:
         self._faces_of = table
         self._m = m
         self._tree = cKDTree(mesh.vertices)
+        # per triangle: corner a, edges ab and ac, and their dot products (the point-independent part of
+        # the closest-point test, computed once)
+        tri = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])  # (2m, 3): each quad split along p0p2
+        v = mesh.vertices
+        self._a = v[tri[:, 0]]
+        self._ab = v[tri[:, 1]] - self._a
+        self._ac = v[tri[:, 2]] - self._a
+        self._gram = np.stack([np.einsum("ij,ij->i", self._ab, self._ab), np.einsum("ij,ij->i", self._ab, self._ac),
+                               np.einsum("ij,ij->i", self._ac, self._ac)], axis=1)
 
     @classmethod
     def from_face(cls, face: Any, nu: int, nv: int) -> Reference:
@@ -94,11 +105,15 @@ class Reference:
         closest : (k, 3) float64
         distance : (k,) float64
         """
-        from trimesh.triangles import closest_point as tri_closest
-
         p = np.asarray(points, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3:
             raise InputError(f"points: expected shape (k, 3), got {p.shape}")
+        out = np.empty_like(p)
+        for lo in range(0, len(p), CHUNK):  # blocks of points: the candidate arrays stay in cache
+            out[lo:lo + CHUNK] = self._closest(p[lo:lo + CHUNK])
+        return out, np.linalg.norm(out - p, axis=1)
+
+    def _closest(self, p: np.ndarray) -> np.ndarray:
         k = min(NEAREST, self.mesh.n_vertices)
         _, near = self._tree.query(p, k=k)
         near = near.reshape(len(p), k)
@@ -107,14 +122,68 @@ class Reference:
         valid = faces >= 0
         cand = np.where(valid, faces, 0)
         tri = np.concatenate([cand, cand + self._m], axis=1)  # both triangles of each quad
-        valid2 = np.concatenate([valid, valid], axis=1)
-        rows = np.repeat(np.arange(len(p)), tri.shape[1])
-        q = tri_closest(self._tris[tri.reshape(-1)], p[rows]).reshape(len(p), tri.shape[1], 3)
-        d2 = np.einsum("ijk,ijk->ij", q - p[:, None], q - p[:, None])
-        d2[~valid2] = np.inf
+        v, w, d2 = _triangle_coordinates(p, self._a, self._ab, self._ac, self._gram, tri)
+        d2[~np.concatenate([valid, valid], axis=1)] = np.inf
         best = np.argmin(d2, axis=1)
-        out = q[np.arange(len(p)), best]
-        return out, np.sqrt(d2[np.arange(len(p)), best])
+        rows = np.arange(len(p))
+        t = tri[rows, best]
+        return self._a[t] + v[rows, best, None] * self._ab[t] + w[rows, best, None] * self._ac[t]
+
+
+def _triangle_coordinates(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ac: np.ndarray, gram: np.ndarray,
+                          tri: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Barycentric coordinates ``(v, w)`` of the closest point of ``p[i]`` on triangle ``tri[i, j]``, and its squared distance.
+
+    Ericson's region test (*Real-Time Collision Detection*, 5.1.5) for every
+    point–candidate pair at once: only the two dot products ``ab·ap`` and ``ac·ap``
+    depend on the point; the triangle's own dot products (``gram``: ``ab·ab``,
+    ``ab·ac``, ``ac·ac``) are computed once. The closest point is ``a + v ab + w ac``.
+
+    Parameters
+    ----------
+    p : (k, 3) float64
+    a, ab, ac : (t, 3) float64
+        Each triangle's first corner and its two edges from it.
+    gram : (t, 3) float64
+    tri : (k, c) int64
+        Candidate triangles of each point.
+
+    Returns
+    -------
+    v, w, d2 : (k, c) float64
+    """
+    ap = p[:, None, :] - a[tri]
+    e1, e2 = ab[tri], ac[tri]
+    d1 = np.einsum("kcj,kcj->kc", e1, ap)
+    d2 = np.einsum("kcj,kcj->kc", e2, ap)
+    g = gram[tri]
+    bb, bc, cc = g[..., 0], g[..., 1], g[..., 2]
+    d3, d4 = d1 - bb, d2 - bc  # ab·bp, ac·bp
+    d5, d6 = d1 - bc, d2 - cc  # ab·cp, ac·cp
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        inside_v, inside_w = vb / denom, vc / denom
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    conds = [
+        (d1 <= 0) & (d2 <= 0),                              # vertex a
+        (d3 >= 0) & (d4 <= d3),                             # vertex b
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),                  # edge ab
+        (d6 >= 0) & (d5 <= d6),                             # vertex c
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),                  # edge ac
+        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),        # edge bc
+    ]
+    zero, one = np.zeros_like(d1), np.ones_like(d1)
+    v = np.select(conds, [zero, one, t_ab, zero, zero, 1.0 - t_bc], inside_v)
+    w = np.select(conds, [zero, zero, zero, one, t_ac, t_bc], inside_w)
+    # a degenerate (zero-area) triangle leaves no finite interior answer: fall back to its corner a
+    bad = ~(np.isfinite(v) & np.isfinite(w))
+    v[bad] = 0.0
+    w[bad] = 0.0
+    r = ap - v[..., None] * e1 - w[..., None] * e2
+    return v, w, np.einsum("kcj,kcj->kc", r, r)
 
 
 def as_reference(reference: Any, like: QuadMesh, *, samples: int = 4, name: str = "reference") -> Reference:

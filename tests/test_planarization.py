@@ -244,9 +244,10 @@ def test_auto_falls_back_to_newton_where_local_global_stalls():
     # Newton reaches the tolerance only by folding two quads next to the held boundary
     nw, rep_nw = planarize(faired, fix="boundary", method="newton", shape="free")
     assert rep_nw.planarity_max <= 1e-3 and rep_nw.nonconvex and not rep_nw.converged
-    # auto tries both (and reports both) but returns the sound mesh, not the flatter folded one
+    # auto tries Gauss–Newton from the stalled local/global mesh (issue 15: it would need a kinked line
+    # here), then Newton from the input; every method tried is reported, the sound mesh returned
     out, rep = planarize(faired, fix="boundary", shape="free")
-    assert rep.methods_tried == ["local-global", "newton"]  # every method tried is reported (issue 16)
+    assert rep.methods_tried == ["local-global", "gauss-newton", "newton"]
     assert rep.method == "local-global" and rep.nonconvex == []
     _check_quality(faired, out, rep)
     assert rep.iterations == rep_lg.iterations  # the local/global iterations it tried first
@@ -370,3 +371,82 @@ def test_kept_shape_projection_checks_its_input():
         kept_shape_projection(v, f, rest=v[:-1])
     with pytest.raises(InputError, match="faces"):
         kept_shape_projection(v, f + 100, rest=v)
+
+
+def _sound(before, after, keep=0.3):
+    """No quad convex in ``before`` non-convex in ``after``, no edge below ``keep`` of its length."""
+    e = before.topology.edges
+    ratio = (np.linalg.norm(after.vertices[e[:, 1]] - after.vertices[e[:, 0]], axis=1)
+             / np.linalg.norm(before.vertices[e[:, 1]] - before.vertices[e[:, 0]], axis=1))
+    return not (nonconvex_panels(after) & ~nonconvex_panels(before)).any() and ratio.min() >= keep - 1e-12
+
+
+def test_gauss_newton_meets_the_tolerance_on_a_free_form_sample_in_a_few_steps():
+    # a wavy B-spline face sampled 30 × 30 (not a conjugate net): local/global needs ~280 iterations,
+    # Gauss–Newton a few steps after its 10 warm-up iterations; sound, corners held, lines as fair
+    from quadnodes import surfaces
+
+    face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
+    clean = surfaces.sample(face, 30, 30)
+    faired, _ = fair(perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")[0], iterations=3)
+    out, rep = planarize(faired, reference=clean, method="gauss-newton")
+    assert rep.converged and rep.method == "gauss-newton" and rep.methods_tried == ["local-global", "gauss-newton"]
+    assert rep.planarity_max <= 1e-3 and rep.iterations == 10 and 1 <= rep.newton_steps <= 10
+    assert _sound(faired, out)
+    _check_quality(faired, out, rep)
+    c = faired.topology.corner_vertices
+    np.testing.assert_array_equal(out.vertices[c], faired.vertices[c])
+    w = faired.topology.windows
+    assert window_deviation(out.vertices, w).max() <= max(2 * window_deviation(faired.vertices, w).max(), 0.01)
+    lg, rep_lg = planarize(faired, reference=clean, method="local-global")
+    assert rep_lg.converged and rep_lg.iterations > 10 * (rep.iterations + rep.newton_steps)
+
+
+def test_gauss_newton_does_not_buy_planarity_with_a_kinked_line():
+    # E1 with its noisy boundary held: planar quads there need a sharp bend of the lines next to the
+    # boundary (or folds, as Newton makes); Gauss–Newton returns its last iterate without such a kink,
+    # unconverged, and auto keeps the flatter sound local/global mesh
+    from quadnodes import surfaces
+
+    clean = surfaces.example("E1")
+    faired, _ = fair(perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")[0], iterations=3)
+    w = faired.topology.windows
+    bound = max(2 * window_deviation(faired.vertices, w).max(), 0.01)
+    out, rep = planarize(faired, fix="boundary", method="gauss-newton")
+    assert not rep.converged and _sound(faired, out)
+    assert window_deviation(out.vertices, w).max() <= bound + 1e-12
+    _check_quality(faired, out, rep)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 10_000), noise=st.floats(0.05, 0.3), fix=st.sampled_from(["corners", "boundary", "none"]))
+def test_gauss_newton_never_returns_a_folded_quad(seed, noise, fix):
+    # whatever it reaches, the accepted steps keep every quad convex and every edge above the shape bound
+    m, _ = perturb(hypar(7, rise=0.6), tangential=noise, normal=noise, seed=seed, fix="corners")
+    if nonconvex_panels(m).any():
+        return  # the bound is stated for quads convex in the input
+    out, rep = planarize(m, fix=fix, method="gauss-newton", planar_tolerance=1e-4)
+    assert _sound(m, out)
+    _check_quality(m, out, rep)
+    assert rep.nonconvex == [] and rep.collapsed_edges == 0
+    assert rep.planarity_max <= rep.planarity_max_before
+    held = m.topology.corner_vertices if fix == "corners" else (
+        m.topology.boundary_vertices if fix == "boundary" else np.array([], dtype=np.int64))
+    np.testing.assert_array_equal(out.vertices[held], m.vertices[held])
+
+
+def test_large_meshes_take_the_cg_global_step_with_the_direct_result(monkeypatch):
+    # above DIRECT_LIMIT free vertices the global step is CG from the current positions (a factorization
+    # of 10⁶ unknowns is out of reach): the same iterates as the factorized step, to the CG tolerance
+    import quadnodes.planarization as P
+
+    m, _ = perturb(hypar(9), tangential=0.1, normal=0.1, seed=5)
+    direct, rep_d = planarize(m, method="local-global", max_iterations=40, adapt=False)
+    monkeypatch.setattr(P, "DIRECT_LIMIT", 10)
+    cg, rep_c = planarize(m, method="local-global", max_iterations=40, adapt=False)
+    assert rep_c.iterations == rep_d.iterations
+    np.testing.assert_allclose(cg.vertices, direct.vertices, rtol=0, atol=1e-6 * m.mean_edge_length)
+    # auto tries no fallback there (each Gauss–Newton or Newton step would factorize)
+    monkeypatch.setattr(P, "NEWTON_LIMIT", 10)
+    _, rep = planarize(m, max_iterations=5)
+    assert rep.methods_tried == ["local-global"]

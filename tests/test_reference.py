@@ -88,3 +88,23 @@ def test_fair_with_a_reference_stays_closer_to_the_design_surface():
 
     assert detect(slid, 0.1).n_free == 0
     assert np.isfinite(slid.vertices).all() and h > 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 100_000), spread=st.floats(0.05, 3.0))
+def test_triangle_kernel_equals_trimesh_point_by_point(seed, spread):
+    # the vectorized region test of Reference.closest against trimesh's closest_point, per pair
+    from trimesh.triangles import closest_point
+
+    from quadnodes.reference import _triangle_coordinates
+
+    rng = np.random.default_rng(seed)
+    tris = rng.normal(size=(400, 3, 3))
+    pts = rng.normal(scale=spread, size=(400, 3))
+    a, ab, ac = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    gram = np.stack([(ab * ab).sum(1), (ab * ac).sum(1), (ac * ac).sum(1)], axis=1)
+    v, w, d2 = _triangle_coordinates(pts, a, ab, ac, gram, np.arange(400)[:, None])
+    mine = a + v[:, :1] * ab + w[:, :1] * ac
+    np.testing.assert_allclose(mine, closest_point(tris, pts), atol=1e-9)
+    np.testing.assert_allclose(np.sqrt(d2[:, 0]), np.linalg.norm(mine - pts, axis=1), atol=1e-9)
+    assert ((v >= -1e-12) & (w >= -1e-12) & (v + w <= 1 + 1e-12)).all()  # on the triangle

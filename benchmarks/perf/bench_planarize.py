@@ -19,6 +19,10 @@ Rows
 - quadnodes, reference = face: the same with ``reference=`` the build123d face
   (sampled 4× finer inside ``planarize``; the sampling is part of the time);
 - quadnodes, no reference: ``planarize(faired)`` — closeness to the input vertices;
+- quadnodes Gauss–Newton: ``planarize(faired, reference=clean, method="gauss-newton")``
+  — 10 local/global steps, then penalty Gauss–Newton steps along the vertex normals
+  with a growing planarity weight (issue 15); the iterations column gives both counts
+  and the factorizations;
 - quadnodes Newton: ``planarize(faired, reference=clean, method="newton")`` —
   planarity as a hard constraint, Gauss–Newton/SQP steps (one KKT factorization
   each); on F100 only with ``--slow``. (The default ``method="auto"`` rows above
@@ -50,6 +54,8 @@ Columns
 - edge ratio min: the shortest edge relative to its length in the faired input;
   folded: quads convex in the faired input that are darts or bow-ties in the
   result (``quadnodes.flatness.nonconvex_panels``) — a sound result has none;
+- CPU time: this process's CPU time during the call (the machine is shared: wall time
+  grows with the load, CPU time much less);
 - wall time: the planarization call only (mesh construction, noise, fairing, the
   mesh's structure lines and module imports excluded); peak MB: that row's subprocess peak resident memory (ru_maxrss) minus
   its resident memory just before the call.
@@ -62,7 +68,14 @@ quadnodes rows use ``shape="keep"`` (the default) unless ``--shape free`` is giv
 and ``shape="keep"`` one after the other in one process, so both see the same
 machine load, and whether the two results are bit-identical.
 
+``--iteration``: instead of the tables, one local/global iteration (wall, CPU, set-up,
+peak memory) on the F100 recipe at 100×100, and with ``--big`` at 1000×1000 (built
+without the 4× finer sample; ~6 min to build on 2 cores): see :func:`run_iteration`.
+Above 20,000 free vertices the global step is conjugate gradients started from the
+current positions instead of a factorization.
+
 Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
+      python benchmarks/perf/bench_planarize.py --iteration [--big]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
@@ -84,12 +97,13 @@ import _common  # noqa: E402
 
 EXAMPLES = ("E1", "E2", "E3", "E4")
 FREEFORM = "F100"
-KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "qn_newton", "igl_default", "igl_tol")
+KINDS = ("input", "qn_mesh", "qn_face", "qn_none", "qn_gn", "qn_newton", "igl_default", "igl_tol")
 LABELS = {
     "input": "input (faired)",
     "qn_mesh": "quadnodes, reference = clean mesh",
     "qn_face": "quadnodes, reference = face",
     "qn_none": "quadnodes, no reference",
+    "qn_gn": "quadnodes Gauss–Newton, reference = clean mesh",
     "qn_newton": "quadnodes Newton, reference = clean mesh",
     "igl_default": "libigl, maxIter 100, threshold 5e-3 (default)",
     "igl_tol": "libigl, maxIter 1000, threshold 1e-3",
@@ -133,17 +147,21 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
     _ = faired.topology.windows  # built before timing, like the input of a graph node (cached on the mesh)
     base = _common.rss_mb()
     t = time.perf_counter()
+    cpu = time.process_time()
     iters = "—"
     if kind == "input":
         out = faired
     elif kind.startswith("qn_"):
-        ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean}[kind]
-        out, rep = planarize(faired, reference=ref, method="newton" if kind == "qn_newton" else "auto", shape=shape)
+        ref = {"qn_mesh": clean, "qn_face": face, "qn_none": None, "qn_newton": clean, "qn_gn": clean}[kind]
+        method = {"qn_newton": "newton", "qn_gn": "gauss-newton"}.get(kind, "auto")
+        out, rep = planarize(faired, reference=ref, method=method, shape=shape)
         met = "met" if rep.converged else "NOT met"
         if rep.method == "newton" and kind != "qn_newton":
             iters = f"{rep.iterations} + {rep.newton_steps} Newton ({met})"
         elif rep.method == "newton":
             iters = f"{rep.newton_steps} Newton steps ({met})"
+        elif rep.method == "gauss-newton":
+            iters = f"{rep.iterations} + {rep.newton_steps} Gauss–Newton ({rep.factorizations} fact., {met})"
         else:
             iters = f"{rep.iterations} ({rep.factorizations} fact., {met})"
     else:
@@ -151,6 +169,7 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
         v = igl.planarize_quad_mesh(faired.vertices, faired.faces, max_iter, thr)
         out = faired.with_vertices(np.ascontiguousarray(v, dtype=np.float64))
     wall = time.perf_counter() - t
+    cpu = time.process_time() - cpu
     peak = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base, 0.0)
     h = clean.mean_edge_length
     pl = diagonal_distance(out)
@@ -173,13 +192,78 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
         "surface_max_h": float(ds.max()), "surface_mean_h": float(ds.mean()),
         "moved_max_h": float(moved.max()), "zigzag_mean": float(zz.mean()),
         "iterations": iters, "wall_s": None if kind == "input" else wall,
+        "cpu_s": None if kind == "input" else cpu,
         "peak_mb": None if kind == "input" else peak,
         "size": f"{clean.grid_shape[0]}×{clean.grid_shape[1]}",
     }
 
 
+def _big_case(size: int):
+    """(clean, faired) of the F100 recipe at ``size × size`` (no 4× finer sample: 16 M points at 1000)."""
+    from quadnodes import surfaces
+    from quadnodes.fairing import fair
+    from quadnodes.noise import perturb
+
+    face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
+    clean = surfaces.sample(face, size, size)
+    noisy, _ = perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")
+    faired, _ = fair(noisy, iterations=3)
+    return clean, faired
+
+
+def run_iteration(size: int) -> dict:
+    """Local/global iterations on the F100 recipe at ``size × size``, reference = clean mesh.
+
+    ``planarize(faired, reference=clean, method="local-global", adapt=False)`` with
+    ``max_iterations`` 11 (100×100) or 3 (1000×1000). Every iteration ends with one call of
+    ``quad_diagonal_distance`` (the stop test, in this and in earlier versions of the module),
+    so the time between consecutive calls is one iteration: the median of those differences
+    (wall and CPU) is reported; set-up is the time to the first call minus one iteration (matrices,
+    the reference's search structure, the first factorization or CG set-up). Peak MB: this
+    process's peak resident memory above its memory before the call.
+    """
+    import quadnodes.planarization as P
+
+    clean, faired = _big_case(size)
+    _ = faired.topology.windows
+    stamps: list[tuple[float, float]] = []
+    measure = P.quad_diagonal_distance
+
+    def stamped(*args, **kwargs):
+        out = measure(*args, **kwargs)
+        stamps.append((time.perf_counter(), time.process_time()))
+        return out
+
+    P.quad_diagonal_distance = stamped
+    base = _common.rss_mb()
+    t, c = time.perf_counter(), time.process_time()
+    _, rep = P.planarize(faired, reference=clean, method="local-global", adapt=False,
+                         max_iterations=11 if size <= 300 else 3)
+    P.quad_diagonal_distance = measure
+    st = np.array(stamps)
+    step_wall, step_cpu = np.median(np.diff(st[:, 0])), np.median(np.diff(st[:, 1]))
+    return {"size": f"{size}×{size}", "free": int(faired.n_vertices - rep.n_fixed), "iterations": len(stamps),
+            "iteration_wall_s": float(step_wall), "iteration_cpu_s": float(step_cpu),
+            "setup_wall_s": float(st[0, 0] - t - step_wall), "setup_cpu_s": float(st[0, 1] - c - step_cpu),
+            "planarity_after": rep.planarity_max, "peak_mb": max(_common.peak_mb() - base, 0.0)}
+
+
+def _iteration_table(sizes: list[int]) -> None:
+    print("| mesh | free vertices | global step | iterations | one iteration wall (s) | one iteration CPU (s) "
+          "| set-up wall (s) | set-up CPU (s) | planarity after | peak MB |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|")
+    for size in sizes:
+        out = subprocess.run([sys.executable, __file__, "--iteration-row", str(size)],
+                             capture_output=True, text=True, check=True)
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        solver = "SuperLU, factorized once" if r["free"] <= 20000 else "CG from the current positions"
+        print(f"| F{size} ({r['size']}) | {r['free']} | {solver} | {r['iterations']} | {r['iteration_wall_s']:.3f} "
+              f"| {r['iteration_cpu_s']:.3f} | {r['setup_wall_s']:.2f} | {r['setup_cpu_s']:.2f} "
+              f"| {r['planarity_after']:.2e} | {r['peak_mb']:.0f} |", flush=True)
+
+
 HEADER = ("| method | planarity max | planarity mean | to clean surface max (h) | to clean surface mean (h) "
-          "| moved max (h) | zigzag mean | edge ratio min | folded | iterations | wall time (s) | peak MB |")
+          "| moved max (h) | zigzag mean | edge ratio min | folded | iterations | wall time (s) | CPU time (s) | peak MB |")
 
 
 def main() -> None:
@@ -191,10 +275,21 @@ def main() -> None:
                     help="planarize's shape setting for the quadnodes rows (default keep)")
     ap.add_argument("--shapes", action="store_true",
                     help="compare shape='free' and shape='keep' on every quadnodes row (one table)")
+    ap.add_argument("--iteration", action="store_true",
+                    help="instead of the tables: one local/global iteration on the F100 recipe at 100×100 and "
+                         "(with --big) 1000×1000, wall and CPU time, peak memory")
+    ap.add_argument("--big", action="store_true", help="with --iteration: add 1000×1000 (~6 min to build)")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--iteration-row", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
         print(json.dumps(run_row(args.row[0], args.row[1], args.shape)))
+        return
+    if args.iteration_row:
+        print(json.dumps(run_iteration(args.iteration_row)))
+        return
+    if args.iteration:
+        _iteration_table([100] + ([1000] if args.big else []))
         return
     cases = list(EXAMPLES) + ([] if args.quick else [FREEFORM])
     if args.shapes:
@@ -211,13 +306,14 @@ def main() -> None:
             r = json.loads(out.stdout.strip().splitlines()[-1])
             worst = max(worst, r["igl_measure_diff"])
             wall = "—" if r["wall_s"] is None else f"{r['wall_s']:.2f}"
+            cpu = "—" if r["cpu_s"] is None else f"{r['cpu_s']:.2f}"
             peak = "—" if r["peak_mb"] is None else f"{r['peak_mb']:.0f}"
             lines.append(f"| {LABELS[kind]} | {r['planarity_max']:.2e} | {r['planarity_mean']:.2e} "
                          f"| {r['surface_max_h']:.3f} | {r['surface_mean_h']:.3f} | {r['moved_max_h']:.3f} "
                          f"| {r['zigzag_mean']:.2e} | {r['edge_ratio_min']:.3f} | {r['folded']} "
-                         f"| {r['iterations']} | {wall} | {peak} |")
+                         f"| {r['iterations']} | {wall} | {cpu} | {peak} |")
             if len(lines) == 1:
-                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|")
+                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|")
             print(lines[-1], flush=True)
         if name == FREEFORM and not args.slow:
             print("\n(libigl at threshold 1e-3 skipped on this mesh: run with --slow)")
