@@ -420,6 +420,23 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
     return c, grad
 
 
+def _scaled_free_system(x0: np.ndarray, fi: np.ndarray, F: sp.spmatrix, h: float) -> tuple:
+    """The Newton-type steps' common set-up, in units of the mean edge length ``h`` about the centroid:
+    ``(centre, X0, k, free, col, F, Fff, Ffx)`` — scaled input, the free mask and index map, and the
+    fairness matrix (AᵀA scaled by ``h²``: its coefficients go as 1/length) with its free-free and
+    free-held blocks."""
+    n = len(x0)
+    centre = x0.mean(axis=0)
+    X0 = (x0 - centre) / h
+    k = fi.size
+    free = np.zeros(n, dtype=bool)
+    free[fi] = True
+    col = np.full(n, -1, dtype=np.int64)
+    col[fi] = np.arange(k)
+    F = (F * h**2).tocsr()
+    return centre, X0, k, free, col, F, F[fi][:, fi].tocsr(), F[fi][:, ~free]
+
+
 def _newton(
     x0: np.ndarray, faces: np.ndarray, fi: np.ndarray, F: sp.csr_matrix, weights: tuple[float, float, float],
     h: float, closest: Any, tol: float, max_steps: int, relative: bool = True, keep: bool = False,
@@ -439,16 +456,7 @@ def _newton(
     Returns the positions, the maximum planarity after every step and the number of steps.
     """
     w_f, w_c, w_i = weights
-    n = len(x0)
-    centre = x0.mean(axis=0)
-    X0 = (x0 - centre) / h
-    k = fi.size
-    free = np.zeros(n, dtype=bool)
-    free[fi] = True
-    col = np.full(n, -1, dtype=np.int64)
-    col[fi] = np.arange(k)
-    F = F * h**2  # AᵀA in units of the mean edge length (its coefficients go as 1/length)
-    Fff, Ffx = F[fi][:, fi], F[fi][:, ~free]
+    centre, X0, k, free, col, F, Fff, Ffx = _scaled_free_system(x0, fi, F, h)
     H0 = (w_f * Fff + (w_c + w_i) * sp.identity(k)).tocsr()
     # a Levenberg–Marquardt damping far below the energy's scale keeps H positive definite even where
     # the energy leaves some motion free (closeness 0, nothing held on a torus): the KKT matrix is then
@@ -600,16 +608,7 @@ def _gauss_newton(
     weight ``W`` and the number of factorizations.
     """
     w_f, w_c, w_i = weights
-    n = len(x0)
-    centre = x0.mean(axis=0)
-    X0 = (x0 - centre) / h
-    k = fi.size
-    free = np.zeros(n, dtype=bool)
-    free[fi] = True
-    col = np.full(n, -1, dtype=np.int64)
-    col[fi] = np.arange(k)
-    F = (F * h**2).tocsr()
-    Fff, Ffx = F[fi][:, fi].tocsr(), F[fi][:, ~free]
+    centre, X0, k, free, col, F, Fff, Ffx = _scaled_free_system(x0, fi, F, h)
     H0 = (w_f * Fff + (w_c + w_i) * sp.identity(k)).tocoo()
     H0 = sp.coo_matrix((H0.data, (H0.row, H0.col)), shape=(k, k))
     fixed_F = w_f * (Ffx @ X0[~free]) if Ffx.shape[1] else np.zeros((k, 3))
@@ -621,7 +620,7 @@ def _gauss_newton(
     g_rows = np.broadcast_to(np.arange(m)[:, None], (m, 4))[use]
     g_cols = ca[use]
     m4 = faces.size
-    gather = sp.csr_matrix((np.ones(m4), (faces.reshape(-1), np.arange(m4))), shape=(n, m4))
+    gather = sp.csr_matrix((np.ones(m4), (faces.reshape(-1), np.arange(m4))), shape=(len(x0), m4))
     # sums the (m, 4) per-corner values of the active quads into the free unknowns
     gather_free = sp.csr_matrix((np.ones(g_cols.size), (g_cols, np.flatnonzero(use.reshape(-1)))), shape=(k, 4 * m))
     X = X0.copy() if start is None else (start - centre) / h
