@@ -419,10 +419,17 @@ def _constrained(solver: str, P: sp.csc_matrix, b: np.ndarray, start: np.ndarray
     return (*_fista(P, b, start, cen, ax, r, h, tol, max_it), 0)
 
 
-def _order(nd: np.ndarray | None, size: int, group: np.ndarray | None = None) -> np.ndarray | str:
+def _order(nd: np.ndarray | None, size: int, group: np.ndarray | None = None, coupled: float = 1.0
+           ) -> np.ndarray | str:
     """The order to factorize a system of ``size`` unknowns in: the vertices' nested dissection (each
-    vertex's unknowns together, ``group`` the vertex of every unknown) when it is large, else minimum degree."""
-    if nd is None or size < NESTED_DISSECTION_MIN:
+    vertex's unknowns together, ``group`` the vertex of every unknown) when it is large, else minimum degree.
+
+    A Newton system whose vertices are mostly free of active constraints (``coupled``, the fraction with
+    one, below ½) is three copies of the vertex system (x, y, z) joined at a few vertices: minimum degree
+    keeps the copies apart, a vertex order joins them in every separator above a coupled vertex (at 100²
+    with 1 % coupled: 2.3 M factor entries against 4.8 M, 0.8 s against 1.4 s of CPU).
+    """
+    if nd is None or size < NESTED_DISSECTION_MIN or coupled < 0.5:
         return "minimum_degree"
     return nd if group is None else expand_order(nd, group)
 
@@ -584,7 +591,8 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
         A = (Z.T @ (P3 + H) @ Z).tocsc() + delta * sp.identity(vi.size, format="csc")
         A.eliminate_zeros()
         rhs = Z.T @ (b.ravel() - P3 @ held.ravel() + delta * (x - held).ravel())
-        y = factorize(A, kind="spd", what="fair_web (Newton step)", order=_order(nd, vi.size, vi)).solve(rhs)
+        order = _order(nd, vi.size, vi, float((slab | disk).mean()))
+        y = factorize(A, kind="spd", what="fair_web (Newton step)", order=order).solve(rhs)
         x = held + (Z @ y).reshape(k, 3)  # the next active set is read from this point, not its projection
         z = project_to_cylinders(x, cen, ax, r, h)
         step, z_last = float(np.abs(z - z_last).max()), z

@@ -31,6 +31,8 @@ and the results agree to round-off.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any, Literal
 
 import numpy as np
@@ -50,6 +52,9 @@ _ORDERS = ("auto", "nested_dissection", "minimum_degree")
 _BACKENDS = ("auto", "superlu", "cholmod")
 
 
+_THREADS: Any = None  # a threadpoolctl controller made after CHOLMOD's BLAS and OpenMP were loaded
+
+
 def _cholmod() -> Any:
     """scikit-sparse's CHOLMOD module, or None when it is not installed (it is optional)."""
     try:
@@ -57,6 +62,22 @@ def _cholmod() -> Any:
     except ImportError:
         return None
     return cholmod
+
+
+@contextmanager
+def _one_thread() -> Iterator[None]:
+    """CHOLMOD's BLAS and OpenMP held to one thread while it runs (as :func:`~quadnodes.linalg.threads.blas_pinned`
+    holds SciPy's): on a shared machine their spinning threads cost more CPU than they save."""
+    global _THREADS
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - an optional speed-up
+        yield
+        return
+    if _THREADS is None:
+        _THREADS = ThreadpoolController()
+    with _THREADS.limit(limits=1):  # type: ignore[attr-defined]
+        yield
 
 
 def cholmod_available() -> bool:
@@ -107,7 +128,8 @@ class Factorization:
                              f"the matrix {self.shape[0]}")
         p = self._perm
         if self.backend == "cholmod":
-            y = self._lu(b if p is None else b[p])  # type: ignore[operator]
+            with _one_thread():
+                y = self._lu(b if p is None else b[p])  # type: ignore[operator]
         else:
             y = self._lu.solve(b if p is None else b[p])  # type: ignore[attr-defined]
         if p is None:
@@ -230,11 +252,12 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
                          "importable" + ("" if kind == "spd" else f", and serves only kind='spd', not {kind!r}"))
     if chol is not None:
         try:
-            if perm is None:  # minimum degree asked for: CHOLMOD's own (AMD)
-                factor = chol.cholesky(Mp, ordering_method="amd", mode="supernodal")
-            else:
-                factor = chol.analyze(Mp, ordering_method="natural", mode="supernodal")
-                factor.cholesky_inplace(Mp)
+            with _one_thread():
+                if perm is None:  # minimum degree asked for: CHOLMOD's own (AMD)
+                    factor = chol.cholesky(Mp, ordering_method="amd", mode="supernodal")
+                else:
+                    factor = chol.analyze(Mp, ordering_method="natural", mode="supernodal")
+                    factor.cholesky_inplace(Mp)
         except chol.CholmodError as exc:
             raise InputError(f"{what}: the matrix is not positive definite ({exc})") from exc
         return Factorization(factor, n, what, pivoted=False, perm=perm, backend="cholmod", order=how)
