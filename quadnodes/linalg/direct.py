@@ -21,12 +21,14 @@ nested-dissection order (:func:`~quadnodes.linalg.ordering.nested_dissection`,
 SuperLU then told to keep it: ``permc_spec="NATURAL"`` on the permuted
 matrix), small ones in SuperLU's minimum-degree order; a caller that factorizes
 many matrices of one pattern computes the order once and passes it. On a
-300 × 300 fair-web Newton system (177k unknowns) minimum degree took 24 s of
-CPU and 77 M factor entries, nested dissection 9 s and 66 M (see
-``docs/methods.md``). When scikit-sparse is importable (the optional ``bench``
-extra) a ``"spd"`` matrix goes to CHOLMOD's supernodal Cholesky in the same
-order (``backend="auto"``), another 2–3× faster; without it SuperLU is used,
-and the results agree to round-off.
+300 × 300 fair-web Newton system (177k unknowns, most vertices constrained)
+minimum degree took 24 s of CPU and 77 M LU entries, nested dissection 9 s and
+66 M; minimum degree stays better for matrices that are a few loosely joined
+copies of one mesh matrix (``docs/methods.md``, ``benchmarks/perf/bench_direct.py``).
+When scikit-sparse is importable (the optional ``bench`` extra) a ``"spd"``
+matrix goes to CHOLMOD's supernodal Cholesky in the same order
+(``backend="auto"``; ``"minimum_degree"`` becomes CHOLMOD's AMD), 2–6× faster
+than SuperLU; without it SuperLU is used, and the results agree to round-off.
 """
 
 from __future__ import annotations
