@@ -1,7 +1,7 @@
 """Sparse linear algebra that knows nothing of meshes.
 
 ``ordering``: nested-dissection orders from the matrix graph (the fill-reducing
-order for mesh matrices; minimum degree is poor on 2-D meshes).
+order for most large mesh matrices, where minimum degree makes more fill).
 ``direct``: factorizations that never crash the interpreter — symmetric positive
 definite and quasi-definite matrices in a symmetric fill-reducing order without
 pivoting (a Cholesky-like factorization that cannot meet a zero pivot), anything
