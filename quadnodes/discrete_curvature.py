@@ -47,6 +47,8 @@ CURVATURE_KEYS: tuple[str, ...] = ("mean", "gaussian", "gaussian_1", "gaussian_2
 
 # the two triangulations of a quad (corner indices)
 _TRIANGULATIONS = (np.array([[0, 1, 2], [0, 2, 3]]), np.array([[0, 1, 3], [1, 2, 3]]))
+# a triangle's next corner and the one after (c + 1, c + 2 mod 3)
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -98,23 +100,39 @@ def _triangles(faces: np.ndarray, which: int) -> np.ndarray:
     return faces[:, _TRIANGULATIONS[which]].reshape(-1, 3)
 
 
-def _corner_data(x: np.ndarray, tri: np.ndarray) -> dict[str, np.ndarray]:
-    """Per triangle corner: angle, cotangent, opposite edge length², and the triangle area."""
+def _corner_data(x: np.ndarray, tri: np.ndarray, *, full: bool = True) -> dict[str, np.ndarray]:
+    """Per triangle corner: cotangent, and with ``full`` the angle, opposite edge length², both edge
+    lengths² and the triangle area."""
     p = x[tri]  # (t, 3 corners, 3)
-    e1 = np.roll(p, -1, axis=1) - p  # to the next corner
-    e2 = np.roll(p, -2, axis=1) - p  # to the one after
+    e1 = p[:, _NEXT] - p  # to the next corner
+    e2 = p[:, _AFTER] - p  # to the one after
     dot = np.einsum("tcj,tcj->tc", e1, e2)
     cr = np.linalg.norm(np.cross(e1, e2), axis=2)
-    area = 0.5 * cr[:, 0]
-    opp = np.roll(e1, -1, axis=1)  # edge from corner c+1 to c+2
-    return {
-        "angle": np.arctan2(cr, dot),
-        "cot": dot / np.maximum(cr, 1e-300),
-        "opp2": np.einsum("tcj,tcj->tc", opp, opp),
-        "e1sq": np.einsum("tcj,tcj->tc", e1, e1),
-        "e2sq": np.einsum("tcj,tcj->tc", e2, e2),
-        "area": area,
-    }
+    out = {"cot": dot / np.maximum(cr, 1e-300)}
+    if full:
+        e1sq = np.einsum("tcj,tcj->tc", e1, e1)
+        out.update(angle=np.arctan2(cr, dot), opp2=e1sq[:, _NEXT],  # the edge from corner c+1 to c+2
+                   e1sq=e1sq, e2sq=np.einsum("tcj,tcj->tc", e2, e2), area=0.5 * cr[:, 0])
+    return out
+
+
+def _cotangent_matrix(n: int, faces: np.ndarray, cots: list[np.ndarray]) -> sp.csr_matrix:
+    """:func:`cotangent_laplacian` from the corner cotangents of both triangulations."""
+    rows, cols, vals = [], [], []
+    for which in (0, 1):  # the two triangulations
+        tri = _triangles(faces, which)
+        cot = cots[which]
+        for c in range(3):
+            i, j = tri[:, (c + 1) % 3], tri[:, (c + 2) % 3]
+            w = 0.25 * cot[:, c]  # ½ cot, averaged over 2 triangulations
+            rows += [i, j]
+            cols += [j, i]
+            vals += [-w, -w]
+    r, c_, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    off = sp.csr_matrix((v, (r, c_)), shape=(n, n))
+    off.sum_duplicates()
+    diag = -np.asarray(off.sum(axis=1)).ravel()
+    return (off + sp.diags(diag)).tocsr()
 
 
 def cotangent_laplacian(mesh: QuadMesh, *, vertices: np.ndarray | None = None) -> sp.csr_matrix:
@@ -146,35 +164,25 @@ def cotangent_laplacian(mesh: QuadMesh, *, vertices: np.ndarray | None = None) -
     """
     _validate.quad_mesh(mesh)
     x = mesh.vertices if vertices is None else np.asarray(vertices, dtype=np.float64)
-    n = mesh.n_vertices
-    rows, cols, vals = [], [], []
-    for which in (0, 1):  # the two triangulations
-        tri = _triangles(mesh.faces, which)
-        cot = _corner_data(x, tri)["cot"]
-        for c in range(3):
-            i, j = tri[:, (c + 1) % 3], tri[:, (c + 2) % 3]
-            w = 0.25 * cot[:, c]  # ½ cot, averaged over 2 triangulations
-            rows += [i, j]
-            cols += [j, i]
-            vals += [-w, -w]
-    r, c_, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    off = sp.csr_matrix((v, (r, c_)), shape=(n, n))
-    off.sum_duplicates()
-    diag = -np.asarray(off.sum(axis=1)).ravel()
-    return (off + sp.diags(diag)).tocsr()
+    cots = [_corner_data(x, _triangles(mesh.faces, w), full=False)["cot"] for w in (0, 1)]
+    return _cotangent_matrix(mesh.n_vertices, mesh.faces, cots)
 
 
-def _areas(mesh: QuadMesh, x: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-vertex sums over both triangulations (averaged): angle sum, areas, G(2) term."""
+def _areas(mesh: QuadMesh, x: np.ndarray, corners: list[dict[str, np.ndarray]] | None = None
+           ) -> dict[str, np.ndarray]:
+    """Per-vertex sums over both triangulations (averaged): angle sum, areas, G(2) term.
+
+    ``corners``: :func:`_corner_data` (full) of both triangulations, if the caller has it already.
+    """
     n = mesh.n_vertices
     out = {k: np.zeros(n) for k in ("angle", "area", "voronoi", "mixed", "g2")}
     for which in (0, 1):
         tri = _triangles(mesh.faces, which)
-        d = _corner_data(x, tri)
+        d = _corner_data(x, tri) if corners is None else corners[which]
         area = d["area"][:, None].repeat(3, axis=1)
         cot = d["cot"]
         # Voronoi part of the triangle at corner c: (|e1|² cot(angle at c+2) + |e2|² cot(angle at c+1)) / 8
-        vor = (d["e1sq"] * np.roll(cot, -2, axis=1) + d["e2sq"] * np.roll(cot, -1, axis=1)) / 8.0
+        vor = (d["e1sq"] * cot[:, _AFTER] + d["e2sq"] * cot[:, _NEXT]) / 8.0
         obtuse_here = cot < 0
         obtuse_any = obtuse_here.any(axis=1, keepdims=True)
         mixed = np.where(obtuse_any, np.where(obtuse_here, area / 2, area / 4), vor)
@@ -228,7 +236,8 @@ def moreton_sequin(mesh: QuadMesh, *, vertices: np.ndarray | None = None,
     f = mesh.faces
     i = np.concatenate([f[:, k] for k in range(4)] * 3)
     j = np.concatenate([f[:, (k + s) % 4] for s in (1, 2, 3) for k in range(4)])
-    key = np.unique(i * n + j)
+    key = np.sort(i * n + j)  # sort and drop repeats: np.unique hashes int64 keys ~60x slower (numpy 2.4)
+    key = key[np.concatenate([[True], key[1:] != key[:-1]])]
     i, j = key // n, key % n
     d = x[j] - x[i]
     ni = nrm[i]
@@ -251,9 +260,14 @@ def moreton_sequin(mesh: QuadMesh, *, vertices: np.ndarray | None = None,
         s[:, p] = np.bincount(i, a[:, p] / d2, minlength=n)
         for q in range(3):
             M[:, p, q] = np.bincount(i, a[:, p] * a[:, q], minlength=n)
-    sv = np.linalg.svd(M, compute_uv=False)
-    rank_ok = sv[:, 2] > 1e-8 * np.maximum(sv[:, 0], 1e-300)
-    Minv = np.linalg.pinv(M)
+    # M is symmetric positive semi-definite: one eigendecomposition gives its singular values (the
+    # eigenvalues' magnitudes) and its pseudo-inverse (numpy's pinv cut-off, 1e-15 of the largest)
+    w, V = np.linalg.eigh(M)
+    sv = np.abs(w)
+    top = sv.max(axis=1, keepdims=True)
+    rank_ok = sv.min(axis=1) > 1e-8 * np.maximum(top[:, 0], 1e-300)
+    winv = np.divide(1.0, w, out=np.zeros_like(w), where=sv > 1e-15 * top)
+    Minv = np.einsum("nij,nj,nkj->nik", V, winv, V)
     coef = Minv @ r[:, :, None]
     xs = coef[:, :, 0]
     e = np.array([1.0, 0.0, 1.0])
@@ -366,8 +380,9 @@ def curvature(mesh: QuadMesh) -> dict[str, np.ndarray]:
     topo = mesh.topology
     n = mesh.n_vertices
     nrm = vertex_normals(x, mesh.faces)
-    L = cotangent_laplacian(mesh)
-    A = _areas(mesh, x)
+    corners = [_corner_data(x, _triangles(mesh.faces, w)) for w in (0, 1)]  # shared by L and the areas
+    L = _cotangent_matrix(n, mesh.faces, [c["cot"] for c in corners])
+    A = _areas(mesh, x, corners)
     bnd = topo.boundary_vertices
     K = np.divide(L @ x, A["mixed"][:, None], out=np.full((n, 3), np.nan), where=A["mixed"][:, None] > 0)
     H = 0.5 * np.einsum("ij,ij->i", K, nrm)

@@ -37,11 +37,12 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.sparse.linalg import splu
+from scipy.sparse.csgraph import connected_components
 
 from . import _validate
 from .discrete_curvature import cotangent_laplacian, moreton_sequin
 from .errors import InputError
+from .linalg import NESTED_DISSECTION_MIN, factorize, nested_dissection
 from .mesh import QuadMesh
 from .progress import report_progress
 from .topology import FIX_MODES, fixed_vertices
@@ -177,17 +178,26 @@ def schneider_kobbelt(
     indptr, nbr, _ = mesh.topology.ring
     rows = np.repeat(np.arange(mesh.n_vertices), np.diff(indptr))
     it = 0
+    # the Dirichlet matrix keeps its pattern: one check that every part of the free mesh touches a held vertex
+    # (then the cotangent stiffness matrix, positive semi-definite, is definite on the free vertices) and one
+    # fill-reducing order serve every iteration
+    L = cotangent_laplacian(mesh, vertices=x)
+    Lff = L[free][:, free]
+    ncomp, part = connected_components(Lff, directed=False)
+    touches = np.zeros(ncomp, dtype=bool)
+    touches[part[np.diff(L[free][:, held].tocsr().indptr) > 0]] = True
+    if not touches.all():
+        raise InputError("fix: the Laplace–Beltrami system is singular; some part of the mesh holds no fixed "
+                         "vertex")
+    order = nested_dissection(Lff) if free.size >= NESTED_DISSECTION_MIN else "minimum_degree"
     for it in range(1, max_iterations + 1):
-        L = cotangent_laplacian(mesh, vertices=x)
+        if it > 1:
+            L = cotangent_laplacian(mesh, vertices=x)
         fit = moreton_sequin(mesh, vertices=x)
         H = fit["H"]
         Lff = L[free][:, free].tocsc()
         rhs = -(L[free][:, held] @ H[held])
-        try:
-            Ht = splu(Lff, permc_spec="MMD_AT_PLUS_A").solve(rhs)
-        except RuntimeError as exc:  # exactly singular: a part with no held vertex
-            raise InputError(f"fix: the Laplace–Beltrami system is singular ({exc}); some part of the mesh "
-                             "holds no fixed vertex") from None
+        Ht = factorize(Lff, kind="spd", what="schneider_kobbelt (Laplace–Beltrami system)", order=order).solve(rhs)
         r = H[free] - Ht
         e_now = float(r @ r)
         if it == 1:

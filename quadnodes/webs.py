@@ -35,9 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
-from scipy.sparse.linalg import splu
-
-from .linalg import factorize
+from .linalg import NESTED_DISSECTION_MIN, expand_order, factorize, nested_dissection
 from .linalg.threads import blas_pinned
 
 from . import _validate
@@ -352,12 +350,14 @@ def fair_web(
     x_unc = None
     iterations = 0
     converged = True
+    # one nested-dissection order of the free vertices serves every factorization below (P, P + ρI, and the
+    # Newton systems, whose unknowns are coordinates of these vertices); small systems use minimum degree
+    nd = nested_dissection(P) if (3 if has_cyl else 1) * free.size >= NESTED_DISSECTION_MIN else None
     if unique:
         try:  # symmetric order, diagonal pivots preferred (fast); pivoting left on: a singular P raises
-            x_unc = splu(P, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=1e-3,
-                         options={"SymmetricMode": True}).solve(b)
+            x_unc = factorize(P, kind="symmetric", what="fair_web", order=_order(nd, free.size)).solve(b)
             res = np.abs(P @ x_unc - b).max() / max(np.abs(b).max(), np.abs(P).max() * hlen, 1e-300)
-        except RuntimeError:  # "Factor is exactly singular"
+        except InputError:  # singular, or a solution that is not finite
             x_unc, res = None, np.inf
         if x_unc is None or not np.isfinite(x_unc).all() or res > 1e-6:
             raise InputError("fix: the energy has no unique minimum with these fixed vertices (e.g. E2 with a "
@@ -373,7 +373,7 @@ def fair_web(
             ran = True
             with blas_pinned():  # one BLAS thread: SuperLU's small dense blocks gain nothing from more
                 x_it, iterations, converged, kkt, warm = _constrained(solver, P, b, start, cen, ax, r_f, h_f,
-                                                                      tol * hlen, max_iterations, rho)
+                                                                      tol * hlen, max_iterations, rho, nd)
             # never a point outside a cylinder: the exact projection last (a no-op on the solvers' iterates,
             # which are projections already; reported)
             x_free = project_to_cylinders(x_it, cen, ax, r_f, h_f)
@@ -406,14 +406,32 @@ def fair_web(
 
 
 def _constrained(solver: str, P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
-                 ax: np.ndarray, r: np.ndarray, h: np.ndarray, tol: float, max_it: int, rho: float | None
-                 ) -> tuple[np.ndarray, int, bool, float, int]:
-    """Run one constrained solver: (point, iterations, converged, KKT residual, warm-start iterations)."""
+                 ax: np.ndarray, r: np.ndarray, h: np.ndarray, tol: float, max_it: int, rho: float | None,
+                 nd: np.ndarray | None) -> tuple[np.ndarray, int, bool, float, int]:
+    """Run one constrained solver: (point, iterations, converged, KKT residual, warm-start iterations).
+
+    ``nd``: a nested-dissection order of the free vertices (None: minimum degree everywhere).
+    """
     if solver == "newton":
-        return _newton(P, b, start, cen, ax, r, h, tol, max_it)
+        return _newton(P, b, start, cen, ax, r, h, tol, max_it, nd)
     if solver == "admm":
-        return (*_admm(P, b, start, cen, ax, r, h, tol, max_it, rho), 0)
+        return (*_admm(P, b, start, cen, ax, r, h, tol, max_it, rho, nd), 0)
     return (*_fista(P, b, start, cen, ax, r, h, tol, max_it), 0)
+
+
+def _order(nd: np.ndarray | None, size: int, group: np.ndarray | None = None, coupled: float = 1.0
+           ) -> np.ndarray | str:
+    """The order to factorize a system of ``size`` unknowns in: the vertices' nested dissection (each
+    vertex's unknowns together, ``group`` the vertex of every unknown) when it is large, else minimum degree.
+
+    A Newton system whose vertices are mostly free of active constraints (``coupled``, the fraction with
+    one, below ½) is three copies of the vertex system (x, y, z) joined at a few vertices: minimum degree
+    keeps the copies apart, a vertex order joins them in every separator above a coupled vertex (at 100²
+    with 1 % coupled: 2.3 M factor entries against 4.8 M, 0.8 s against 1.4 s of CPU).
+    """
+    if nd is None or size < NESTED_DISSECTION_MIN or coupled < 0.5:
+        return "minimum_degree"
+    return nd if group is None else expand_order(nd, group)
 
 
 def _anchored(Q: sp.csr_matrix, hold: np.ndarray) -> bool:
@@ -448,8 +466,8 @@ def _distance_estimate(change: float, previous: float) -> float:
 
 
 def _admm(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, ax: np.ndarray, r: np.ndarray,
-          h: np.ndarray, tol: float, max_it: int, rho: float | None, *, progress: bool = True
-          ) -> tuple[np.ndarray, int, bool, float]:
+          h: np.ndarray, tol: float, max_it: int, rho: float | None, nd: np.ndarray | None = None, *,
+          progress: bool = True) -> tuple[np.ndarray, int, bool, float]:
     """min ½xᵀPx − bᵀx s.t. x in the cylinders: x-step (P + ρI)x = b + ρ(z − u), z-step a projection.
 
     Over-relaxed (α = 1.6). Every 10 iterations: stop when the primal residual
@@ -468,7 +486,7 @@ def _admm(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, a
     eye = sp.identity(k, format="csc")
 
     def factor(value: float) -> Any:
-        return factorize((P + value * eye).tocsc(), kind="spd", what="fair_web (ADMM step)")
+        return factorize((P + value * eye).tocsc(), kind="spd", what="fair_web (ADMM step)", order=_order(nd, k))
 
     lu = factor(rho_)
     changes = 0
@@ -516,7 +534,8 @@ def _frames(ax: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, ax: np.ndarray, r: np.ndarray,
-            h: np.ndarray, tol: float, max_it: int) -> tuple[np.ndarray, int, bool, float, int]:
+            h: np.ndarray, tol: float, max_it: int, nd: np.ndarray | None = None
+            ) -> tuple[np.ndarray, int, bool, float, int]:
     """Semismooth Newton (primal-dual active set) on the KKT conditions, warm-started by ADMM.
 
     The KKT conditions are ``F(x) = x − Π(x − γ(Px − b)) = 0`` (γ = 1 / max diag P).
@@ -538,7 +557,7 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
     Pr = P.tocsr()
     dmax = float(P.diagonal().max())
     gamma = 1.0 / dmax
-    x, warm, done, kkt = _admm(P, b, start, cen, ax, r, h, tol, _WARM, None, progress=False)
+    x, warm, done, kkt = _admm(P, b, start, cen, ax, r, h, tol, _WARM, None, nd, progress=False)
     if done:
         return x, 0, True, kkt, warm
     P3 = sp.kron(Pr, sp.identity(3), format="csr")
@@ -572,7 +591,8 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
         A = (Z.T @ (P3 + H) @ Z).tocsc() + delta * sp.identity(vi.size, format="csc")
         A.eliminate_zeros()
         rhs = Z.T @ (b.ravel() - P3 @ held.ravel() + delta * (x - held).ravel())
-        y = factorize(A, kind="spd", what="fair_web (Newton step)").solve(rhs)
+        order = _order(nd, vi.size, vi, float((slab | disk).mean()))
+        y = factorize(A, kind="spd", what="fair_web (Newton step)", order=order).solve(rhs)
         x = held + (Z @ y).reshape(k, 3)  # the next active set is read from this point, not its projection
         z = project_to_cylinders(x, cen, ax, r, h)
         step, z_last = float(np.abs(z - z_last).max()), z

@@ -24,6 +24,12 @@ Rows (settings as named; each in a fresh process, modules imported before the cl
 - ``curvature``: every field of ``quadnodes.curvature`` once;
 - ``fourier``: Fourier descriptors on the cylinder, harmonics 0–3.
 
+``--linalg`` picks the sparse direct back-end of every factorization (``quadnodes.linalg.factorize``):
+``auto`` (the default: CHOLMOD when scikit-sparse is importable, nested dissection from 20,000 unknowns),
+``superlu`` (SuperLU in the same orders — the default install without scikit-sparse) or ``superlu-md``
+(SuperLU in minimum-degree order everywhere: the back-end before nested dissection, to compare in one run).
+Every note starts with the process's CPU time for the row.
+
 "per iteration" is the wall time over the iterations the method reports (ADMM /
 gradient steps, spring or Schneider–Kobbelt iterations; ``fair``: its 3 outer
 iterations). "peak MB": the process's peak resident memory minus its resident
@@ -31,6 +37,7 @@ memory after the mesh was built (as in ``bench_core.py``).
 
 Run:  python benchmarks/perf/bench_methods.py [--sizes 100 300] [--only spring fair ...] [--cap 200]
           [--cylinders bench|small|mixed|large] [--energy E2] [--closeness 0] [--web-cap 1000]
+          [--linalg auto|superlu|superlu-md]
 """
 
 from __future__ import annotations
@@ -70,13 +77,26 @@ def _mesh(kind: str, n: int):
 CYLINDERS = {"bench": (0.5, 0.2), "small": (0.1, 0.05), "large": (2.0, 1.0), "mixed": (0.5, 0.2)}
 
 
+def _backend(linalg: str) -> None:
+    """Hold every factorization of this process to the back-end ``--linalg`` names."""
+    import quadnodes.linalg.direct as direct
+    import quadnodes.webs as webs
+
+    if linalg in ("superlu", "superlu-md"):
+        direct._cholmod = lambda: None  # as if scikit-sparse were not installed
+    if linalg == "superlu-md":
+        direct.NESTED_DISSECTION_MIN = webs.NESTED_DISSECTION_MIN = 1 << 62
+
+
 def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
     import quadnodes as qn
 
+    _backend((web or {}).get("linalg", "auto"))
     m = _mesh(kind, n)
     h = m.mean_edge_length
     base = _rss_mb()
     t = time.perf_counter()
+    cpu0 = time.process_time()
     if kind == "fair":
         _, rep = qn.fair(m, iterations=3)
         its, note = 3, f"{max(r.n_free for r in rep.iterations)} free"
@@ -123,6 +143,8 @@ def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
         raise SystemExit(f"unknown row {kind!r}")
     wall = time.perf_counter() - t if not kind.startswith("fair_web_") else wall_web
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base
+    if not kind.startswith("fair_web_"):
+        note = f"CPU {time.process_time() - cpu0:.1f} s" + (f", {note}" if note else "")
     return {"row": kind, "n": n, "wall_s": wall, "iterations": int(its), "per_iteration_s": wall / max(its, 1),
             "peak_mb": peak, "note": note}
 
@@ -139,15 +161,18 @@ def main() -> None:
     ap.add_argument("--web-cap", type=int, default=1000, help="iteration cap of fair_web_admm / fair_web_pg")
     ap.add_argument("--distance", action="store_true",
                     help="fair_web_*: also the largest distance to a Newton run to 1e-9 h (not timed)")
+    ap.add_argument("--linalg", choices=("auto", "superlu", "superlu-md"), default="auto",
+                    help="sparse direct back-end: auto (CHOLMOD if importable), superlu, superlu-md (minimum degree)")
     ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         print(json.dumps(run_row(args.child[0], int(args.child[1]), int(args.child[2]), json.loads(args.child[3]))))
         return
     web = {"cylinders": args.cylinders, "energy": args.energy, "closeness": args.closeness, "cap": args.web_cap,
-           "distance": args.distance}
+           "distance": args.distance, "linalg": args.linalg}
     if any(k.startswith("fair_web_") for k in args.only):
         print(f"fair_web_*: {args.energy}, closeness {args.closeness}, cylinders {args.cylinders}, corners fixed")
+    print(f"linalg: {args.linalg}")
     print(f"{'method':<20} {'n':>5} {'to convergence':>15} {'iterations':>10} {'per iteration':>14} "
           f"{'peak MB':>8}  note")
     for n in args.sizes:
