@@ -37,6 +37,8 @@ Fixed vertices never move.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import time
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Literal
@@ -420,6 +422,21 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
     return c, grad
 
 
+def _soundness(X0: np.ndarray, faces: np.ndarray) -> Callable[[np.ndarray], bool]:
+    """The test the Newton-type steps keep to with ``shape="keep"``: no edge below
+    :data:`KEPT_EDGE_RATIO` of its length in ``X0``, no quad convex in ``X0`` turned non-convex."""
+    edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    min_len = KEPT_EDGE_RATIO * np.linalg.norm(X0[edges[:, 1]] - X0[edges[:, 0]], axis=1)
+    convex0 = _validate.corner_turns(X0, faces)[0] == 0
+
+    def sound(Y: np.ndarray) -> bool:
+        if (np.linalg.norm(Y[edges[:, 1]] - Y[edges[:, 0]], axis=1) < min_len).any():
+            return False
+        return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
+
+    return sound
+
+
 def _scaled_free_system(x0: np.ndarray, fi: np.ndarray, F: sp.spmatrix, h: float) -> tuple:
     """The Newton-type steps' common set-up, in units of the mean edge length ``h`` about the centroid:
     ``(centre, X0, k, free, col, F, Fff, Ffx)`` — scaled input, the free mask and index map, and the
@@ -475,15 +492,7 @@ def _newton(
     history: list[float] = []
     steps = 0
     if keep:
-        edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
-        min_len = KEPT_EDGE_RATIO * np.linalg.norm(X0[edges[:, 1]] - X0[edges[:, 0]], axis=1)
-        convex0 = _validate.corner_turns(X0, faces)[0] == 0
-
-        def sound(Y: np.ndarray) -> bool:
-            """No edge below its kept length, no quad convex in the input turned non-convex."""
-            if (np.linalg.norm(Y[edges[:, 1]] - Y[edges[:, 0]], axis=1) < min_len).any():
-                return False
-            return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
+        sound = _soundness(X0, faces)
 
         last_sound, last_sound_p = X.copy(), float(quad_diagonal_distance(X, faces, relative=relative).max()) * (
             1.0 if relative else h)
@@ -629,14 +638,7 @@ def _gauss_newton(
     def planarity(Y: np.ndarray) -> float:
         return float(quad_diagonal_distance(Y, faces, relative=relative).max()) * scale
 
-    edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
-    min_len = KEPT_EDGE_RATIO * np.linalg.norm(X0[edges[:, 1]] - X0[edges[:, 0]], axis=1)
-    convex0 = _validate.corner_turns(X0, faces)[0] == 0
-
-    def sound(Y: np.ndarray) -> bool:
-        if (np.linalg.norm(Y[edges[:, 1]] - Y[edges[:, 0]], axis=1) < min_len).any():
-            return False
-        return not (convex0 & (_validate.corner_turns(Y, faces)[0] > 0)).any()
+    sound = _soundness(X0, faces)
 
     # the structure lines may not kink: no window may turn more than GN_LINE_GROWTH times the most any
     # window turned in the input, or GN_LINE_FLOOR (Gauss–Newton can buy planarity with a
