@@ -1118,13 +1118,16 @@ def _fair(
     for it in range(iterations):
         current = mesh if x is x0 else mesh.with_vertices(x)
         if geometry is None:
-            geometry = _window_geometry(x, w, walk, alternation=detection == "alternating")
+            geometry = _window_geometry(x, w, walk, alternation=detection == "alternating",
+                                        even=line_spacing == "fair" and walk is not None)
         alt = geometry[2] if detection == "alternating" else None
         zz = _detect(current, float(thresholds[it]), held, geometry[0], fix, alt)
         dev_before = float(zz.window_deviation.sum())
         if line_spacing == "hold":
             inverse = geometry[1]
             w_energy = zz.window_deviation  # lengths frozen at x: each window's term is its eq. 30 deviation
+        elif walk is not None:  # the window walk's pass measured them (as even_lengths, _window_energy)
+            inverse, w_energy = geometry[-2], geometry[-1]
         else:
             inverse = even_lengths(geometry[1])
             w_energy = _window_energy(x, w, inverse, walk)
@@ -1175,7 +1178,9 @@ def _fair(
         x_new[system.free_index] = new_free
         moved = new_free - np.take(x, system.free_index, axis=0)
         disp = np.sqrt(np.einsum("ij,ij->i", moved, moved))
-        geometry = _window_geometry(x_new, w, walk, alternation=detection == "alternating")
+        last = it + 1 == iterations  # then only the deviation is wanted, for the report
+        geometry = _window_geometry(x_new, w, walk, alternation=detection == "alternating" and not last,
+                                    even=line_spacing == "fair" and walk is not None and not last)
         reports.append(
             IterationReport(
                 iteration=it,

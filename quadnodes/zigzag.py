@@ -196,7 +196,7 @@ def _alternation(u: np.ndarray, start: np.ndarray) -> np.ndarray:
 
 def _window_geometry(
     vertices: np.ndarray, windows: np.ndarray, walk: tuple[np.ndarray, np.ndarray] | None = None,
-    *, alternation: bool = False,
+    *, alternation: bool = False, even: bool = False,
 ) -> tuple[np.ndarray, ...]:
     """Deviation ``(w,)`` of every window and the inverse lengths ``(w, 3)`` of its edges.
 
@@ -204,22 +204,44 @@ def _window_geometry(
     With the topology's ``walk`` (:attr:`quadnodes.topology.Topology.window_walk`, whose
     windows are ``windows``) every line edge is measured once instead of in each of
     the up to three windows that hold it; ``alternation`` (with ``walk``) adds
-    :func:`window_alternation` ``(w,)`` from the same unit directions.
+    :func:`window_alternation` ``(w,)`` from the same unit directions; ``even`` (with
+    ``walk``) adds, last, the windows' even inverse lengths ``(w, 3)``
+    (:func:`quadnodes.fairing.even_lengths` of the inverse lengths) and the window energies
+    ``(w,)`` with them (``line_spacing="fair"``'s terms, as ``quadnodes.fairing._window_energy``
+    computes them, to the last bit).
     """
     if walk is not None:
         ext, start = walk
-        e, inv = _walk_edges(vertices, ext, unit=True)
-        r = e[:, :-2] + e[:, 2:]
-        r *= 0.5
-        r -= e[:, 1:-1]
-        r *= r
-        dev = r[0] + r[1]
-        dev += r[2]
-        inverse = np.empty((len(start), 3))
-        for k in range(3):
-            np.take(inv[k:], start, out=inverse[:, k])
-        out = (np.take(dev, start), inverse)
-        return out + (_alternation(e, start),) if alternation else out
+        e, inv = _walk_edges(vertices, ext)
+        with np.errstate(divide="ignore", invalid="ignore"):  # (an edge of length 0: its window's is nan)
+            extra: tuple[np.ndarray, ...] = ()
+            if even:
+                # a window's mean length 3 / (l0 + l1 + l2) at every walk position (garbage where no window starts)
+                length = 1.0 / inv
+                mean = length[:-2] + length[1:-1]
+                mean += length[2:]
+                np.divide(3.0, mean, out=mean)
+                half = 0.5 * mean
+                f = e[:, :-2] * half
+                f += e[:, 2:] * half
+                f -= e[:, 1:-1] * mean
+                f *= f
+                energy = f[0] + f[1]
+                energy += f[2]
+                m = np.take(mean, start)
+                extra = (np.repeat(m[:, None], 3, axis=1), np.take(energy, start))
+            e *= inv
+            r = e[:, :-2] + e[:, 2:]
+            r *= 0.5
+            r -= e[:, 1:-1]
+            r *= r
+            dev = r[0] + r[1]
+            dev += r[2]
+            inverse = np.empty((len(start), 3))
+            for k in range(3):
+                np.take(inv[k:], start, out=inverse[:, k])
+            out = (np.take(dev, start), inverse)
+            return out + ((_alternation(e, start),) if alternation else ()) + extra
     u = window_edges(vertices, windows)
     inverse = np.empty((len(windows), 3))
     for k, d in enumerate(u):

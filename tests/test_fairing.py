@@ -904,3 +904,27 @@ def test_gaps_fill_broadband_noise_on_grids(seed):
     assert (filled >= found.free).all() and not (filled & found.fixed).any()
     _, rep = fair(noisy)
     assert rep.iterations[0].n_free == int(filled.sum())
+
+
+@pytest.mark.parametrize("rows", [2, 3, 4, 7])
+def test_compiled_grid_path_on_grids_with_few_rows(monkeypatch, rows):
+    """Grids of 2 and 3 rows have diagonals past the matrix (3 columns away): the compiled storage keeps
+    them zero (it used to fail with a broadcast error) and CG equals the direct solve."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.cg import SymmetricDiagonalBlocks
+
+    if not fairing_module.kernels.wait():
+        pytest.skip("compiled kernels unavailable")
+    m = grid(rows, 12, spacing=10.0)
+    m = m.with_vertices(m.vertices + np.random.default_rng(rows).normal(scale=1.0, size=m.vertices.shape))
+    free = m.topology.window_middle.copy()
+    w = 0.3 / m.mean_edge_length**2
+    s = _grid_system(m, free, w)
+    s._cg_setup()
+    assert isinstance(s._cg[0], SymmetricDiagonalBlocks)
+    x = s.solve(m.vertices[free])
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    out, _ = fair(m, threshold=0.0, solver="cg")
+    ref, _ = fair(m, threshold=0.0, solver="direct")
+    assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()

@@ -37,14 +37,72 @@ def _axmy_into(y: np.ndarray, u: np.ndarray, x: np.ndarray) -> None:  # pragma: 
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _seven_diagonal_rows(y: np.ndarray, u0: np.ndarray, u1: np.ndarray, u2: np.ndarray, u3: np.ndarray,
+                         u4: np.ndarray, u5: np.ndarray, u6: np.ndarray, v1: np.ndarray, v2: np.ndarray,
+                         v3: np.ndarray, v4: np.ndarray, v5: np.ndarray, v6: np.ndarray, x: np.ndarray,
+                         p1: np.ndarray, p2: np.ndarray, p3: np.ndarray, p4: np.ndarray, p5: np.ndarray,
+                         p6: np.ndarray, m1: np.ndarray, m2: np.ndarray, m3: np.ndarray, m4: np.ndarray,
+                         m5: np.ndarray, m6: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``y = u0 x + Σ_d (u_d p_d + v_d m_d)`` elementwise: the 13 terms of a row of a symmetric
+    matrix with 7 upper diagonals, every operand a slice aligned with ``y``. Four partial sums
+    (no chain of 13 dependent multiply-adds: the loop is latency-bound otherwise)."""
+    for j in range(y.size):
+        s0 = u0[j] * x[j] + u1[j] * p1[j] + v1[j] * m1[j]
+        s1 = u2[j] * p2[j] + v2[j] * m2[j] + u3[j] * p3[j]
+        s2 = v3[j] * m3[j] + u4[j] * p4[j] + v4[j] * m4[j]
+        s3 = u5[j] * p5[j] + v5[j] * m5[j] + u6[j] * p6[j] + v6[j] * m6[j]
+        y[j] = (s0 + s1) + (s2 + s3)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _seven_diagonal_product(U: np.ndarray, offsets: np.ndarray, X: np.ndarray, Y: np.ndarray,
+                            lo: int, hi: int) -> None:  # pragma: no cover - compiled
+    """:func:`symmetric_diagonal_product` with exactly 7 upper diagonals on rows ``lo:hi`` where every
+    offset stays inside the matrix (``offsets[6] ≤ lo``, ``hi + offsets[6] ≤ n``): one pass per row
+    chunk and column, each row's 13 terms summed in registers (a grid's fairing matrix)."""
+    o1, o2, o3, o4, o5, o6 = offsets[1], offsets[2], offsets[3], offsets[4], offsets[5], offsets[6]
+    for a in range(lo, hi, _CHUNK):
+        b = min(a + _CHUNK, hi)
+        u0, u1, u2, u3, u4, u5, u6 = U[0, a:b], U[1, a:b], U[2, a:b], U[3, a:b], U[4, a:b], U[5, a:b], U[6, a:b]
+        v1, v2, v3 = U[1, a - o1 : b - o1], U[2, a - o2 : b - o2], U[3, a - o3 : b - o3]
+        v4, v5, v6 = U[4, a - o4 : b - o4], U[5, a - o5 : b - o5], U[6, a - o6 : b - o6]
+        for q in range(X.shape[0]):
+            x = X[q]
+            _seven_diagonal_rows(Y[q, a:b], u0, u1, u2, u3, u4, u5, u6, v1, v2, v3, v4, v5, v6, x[a:b],
+                                 x[a + o1 : b + o1], x[a + o2 : b + o2], x[a + o3 : b + o3], x[a + o4 : b + o4],
+                                 x[a + o5 : b + o5], x[a + o6 : b + o6], x[a - o1 : b - o1], x[a - o2 : b - o2],
+                                 x[a - o3 : b - o3], x[a - o4 : b - o4], x[a - o5 : b - o5], x[a - o6 : b - o6])
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def symmetric_diagonal_product(U: np.ndarray, offsets: np.ndarray, X: np.ndarray, Y: np.ndarray,
                                lo: int, hi: int) -> None:  # pragma: no cover - compiled
     """``Y[:, lo:hi] = (M X)[:, lo:hi]`` for a symmetric ``M`` stored by its upper diagonals.
 
     ``U[d, i] = M[i, i + offsets[d]]`` (``(d, n)``, entries past the end zero) with
-    ``offsets[0] = 0`` and positive offsets after it; ``X``, ``Y`` are C-contiguous
-    ``(c, m)`` with ``m ≥ n`` (columns past ``n`` are neither read nor written).
+    ``offsets[0] = 0`` and positive offsets after it, increasing; ``X``, ``Y`` are C-contiguous
+    ``(c, m)`` with ``m ≥ n`` (columns past ``n`` are neither read nor written). With 7
+    upper diagonals (an open grid's fairing matrix) the rows away from both ends take
+    :func:`_seven_diagonal_product`.
     """
+    n = U.shape[1]
+    if offsets.size == 7:
+        top = offsets.max()
+        a = max(lo, top)
+        b = min(hi, n - top)
+        if b > a:
+            _diagonal_product_rows(U, offsets, X, Y, lo, a)
+            _seven_diagonal_product(U, offsets, X, Y, a, b)
+            _diagonal_product_rows(U, offsets, X, Y, b, hi)
+            return
+    _diagonal_product_rows(U, offsets, X, Y, lo, hi)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _diagonal_product_rows(U: np.ndarray, offsets: np.ndarray, X: np.ndarray, Y: np.ndarray,
+                           lo: int, hi: int) -> None:  # pragma: no cover - compiled
+    """:func:`symmetric_diagonal_product` on rows ``lo:hi`` (any number of diagonals): per row chunk,
+    one pass over the chunk for each diagonal and side."""
     n = U.shape[1]
     c = X.shape[0]
     nd = offsets.size

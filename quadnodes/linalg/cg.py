@@ -374,7 +374,8 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
         self.upper_offsets = offsets[up].astype(np.int64)
         U = np.zeros((up.size, n))
         for d, o in zip(range(up.size), self.upper_offsets):  # M[i, i + o] = data[d, i + o]
-            U[d, : n - o] = data[up[d], o:]
+            if o < n:  # (an offset past the matrix, e.g. 3 columns on a grid of 2 rows, stays zero)
+                U[d, : n - o] = data[up[d], o:]
         self.upper = U
 
     def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,

@@ -141,9 +141,12 @@ def test_line_preconditioner_is_the_sum_of_the_two_families_block_inverses(monke
     np.testing.assert_array_equal(Z2, Z)
 
 
-@settings(max_examples=30, deadline=None)
-@given(rows=st.integers(1, 12), cols=st.integers(4, 12), c=st.integers(1, 3), seed=st.integers(0, 2**31))
-def test_symmetric_diagonal_storage_equals_the_full_product(rows, cols, c, seed):
+@settings(max_examples=40, deadline=None)
+@given(rows=st.integers(1, 20), cols=st.integers(4, 12), c=st.integers(1, 3), seed=st.integers(0, 2**31),
+       cut=st.floats(0, 1))
+def test_symmetric_diagonal_storage_equals_the_full_product(rows, cols, c, seed, cut):
+    """Whole products and products cut into two row ranges anywhere (on grids of 7 rows and more the
+    rows away from both ends take the 7-diagonal kernel, the others the general one)."""
     from quadnodes.linalg.cg import SymmetricDiagonalBlocks
 
     n = rows * cols
@@ -165,7 +168,14 @@ def test_symmetric_diagonal_storage_equals_the_full_product(rows, cols, c, seed)
     X[:, :n] = rng.normal(size=(c, n))
     Y = np.full_like(X, np.nan)
     blocks.run(lambda lo, hi: blocks.matvec(X, Y, lo, hi))
-    np.testing.assert_allclose(Y[:, :n], (M @ X[:, :n].T).T, rtol=1e-12, atol=1e-12)
+    ref = (M @ X[:, :n].T).T
+    np.testing.assert_allclose(Y[:, :n], ref, rtol=1e-12, atol=1e-12)
+    split = int(cut * n)
+    Y2 = np.full_like(X, np.nan)
+    blocks.matvec(X, Y2, 0, split)
+    blocks.matvec(X, Y2, split, n)
+    np.testing.assert_allclose(Y2[:, :n], ref, rtol=1e-12, atol=1e-12)
+    assert np.isnan(Y2[:, n:]).all()  # padding columns are neither read nor written
 
 
 def test_line_preconditioner_refuses_a_block_that_is_not_positive_definite():
