@@ -237,10 +237,10 @@ def _window_geometry(
             r *= r
             dev = r[0] + r[1]
             dev += r[2]
-            inverse = np.empty((len(start), 3))
+            inverse = np.empty((3, len(start)))  # (NumPy buffers a take into an out= unless mode="clip")
             for k in range(3):
-                np.take(inv[k:], start, out=inverse[:, k])
-            out = (np.take(dev, start), inverse)
+                np.take(inv[k:], start, out=inverse[k], mode="clip")  # (start + k is inside inv)
+            out = (np.take(dev, start), inverse.T)
             return out + ((_alternation(e, start),) if alternation else ()) + extra
     u = window_edges(vertices, windows)
     inverse = np.empty((len(windows), 3))

@@ -46,6 +46,9 @@ def _load() -> None:
         k.path_band_solve(band, band[3].copy(), np.arange(8, dtype=np.int64), X.T.copy(), np.zeros((8, 3)),
                           np.empty((8, 3)))
         _STATE["ready"] = True
+        from .threads import prime_blas_controller
+
+        prime_blas_controller()  # (the solvers' first BLAS limit then costs nothing either)
     except Exception as exc:  # pragma: no cover - Numba missing or broken: the NumPy paths remain
         _STATE["error"] = exc
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
@@ -32,6 +33,7 @@ __all__ = [
     "thread_count",
     "pool",
     "blas_pinned",
+    "prime_blas_controller",
     "RowBlocks",
 ]
 
@@ -91,6 +93,66 @@ if hasattr(os, "register_at_fork"):
 _CONTROLLER: object | None = None
 
 
+def _library_count() -> int:
+    """How many shared objects the process has loaded (a BLAS can only arrive as one): ``dl_iterate_phdr``
+    through ctypes, about 50 µs, where ``threadpoolctl``'s scan of them costs about 20 ms; elsewhere the
+    number of imported modules (a BLAS arrives with an extension module)."""
+    global _PHDR
+    if _PHDR is None:
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None)
+            callback = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
+            libc.dl_iterate_phdr.argtypes = [callback, ctypes.c_void_p]
+            count = [0]
+
+            def one(info: object, size: int, data: object) -> int:
+                count[0] += 1
+                return 0
+
+            keep = callback(one)
+
+            lock = threading.Lock()
+
+            def loaded() -> int:
+                with lock:  # (one counter for all threads)
+                    count[0] = 0
+                    libc.dl_iterate_phdr(keep, None)
+                    return count[0]
+
+            loaded()
+            _PHDR = loaded
+        except (OSError, AttributeError):  # pragma: no cover - not a glibc/ELF system
+            _PHDR = lambda: len(sys.modules)  # noqa: E731
+    return _PHDR()
+
+
+_PHDR: Callable[[], int] | None = None
+
+
+def prime_blas_controller() -> None:
+    """Find the loaded BLAS libraries now (``threadpoolctl``'s scan, about 20 ms), so the first
+    :func:`blas_pinned` does not (:func:`quadnodes.linalg.compiled.warm_up` calls it)."""
+    _controller()
+
+
+def _controller() -> object | None:
+    """``threadpoolctl``'s controller of the loaded libraries, scanned again when a shared object was
+    loaded since (None without ``threadpoolctl``). Only scans: no limit is set here."""
+    global _CONTROLLER
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - an optional speed-up
+        return None
+    import scipy.linalg.blas  # noqa: F401 - load SciPy's BLAS before looking for it
+
+    count = _library_count()
+    if _CONTROLLER is None or _CONTROLLER[0] != count:  # type: ignore[index]
+        _CONTROLLER = (count, ThreadpoolController())
+    return _CONTROLLER[1]  # type: ignore[index]
+
+
 @contextlib.contextmanager
 def blas_pinned() -> Iterator[None]:
     """Hold BLAS (OpenBLAS, MKL, BLIS) to one thread for the duration of a solve.
@@ -104,18 +166,11 @@ def blas_pinned() -> Iterator[None]:
     ...     float(np.ones(3) @ np.ones(3))
     3.0
     """
-    global _CONTROLLER
-    try:
-        from threadpoolctl import ThreadpoolController
-    except ImportError:  # pragma: no cover - an optional speed-up
+    controller = _controller()
+    if controller is None:  # pragma: no cover - an optional speed-up
         yield
         return
-    import scipy.linalg.blas  # noqa: F401 - load SciPy's BLAS before looking for it
-
-    # a BLAS library arrives with an extension module: look again when modules were imported since
-    if _CONTROLLER is None or _CONTROLLER[0] != len(sys.modules):  # type: ignore[index]
-        _CONTROLLER = (len(sys.modules), ThreadpoolController())
-    with _CONTROLLER[1].limit(limits=1, user_api="blas"):  # type: ignore[index]
+    with controller.limit(limits=1, user_api="blas"):  # type: ignore[attr-defined]
         yield
 
 

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -65,6 +69,37 @@ def test_blas_is_pinned_to_one_thread_inside_and_restored_after():
     after = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
     assert inside and all(t == 1 for t in inside)
     assert after == before
+
+
+def test_blas_libraries_are_scanned_again_only_when_a_shared_object_was_loaded():
+    """The BLAS scan (threadpoolctl, ~20 ms) is kept while no shared object arrives; a new one makes
+    blas_pinned look again (a BLAS can only arrive that way). In a child: the test process's own
+    modules stay as they are."""
+    code = textwrap.dedent(
+        """
+        import sys
+        from quadnodes.linalg import threads
+        threads.prime_blas_controller()
+        first = threads._CONTROLLER
+        with threads.blas_pinned():
+            pass
+        assert threads._CONTROLLER is first  # nothing new loaded: no second scan
+        import importlib, importlib.util
+        name = next(m for m in ("_ctypes_test", "_sqlite3", "_curses", "_lzma", "_dbm", "_bz2", "readline")
+                    if m not in sys.modules
+                    and str(getattr(importlib.util.find_spec(m), "origin", "")).endswith(".so"))
+        n = threads._library_count()
+        importlib.import_module(name)  # an extension module: one more shared object
+        assert threads._library_count() > n
+        with threads.blas_pinned():
+            pass
+        assert threads._CONTROLLER is not first and threads._CONTROLLER[0] == threads._library_count()
+        print("ok")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
 
 
 def _solve_in_child(queue):
