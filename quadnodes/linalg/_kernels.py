@@ -259,7 +259,7 @@ def blocked_lines(F: np.ndarray, length: int, pad: float) -> np.ndarray:
 
 @nb.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
 def path_band_solve(F: np.ndarray, dinv: np.ndarray, path: np.ndarray, R: np.ndarray, Z: np.ndarray,
-                    work: np.ndarray) -> None:  # pragma: no cover - compiled
+                    work: np.ndarray, a: int, b: int) -> None:  # pragma: no cover - compiled
     """``Z[path] += B⁻¹ R[path]`` for a band ``B = Uᵀ U`` laid out along ``path`` (repeats allowed).
 
     ``F`` is ``U`` in LAPACK's upper band layout (``F[kd - t, j] = U[j - t, j]``, as
@@ -267,18 +267,18 @@ def path_band_solve(F: np.ndarray, dinv: np.ndarray, path: np.ndarray, R: np.nda
     (all columns of an unknown in one cache line: a path jumps through memory) with ``m``
     above every index of ``path``; ``work`` is ``(len(path), c)`` scratch. A zero band
     entry between two stretches of the path decouples them, so many lines laid end to
-    end are solved in one sweep each way.
+    end are solved in one sweep each way. Only positions ``a:b`` are solved (a stretch that
+    starts and ends with whole paths: another thread may solve the rest, into another ``Z``).
     """
     kd = F.shape[0] - 1
-    S = path.size
     c = R.shape[1]
     y = work
-    for j in range(S):  # Uᵀ y = r along the path
+    for j in range(a, b):  # Uᵀ y = r along the path
         r = R[path[j]]
         yj = y[j]
         for q in range(c):
             yj[q] = r[q]
-        for t in range(1, min(kd, j) + 1):
+        for t in range(1, min(kd, j - a) + 1):
             f = F[kd - t, j]
             yt = y[j - t]
             for q in range(c):
@@ -286,9 +286,9 @@ def path_band_solve(F: np.ndarray, dinv: np.ndarray, path: np.ndarray, R: np.nda
         d = dinv[j]
         for q in range(c):
             yj[q] *= d
-    for i in range(S - 1, -1, -1):  # U x = y, scattered back
+    for i in range(b - 1, a - 1, -1):  # U x = y, scattered back
         yi = y[i]
-        for t in range(1, min(kd, S - 1 - i) + 1):
+        for t in range(1, min(kd, b - 1 - i) + 1):
             f = F[kd - t, i + t]
             yt = y[i + t]
             for q in range(c):

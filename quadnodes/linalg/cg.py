@@ -472,6 +472,12 @@ class PathLinePreconditioner:
         self._lone = np.flatnonzero(~covered)
         self._lone_inv = 1.0 / diag[self._lone]
         self._work: np.ndarray | None = None
+        self._second: np.ndarray | None = None
+        # from LINES_PARALLEL_MIN_ROWS unknowns: the paths in two stretches of whole paths on two threads
+        # (each unknown lies on two paths, so the second stretch adds into its own Z, summed after)
+        inner = np.flatnonzero(starts)[1:]  # the starts of all paths but the first: where a stretch may end
+        half = int(inner[np.argmin(np.abs(2 * inner - S))]) if inner.size else S
+        self._cut = half if (k >= LINES_PARALLEL_MIN_ROWS and _threads.thread_count() > 1) else S
 
     @staticmethod
     def _lookup(M: sp.csr_matrix, keys: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -493,7 +499,19 @@ class PathLinePreconditioner:
         work = self._work
         if work is None or work.shape[1] != Rr.shape[1]:
             work = self._work = np.empty((self.path.size, Rr.shape[1]))
-        path_band_solve(self.factor, self._dinv, self.path, Rr, Zr, work)
+        S, cut = self.path.size, self._cut
+        if cut < S:
+            second = self._second
+            if second is None or second.shape != Zr.shape:
+                second = self._second = np.empty(Zr.shape)
+            second.fill(0.0)
+            job = _threads.pool().submit(path_band_solve, self.factor, self._dinv, self.path, Rr, second, work,
+                                         cut, S)
+            path_band_solve(self.factor, self._dinv, self.path, Rr, Zr, work, 0, cut)
+            job.result()
+            Zr += second
+        else:
+            path_band_solve(self.factor, self._dinv, self.path, Rr, Zr, work, 0, S)
         if self._lone.size:
             Zr[self._lone] = Rr[self._lone] * self._lone_inv[:, None]
         if columns:

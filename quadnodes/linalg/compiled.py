@@ -44,7 +44,7 @@ def _load() -> None:
         k.cg_direction(Z, X, out, 0, 8)
         band = np.ones((4, 8))
         k.path_band_solve(band, band[3].copy(), np.arange(8, dtype=np.int64), X.T.copy(), np.zeros((8, 3)),
-                          np.empty((8, 3)))
+                          np.empty((8, 3)), 0, 8)
         _STATE["ready"] = True
         from .threads import prime_blas_controller
 

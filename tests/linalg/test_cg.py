@@ -289,6 +289,15 @@ def test_path_line_preconditioner_is_the_sum_of_the_band_inverses(seed, closed):
     Zt = np.empty((k, 3))
     P.apply(np.ascontiguousarray(R.T), Zt, 0, k, False)
     np.testing.assert_allclose(Zt, Z.T, rtol=1e-12, atol=1e-14)
+    with pytest.MonkeyPatch.context() as mp:  # the paths in two stretches on two threads: the same operator
+        mp.setattr(linalg_cg, "LINES_PARALLEL_MIN_ROWS", 0)
+        mp.setattr(linalg_threads, "thread_count", lambda: 2)
+        P2 = PathLinePreconditioner(M, path, starts, ring)
+    assert 0 < P2._cut < path.size and starts[P2._cut]
+    for columns, shape in ((True, (3, k)), (False, (k, 3))):
+        Z2 = np.full(shape, np.nan)
+        P2.apply(R if columns else np.ascontiguousarray(R.T), Z2, 0, k, columns)
+        np.testing.assert_allclose(Z2 if columns else Z2.T, Z, rtol=1e-12, atol=1e-14)
     # as a preconditioner, in both vector layouts: CG reaches the direct solve
     for columns in (True, False):
         with pytest.MonkeyPatch.context() as mp:
