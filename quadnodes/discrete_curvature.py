@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _validate
+from ._arrays import unique_values
 from .mesh import QuadMesh
 
 __all__ = [
@@ -236,8 +237,7 @@ def moreton_sequin(mesh: QuadMesh, *, vertices: np.ndarray | None = None,
     f = mesh.faces
     i = np.concatenate([f[:, k] for k in range(4)] * 3)
     j = np.concatenate([f[:, (k + s) % 4] for s in (1, 2, 3) for k in range(4)])
-    key = np.sort(i * n + j)  # sort and drop repeats: np.unique hashes int64 keys ~60x slower (numpy 2.4)
-    key = key[np.concatenate([[True], key[1:] != key[:-1]])]
+    key = unique_values(i * n + j)
     i, j = key // n, key % n
     d = x[j] - x[i]
     ni = nrm[i]

@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 from . import _validate
+from ._arrays import unique_rows
 from .errors import InputError
 from .linalg import factorize
 from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner,
@@ -226,7 +227,7 @@ def extraordinary_windows(vertices: np.ndarray, topology: object) -> np.ndarray:
     partner = cand[np.arange(v.size), np.argmin(dots, axis=1)]
     i = np.flatnonzero(has)
     j = partner[i]
-    pairs = np.unique(np.sort(np.stack([i, j], axis=1), axis=1), axis=0)
+    pairs = unique_rows(np.sort(np.stack([i, j], axis=1), axis=1))
     i, j = pairs[:, 0], pairs[:, 1]
     w1 = np.stack([arm[i, 2], arm[i, 1], arm[i, 0], arm[j, 1]], axis=1)
     w2 = np.stack([arm[i, 1], arm[i, 0], arm[j, 1], arm[j, 2]], axis=1)

@@ -42,6 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _validate
+from ._arrays import unique_rows
 
 __all__ = ["RING_SCALE", "LINE_END_MARGIN", "ring_arms", "turning_matrix", "line_end_arms", "line_end_rows",
            "line_end_energy", "line_end_measure", "line_end_free"]
@@ -173,7 +174,7 @@ def line_end_arms(topology: object, where: np.ndarray) -> np.ndarray:
     a = arms[where[arms[:, 0]] & ~corner[arms].any(axis=1)]
     if len(a) == 0:
         return np.empty((0, 2), dtype=np.int64)
-    return np.unique(np.sort(a, axis=1), axis=0).astype(np.int64)
+    return unique_rows(np.sort(a, axis=1)).astype(np.int64)
 
 
 def line_end_rows(vertices: np.ndarray, topology: object, pairs: np.ndarray, *, scale: float | None = None,

@@ -48,6 +48,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from . import _validate
+from ._arrays import unique_rows
 from .errors import InputError
 from .fairing import fairing_matrix
 from .mesh import QuadMesh
@@ -425,7 +426,7 @@ def _planarity_constraints(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
 def _soundness(X0: np.ndarray, faces: np.ndarray) -> Callable[[np.ndarray], bool]:
     """The test the Newton-type steps keep to with ``shape="keep"``: no edge below
     :data:`KEPT_EDGE_RATIO` of its length in ``X0``, no quad convex in ``X0`` turned non-convex."""
-    edges = np.unique(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    edges = unique_rows(np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1))
     min_len = KEPT_EDGE_RATIO * np.linalg.norm(X0[edges[:, 1]] - X0[edges[:, 0]], axis=1)
     convex0 = _validate.corner_turns(X0, faces)[0] == 0
 

@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, depth_first_order
 
+from ._arrays import unique_values
 from ._validate import grid_cell_base, grid_cells
 
 if TYPE_CHECKING:
@@ -414,7 +415,7 @@ def _closed_grid(faces: np.ndarray, n: int) -> tuple[int, int, bool, bool] | Non
         if rows < (3 if wrap[0] else 2) or count != len(faces):
             continue
         base = grid_cell_base(faces, rows, cols, wrap_rows=wrap[0], wrap_cols=wrap[1])
-        if (base >= 0).all() and np.unique(base).size == len(faces):
+        if (base >= 0).all() and unique_values(base).size == len(faces):
             return rows, cols, wrap[0], wrap[1]
     return None
 
@@ -904,7 +905,7 @@ def as_grid(mesh: QuadMesh) -> QuadMesh | None:
     flip = on_row0[seq[:, 0]] < 0
     seq[flip] = seq[flip, ::-1]
     j = on_row0[seq[:, 0]]
-    if (j < 0).any() or np.unique(j).size != cols:
+    if (j < 0).any() or unique_values(j).size != cols:
         return None
     G = np.empty((rows, cols), dtype=np.int64)
     G[:, j] = seq.T
@@ -935,7 +936,7 @@ def _as_closed_grid(mesh: QuadMesh) -> QuadMesh | None:
     pos = np.arange(lines.indices.size) - lines.offsets[:-1][line_of]
     # every vertex on exactly two lines (one of each family), never twice on one
     per_vertex = np.bincount(lines.indices, minlength=n)
-    if (per_vertex != 2).any() or np.unique(lines.indices * L + line_of).size != lines.indices.size:
+    if (per_vertex != 2).any() or unique_values(lines.indices * L + line_of).size != lines.indices.size:
         return None
     # the two lines at every vertex, and the vertex's place on each
     by_vertex = np.argsort(lines.indices, kind="stable").reshape(n, 2)
@@ -943,7 +944,7 @@ def _as_closed_grid(mesh: QuadMesh) -> QuadMesh | None:
     is_cylinder = bool(bnd.any())
     if is_cylinder:  # the rows are the closed lines, two of them the boundary loops
         v0 = int(np.flatnonzero(bnd)[0])
-        if int(lines.closed[np.unique(line_of[lines.indices == v0])].sum()) != 1:
+        if int(lines.closed[unique_values(line_of[lines.indices == v0])].sum()) != 1:
             return None
         k = int(np.flatnonzero(lines.closed[at_line[v0]])[0])
     else:  # torus: of the two lines through the smallest vertex, row 0 turns to the smaller neighbour
@@ -962,7 +963,7 @@ def _as_closed_grid(mesh: QuadMesh) -> QuadMesh | None:
     other = np.where(at_line[row0, 0] == row0_line, 1, 0)
     col_line = at_line[row0, other]
     col_pos = at_pos[row0, other]
-    if np.unique(col_line).size != cols or (col_line == row0_line).any():
+    if unique_values(col_line).size != cols or (col_line == row0_line).any():
         return None
     rows = int(ln[col_line[0]])
     if (ln[col_line] != rows).any() or rows * cols != n or rows < 2 or cols < 3:
