@@ -1199,7 +1199,9 @@ def _fair(
         new_free = system.solve(target)
         if line_curvature == "hold":
             # twicing: x₁ + S(a − x₁) = S(2a − x₁) (the fixed vertices' part enters once), the same system
+            first = system.iterations
             new_free = system.solve(2.0 * target - new_free)
+            system.iterations += first  # the report counts the CG steps of both solves
         x_new = x.copy()
         x_new[system.free_index] = new_free
         moved = new_free - np.take(x, system.free_index, axis=0)

@@ -942,6 +942,12 @@ def test_line_curvature_hold_is_twicing_at_half_the_weight(weight):
     np.testing.assert_allclose(out.vertices[free], expected, atol=1e-9)
     np.testing.assert_array_equal(out.vertices[~free], noisy.vertices[~free])
     assert rep.iterations[0].weight_effective == pytest.approx(weight / 2)
+    # with conjugate gradients, the report counts the steps of both solves
+    _, r_cg = fair(noisy, threshold=0.0, weight=weight, weight_scale="raw", detection="thesis",
+                   line_spacing="hold", extraordinary="hold", line_curvature="hold", solver="cg")
+    _, r_once = fair(noisy, threshold=0.0, weight=weight / 2, weight_scale="raw", detection="thesis",
+                     line_spacing="hold", extraordinary="hold", solver="cg")
+    assert r_cg.iterations[0].cg_iterations > r_once.iterations[0].cg_iterations > 0
 
 
 def test_line_curvature_fair_is_the_default_and_bad_values_are_named():
