@@ -50,6 +50,8 @@ __all__ = [
     "EXTRAORDINARY_MODES",
     "LINE_SPACING_MODES",
     "DEFAULT_LINE_SPACING",
+    "LINE_CURVATURE_MODES",
+    "DEFAULT_LINE_CURVATURE",
     "fairing_matrix",
     "fairing_energy",
     "FairingSystem",
@@ -142,6 +144,12 @@ EXTRAORDINARY_MODES: tuple[str, ...] = ("fair", "lines", "hold")
 LINE_SPACING_MODES: tuple[str, ...] = ("fair", "hold")
 #: Measured on the real meshes and on E1–E4 (docs/fairing.md, "Spacing along the lines").
 DEFAULT_LINE_SPACING = "fair"
+#: The values of ``line_curvature`` in :func:`fair`: ``"fair"`` fairs every curvature change along the lines
+#: (eq. 34, the thesis), ``"hold"`` gives back the smooth part of what one solve removed (Tukey's twicing at
+#: half the weight), so the design's own curvature changes are held (docs/fairing.md, "The design's curvature").
+LINE_CURVATURE_MODES: tuple[str, ...] = ("fair", "hold")
+#: Kept at the thesis's: ``"hold"`` gains on curved designs and loses 1–5 % on nearly flat ones (docs/fairing.md).
+DEFAULT_LINE_CURVATURE = "fair"
 
 
 def even_lengths(inverse: np.ndarray) -> np.ndarray:
@@ -932,6 +940,7 @@ def fair(
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
     line_spacing: Literal["fair", "hold"] = DEFAULT_LINE_SPACING,
     gaps: Literal["auto", "fair", "hold"] = "auto",
+    line_curvature: Literal["fair", "hold"] = DEFAULT_LINE_CURVATURE,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -1006,6 +1015,19 @@ def fair(
         regions are filled, not grown (a lone spike is faired as with ``"hold"``).
         ``"auto"`` (default): the detection's (:data:`quadnodes.zigzag.DEFAULT_GAPS`:
         ``"fair"`` with ``"alternating"``, ``"hold"`` with ``"thesis"``).
+    line_curvature : {"fair", "hold"}
+        ``"fair"`` (default, the thesis): each iteration's solve fairs every change
+        of curvature along the lines, the design's own too — a clean mesh whose
+        lines change curvature (rounded edges and corners) drifts where every
+        vertex is free. ``"hold"``: bias correction (Tukey's twicing) — the
+        iteration solves once more at the same free vertices and lengths and gives
+        back the faired part of what the first solve removed:
+        ``x₂ = S(2a − x₁)`` with ``x₁ = S a`` (``a`` the anchor), both at half the
+        weight. The drift of a clean mesh is never larger (on every eigenmode of
+        the system, ``λ(λ + ω)/(λ + ω/2)²`` of it), the high-frequency noise
+        response is the same (``≈ ω/λ``), middle frequencies pass somewhat more.
+        Better on curved designs under noise that frees every vertex, 1–5 % worse
+        on nearly flat ones (``docs/fairing.md``); each iteration costs two solves.
 
     Returns
     -------
@@ -1036,7 +1058,7 @@ def fair(
     settings = dict(iterations=iterations, threshold=threshold, threshold_decay=threshold_decay, weight=weight,
                     weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor, reference=reference,
                     fix=fix, fixed=fixed, solver=solver, extraordinary=extraordinary, detection=detection,
-                    line_spacing=line_spacing, gaps=gaps)
+                    line_spacing=line_spacing, gaps=gaps, line_curvature=line_curvature)
     if mesh.n_vertices < HEAP_MIN_VERTICES:
         return _fair(mesh, **settings)  # type: ignore[arg-type]
     with reused_heap():  # a big mesh's temporaries: reused heap blocks, not fresh pages each time
@@ -1061,6 +1083,7 @@ def _fair(
     detection: Literal["alternating", "thesis"],
     line_spacing: Literal["fair", "hold"],
     gaps: Literal["auto", "fair", "hold"],
+    line_curvature: Literal["fair", "hold"] = DEFAULT_LINE_CURVATURE,
 ) -> tuple[QuadMesh, FairingReport]:
     """:func:`fair` on a validated mesh."""
     iterations = _validate.iteration_count(iterations, "iterations")
@@ -1074,6 +1097,7 @@ def _fair(
     detection = _validate.choice(detection, DETECTIONS, "detection")  # type: ignore[assignment]
     line_spacing = _validate.choice(line_spacing, LINE_SPACING_MODES, "line_spacing")  # type: ignore[assignment]
     gaps = _validate.choice(gaps, ("auto",) + GAPS_MODES, "gaps")  # type: ignore[assignment]
+    line_curvature = _validate.choice(line_curvature, LINE_CURVATURE_MODES, "line_curvature")  # type: ignore[assignment]
     if gaps == "auto":
         gaps = DEFAULT_GAPS[detection]  # type: ignore[assignment]
     topo = mesh.topology
@@ -1159,6 +1183,8 @@ def _fair(
                 break
             continue
         w_eff = float(weights[it] * scale)
+        if line_curvature == "hold":
+            w_eff *= 0.5  # two solves: the same high-frequency noise response as one at ω
         if xw.size or ends.size:
             xs = [w, xw] if xw.size else [w]
             inv_all = [inverse, EXTRAORDINARY_SCALE * x_geom[1]] if xw.size else [inverse]
@@ -1176,6 +1202,11 @@ def _fair(
         else:
             target = np.take(x if anchor == "current" else x0, system.free_index, axis=0)
         new_free = system.solve(target)
+        if line_curvature == "hold":
+            # twicing: x₁ + S(a − x₁) = S(2a − x₁) (the fixed vertices' part enters once), the same system
+            first = system.iterations
+            new_free = system.solve(2.0 * target - new_free)
+            system.iterations += first  # the report counts the CG steps of both solves
         x_new = x.copy()
         x_new[system.free_index] = new_free
         moved = new_free - np.take(x, system.free_index, axis=0)

@@ -349,7 +349,8 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          extraordinary: Literal["fair", "lines", "hold"] = "fair",
          detection: Literal["alternating", "thesis"] = "alternating",
          line_spacing: Literal["fair", "hold"] = "fair",
-         gaps: Literal["auto", "fair", "hold"] = "auto") -> tuple[QuadMesh, FairingReport]:
+         gaps: Literal["auto", "fair", "hold"] = "auto",
+         line_curvature: Literal["fair", "hold"] = "fair") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
     with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
 
@@ -383,11 +384,15 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
     gaps : str
         fair (a vertex between two found vertices of a line is faired too) or hold (only what is found moves; the
         thesis); auto (default): fair with the alternating detection, hold with the thesis's.
+    line_curvature : str
+        fair (default, the thesis: every curvature change along the lines is faired, the design's too) or hold
+        (bias correction: a second solve gives back the smooth part of what the first removed, so rounded edges
+        and corners of a curved design drift less; two solves per round).
     """
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,
                  fix=fix, fixed=fixed, solver=solver, reference=reference, extraordinary=extraordinary,
-                 detection=detection, line_spacing=line_spacing, gaps=gaps)
+                 detection=detection, line_spacing=line_spacing, gaps=gaps, line_curvature=line_curvature)
 
 
 @node("planarize", outputs=("mesh", "report"),

@@ -928,3 +928,54 @@ def test_compiled_grid_path_on_grids_with_few_rows(monkeypatch, rows):
     out, _ = fair(m, threshold=0.0, solver="cg")
     ref, _ = fair(m, threshold=0.0, solver="direct")
     assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
+# --- line_curvature: bias correction (twicing) -----------------------------------------------
+
+
+@given(meshes(), st.sampled_from([0.01, 0.3, 10.0]), st.sampled_from(["fair", "hold"]))
+def test_holding_curvature_never_moves_a_mesh_more_than_fairing_it(mesh, weight, spacing):
+    # one iteration, the same free vertices and frozen lengths: on every eigenmode of the system the displacement
+    # of "hold" (twicing at ω/2) is λ(λ + ω)/(λ + ω/2)² ≤ 1 of that of "fair" — a clean design drifts less
+    kw = dict(threshold=0.0, weight=weight, line_spacing=spacing)
+    once, r1 = fair(mesh, **kw)
+    twice, r2 = fair(mesh, **kw, line_curvature="hold")
+    assert [r.n_free for r in r1.iterations] == [r.n_free for r in r2.iterations]
+    assert np.isfinite(twice.vertices).all()
+    d1 = np.linalg.norm(once.vertices - mesh.vertices)
+    d2 = np.linalg.norm(twice.vertices - mesh.vertices)
+    assert d2 <= d1 * (1 + 1e-9) + 1e-12 * mesh.mean_edge_length
+    # what fairing does not move, holding curvature does not move either
+    still = np.all(once.vertices == mesh.vertices, axis=1)
+    assert np.array_equal(twice.vertices[still], mesh.vertices[still])
+
+
+@pytest.mark.parametrize("weight", [0.05, 0.3, 3.0])
+def test_line_curvature_hold_is_twicing_at_half_the_weight(weight):
+    # the thesis's rows (own lengths, no line-end rows): x₂ = x₁ + S(a − x₁) = S(2a − x₁) at ω/2, corners held
+    noisy, _ = perturb(grid(8, 9, height=np.outer(np.linspace(0, 1, 8) ** 3, np.ones(9))), jitter=0.2, seed=4)
+    out, rep = fair(noisy, threshold=0.0, weight=weight, weight_scale="raw", detection="thesis",
+                    line_spacing="hold", extraordinary="hold", line_curvature="hold", solver="direct")
+    from quadnodes.topology import fixed_vertices
+
+    free = noisy.topology.window_middle & ~fixed_vertices(noisy, "corners")
+    s = FairingSystem(noisy.vertices, noisy.topology.windows, free, weight / 2, solver="direct")
+    a = noisy.vertices[free]
+    x1 = s.solve(a)
+    expected = x1 + (s.solve(a + (a - x1)) - s.solve(a))  # x₁ + S(a − x₁), S the linear part
+    np.testing.assert_allclose(out.vertices[free], expected, atol=1e-9)
+    np.testing.assert_array_equal(out.vertices[~free], noisy.vertices[~free])
+    assert rep.iterations[0].weight_effective == pytest.approx(weight / 2)
+    # with conjugate gradients, the report counts the steps of both solves
+    _, r_cg = fair(noisy, threshold=0.0, weight=weight, weight_scale="raw", detection="thesis",
+                   line_spacing="hold", extraordinary="hold", line_curvature="hold", solver="cg")
+    _, r_once = fair(noisy, threshold=0.0, weight=weight / 2, weight_scale="raw", detection="thesis",
+                     line_spacing="hold", extraordinary="hold", solver="cg")
+    assert r_cg.iterations[0].cg_iterations > r_once.iterations[0].cg_iterations > 0
+
+
+def test_line_curvature_fair_is_the_default_and_bad_values_are_named():
+    noisy, _ = perturb(grid(6, 7), jitter=0.2, seed=1)
+    np.testing.assert_array_equal(fair(noisy)[0].vertices, fair(noisy, line_curvature="fair")[0].vertices)
+    with pytest.raises(InputError, match="line_curvature"):
+        fair(noisy, line_curvature="keep")

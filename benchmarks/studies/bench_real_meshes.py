@@ -13,6 +13,8 @@ best of its settings on that mesh and noise is shown (the setting beside it):
 
 - ``fair``: ``quadnodes.fair`` with its defaults (``detection="alternating"``, ``gaps="fair"``,
   ``extraordinary="fair"``, ``line_spacing="fair"``), iterations 1, 3, 5;
+- ``fair (curvature hold)``: fair with its defaults and ``line_curvature="hold"`` (bias correction by twicing),
+  iterations 1, 3, 5;
 - ``fair (before)``: fair's defaults before issue 16 item 6: ``line_spacing="hold", threshold=0.1,
   extraordinary="lines", gaps="hold"``, iterations 1, 3, 5;
 - ``fair (thesis)``: ``extraordinary="hold", detection="thesis", line_spacing="hold"`` — the thesis's method,
@@ -22,18 +24,21 @@ best of its settings on that mesh and noise is shown (the setting beside it):
 - ``trimesh taubin``: ``trimesh.smoothing.filter_taubin`` on the triangulated mesh, iterations
   2, 5, 10, 20, 50 (single steps), corners put back afterwards.
 
-The last columns say whether fair is the best (``zigzag``) or within 20 % of the best peer.
+The last columns say whether fair (its defaults; then with ``line_curvature="hold"``) is the best
+(``zigzag`` on an open mesh) or within 20 % of the best peer.
 
 ``--studies`` prints instead the measurements behind the defaults (``docs/fairing.md``): detection on the
 clean meshes and on E1–E4 (``quadnodes.report``'s noise and parameters, seed 7), and the pseudo-window
 scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``, and the line-end term
 (``extraordinary="hold"|"lines"|"fair"``, its scale ``quadnodes.line_ends.RING_SCALE``) on ``polygon_quads``,
 ``rounded_box`` and ``extraordinary_mesh(3)``. ``--gaps`` prints E1–E4 with ``gaps="hold"`` against
-``"fair"`` as ``--spacing`` does for ``line_spacing``. ``--spacing`` prints the study behind
+``"fair"`` as ``--spacing`` does for ``line_spacing``. ``--curvature`` prints E1–E4 with ``line_curvature="fair"`` (the thesis, the default) against ``"hold"``.
+``--spacing`` prints the study behind
 ``line_spacing="fair"``: E1–E4 as in ``quadnodes compare`` (seeds 7 and 1–5, noise on the corners-held and on the
 interior-only variant), the thesis's parameters and the default weight, ``line_spacing="hold"`` against ``"fair"``.
 
-Run:  python benchmarks/studies/bench_real_meshes.py [--seeds 3] [--markdown] [--studies | --spacing]
+Run:  python benchmarks/studies/bench_real_meshes.py [--seeds 3] [--markdown] [--meshes NAME ...]
+      [--noises zigzag normal jitter] [--studies | --spacing | --gaps | --curvature]
 """
 
 from __future__ import annotations
@@ -71,6 +76,8 @@ def _trimesh_taubin(mesh, iterations):
 
 METHODS = {
     "fair": [(f"{k} it", lambda m, k=k: fair(m, iterations=k)[0]) for k in (1, 3, 5)],
+    "fair (curvature hold)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_curvature="hold")[0])
+                              for k in (1, 3, 5)],
     "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_spacing="hold", threshold=0.1,
                                                        extraordinary="lines", gaps="hold")[0])
                       for k in (1, 3, 5)],
@@ -182,20 +189,21 @@ def line_end_study() -> None:
         print(f"  {mode:5s} {'' if s is None else s!s:4s} " + " | ".join(cells), flush=True)
 
 
-def spacing_study(setting: str = "line_spacing") -> None:
-    """E1–E4 with ``setting="hold"`` (the thesis) and ``"fair"``: the numbers of ``quadnodes compare``
-    (``line_spacing``: ``--spacing``; ``gaps``: ``--gaps``)."""
+def spacing_study(setting: str = "line_spacing", modes: tuple[str, str] = ("hold", "fair")) -> None:
+    """E1–E4 with ``setting`` at ``modes[0]`` (the thesis) and ``modes[1]``: the numbers of ``quadnodes compare``
+    (``line_spacing``: ``--spacing``; ``gaps``: ``--gaps``; ``line_curvature``, thesis ``"fair"`` -> ``"hold"``:
+    ``--curvature``)."""
     from quadnodes.report import THESIS_EXAMPLES, _boundary_frame, _noisy_example, measure
 
     keys = [("vertex_distance_mean_h", "to clean vertex"), ("surface_distance_mean_h", "to clean surface"),
             ("zigzag_max", "zigzag max"), ("boundary_displacement_max_h", "boundary moved max"),
             ("relief_change_pct", "relief %")]
-    print(f"E1-E4, mean over seeds 7, 1-5 (worst seed in brackets); {setting}: hold -> fair")
+    print(f"E1-E4, mean over seeds 7, 1-5 (worst seed in brackets); {setting}: {modes[0]} -> {modes[1]}")
     for name in ("E1", "E2", "E3", "E4"):
         ex = THESIS_EXAMPLES[name]
         for fix in ("corners", "boundary"):
             for label, params in (("thesis weights", dict(ex.fair)), ("default weight", {**ex.fair, "weight": 0.3})):
-                vals = {"hold": [], "fair": []}
+                vals: dict[str, list] = {modes[0]: [], modes[1]: []}
                 for seed in (7, 1, 2, 3, 4, 5):
                     _, clean, fine, noisy, _, _ = _noisy_example(name, seed, fix)
                     frame = _boundary_frame(clean)
@@ -205,7 +213,7 @@ def spacing_study(setting: str = "line_spacing") -> None:
                         out, _ = fair(noisy, **params, **{setting: mode}, **pin)
                         row = measure(noisy, out, clean, fine, boundary_frame=frame)
                         vals[mode].append([row[k] for k, _ in keys])
-                h, f = (np.array(vals[m]) for m in ("hold", "fair"))
+                h, f = (np.array(vals[m]) for m in modes)
                 worse = (f - h).max(axis=0)  # the worst seed's change (larger = worse; relief: signed)
                 cells = [f"{lab} {h[:, j].mean():.3g} -> {f[:, j].mean():.3g} ({worse[j]:+.2g})"
                          for j, (_, lab) in enumerate(keys)]
@@ -219,21 +227,29 @@ def main() -> None:
     ap.add_argument("--studies", action="store_true", help="the measurements behind the defaults instead")
     ap.add_argument("--spacing", action="store_true", help="the study behind line_spacing='fair' instead")
     ap.add_argument("--gaps", action="store_true", help="the E1-E4 study behind gaps='fair' instead")
+    ap.add_argument("--curvature", action="store_true", help="the E1-E4 study of line_curvature='hold' instead")
+    ap.add_argument("--meshes", nargs="+", default=MESHES, choices=MESHES, metavar="NAME",
+                    help="only these meshes of tests/data (default: all)")
+    ap.add_argument("--noises", nargs="+", default=list(NOISE), choices=list(NOISE), help="only these noises")
     args = ap.parse_args()
     if args.studies:
         studies()
         line_end_study()
         return
+    if args.curvature:
+        spacing_study("line_curvature", ("fair", "hold"))
+        return
     if args.spacing or args.gaps:
         spacing_study("gaps" if args.gaps else "line_spacing")
         return
-    head = ["mesh", "noise", "noisy"] + list(METHODS) + ["fair vs best peer"]
+    head = ["mesh", "noise", "noisy"] + list(METHODS) + ["fair vs best peer", "curvature hold vs best peer"]
     rows = []
-    for name in MESHES:
+    for name in args.meshes:
         clean = load(DATA / name)
         h = clean.mean_edge_length
         closed = not clean.topology.boundary_vertices.any()
-        for kind, amp in NOISE.items():
+        for kind in args.noises:
+            amp = NOISE[kind]
             noisy_list = [perturb(clean, seed=s, fix="corners", **amp)[0] for s in range(args.seeds)]
 
             def err(meshes):
@@ -244,13 +260,15 @@ def main() -> None:
                 scores = [(err([fn(m) for m in noisy_list]), label) for label, fn in settings]
                 best[method] = min(scores)
             peers = min(v[0] for k, v in best.items() if not k.startswith("fair"))
-            f = best["fair"][0]
-            if kind == "zigzag" and not closed:
-                verdict = "best" if f <= peers else f"NOT best (+{100 * (f / peers - 1):.0f} %)"
-            else:
-                verdict = f"{100 * (f / peers - 1):+.0f} %" + ("" if f <= 1.2 * peers else " (beyond 20 %)")
+            verdicts = []
+            for variant in ("fair", "fair (curvature hold)"):
+                f = best[variant][0]
+                if kind == "zigzag" and not closed:
+                    verdicts.append("best" if f <= peers else f"NOT best (+{100 * (f / peers - 1):.0f} %)")
+                else:
+                    verdicts.append(f"{100 * (f / peers - 1):+.0f} %" + ("" if f <= 1.2 * peers else " (beyond 20 %)"))
             rows.append([name, kind, f"{err(noisy_list):.3f}"]
-                        + [f"{best[k][0]:.3f} ({best[k][1]})" for k in METHODS] + [verdict])
+                        + [f"{best[k][0]:.3f} ({best[k][1]})" for k in METHODS] + verdicts)
     print(f"mean vertex error / h, mean of {args.seeds} seeds; best setting of each method in brackets")
     if args.markdown:
         print("| " + " | ".join(head) + " |")
