@@ -49,12 +49,34 @@ class DiagonalBlocks(RowBlocks):
                accumulate: bool = False) -> None:
         n = self.data.shape[1]
         hi = min(hi, n)
+        split = self._split if data is None and not accumulate else None
+        if split is None and data is None and not accumulate:
+            split = self._split = self._main_and_rest()
+        if split is not None and split[0] is not None:
+            # y = diag · x first, the other diagonals added by SciPy's kernel: no pass to zero y
+            main, off_offsets, rest = split
+            off = off_offsets + off_offsets.dtype.type(lo)
+            for x, y in zip(X, Y):
+                y = y[lo:hi]
+                np.multiply(main[lo:hi], x[lo:hi], out=y)
+                _dia_matvec(hi - lo, n, off.size, n, off, rest, x, y)
+            return
         off = self.offsets + self.offsets.dtype.type(lo)
         for x, y in zip(X, Y):
             y = y[lo:hi]
             if not accumulate:
                 y.fill(0.0)
-            _dia_matvec(hi - lo, n, off.size, n, off, self.data, x, y)
+            _dia_matvec(hi - lo, n, off.size, n, off, self.data if data is None else data, x, y)
+
+    _split: tuple | None = None
+
+    def _main_and_rest(self) -> tuple:
+        """``(main diagonal, other offsets, other diagonals)`` (contiguous), or ``(None,)`` without a main diagonal."""
+        zero = np.flatnonzero(self.offsets == 0)
+        if zero.size != 1:
+            return (None,)
+        keep = self.offsets != 0
+        return (self.data[zero[0]].copy(), self.offsets[keep].copy(), np.ascontiguousarray(self.data[keep]))
 
 
 
@@ -351,7 +373,11 @@ def block_cg(
     >>> bool(np.abs(M @ x - b).max() < 1e-9), res <= 1e-12
     (True, True)
     """
-    with blas_pinned():
+    if len(blocks.ranges) > 1 and (precond is None or getattr(precond, "blas_free", False)):
+        # threaded passes that call no BLAS (SciPy's sparse and diagonal kernels, NumPy's array loops,
+        # the compiled kernels): nothing to pin (the pin's first library scan costs about 20 ms)
+        return _run_cg(blocks, B, X0, rtol=rtol, maxiter=maxiter, precond=precond)
+    with blas_pinned():  # (one range: BLAS level-1 calls; block Jacobi: batched matmul)
         return _run_cg(blocks, B, X0, rtol=rtol, maxiter=maxiter, precond=precond)
 
 
@@ -427,6 +453,7 @@ class PathLinePreconditioner:
     """
 
     whole = True
+    blas_free = True  # (compiled sweeps: block_cg need not pin BLAS)
 
     def __init__(self, M: sp.spmatrix, path: np.ndarray, starts: np.ndarray, closed: np.ndarray | None = None,
                  kd: int = 3) -> None:
@@ -572,6 +599,7 @@ class LinePreconditioner:
     """
 
     whole = True
+    blas_free = True  # (compiled sweeps: block_cg need not pin BLAS)
 
     def __init__(self, row_band: np.ndarray, column_band: np.ndarray, cols: int) -> None:
         from ._kernels import LANES, blocked_lines, strided_band_cholesky

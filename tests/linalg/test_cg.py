@@ -102,6 +102,33 @@ def test_blas_libraries_are_scanned_again_only_when_a_shared_object_was_loaded()
     assert out.stdout.strip() == "ok"
 
 
+def test_block_cg_pins_blas_only_where_it_may_call_it():
+    """Threaded passes without a preconditioner call no BLAS (no pin, no library scan); block Jacobi's
+    batched matmul and a single range's BLAS level-1 updates are pinned. In a child: a fresh scan state."""
+    code = textwrap.dedent(
+        """
+        import numpy as np, scipy.sparse as sp
+        from quadnodes.linalg import threads
+        from quadnodes.linalg.cg import BlockJacobi, block_cg, permuted
+        from quadnodes.linalg.threads import RowBlocks
+        threads.PARALLEL_MIN_ROWS = 10
+        threads.thread_count = lambda: 2
+        n = 400
+        M = (sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(n, n))).tocsr()
+        b = np.ones((n, 3))
+        x, _, res = block_cg(RowBlocks(M), b, np.zeros((n, 3)), rtol=1e-10, maxiter=500)
+        assert len(RowBlocks(M).ranges) == 2 and res <= 1e-10
+        assert threads._CONTROLLER is None  # never scanned: nothing was pinned
+        block_cg(RowBlocks(M), b, np.zeros((n, 3)), rtol=1e-10, maxiter=500, precond=BlockJacobi(M, 64))
+        assert threads._CONTROLLER is not None
+        print("ok")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+
+
 def _solve_in_child(queue):
     linalg_threads.PARALLEL_MIN_ROWS = 10
     linalg_threads.thread_count = lambda: 2
