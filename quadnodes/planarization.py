@@ -548,6 +548,14 @@ GN_LINE_GROWTH = 2.0
 GN_LINE_FLOOR = 0.01
 
 
+#: ``method="auto"`` tries Gauss–Newton early when the local/global iteration stagnates: the last
+#: :data:`STALL_DOUBLINGS` doublings of the planarity weight (8× the weight) together lowered the maximum
+#: planarity by less than :data:`STALL_PROGRESS` (5 %). On E1–E4 three doublings always gain ≥ 13 %
+#: (`benchmarks/perf/bench_planarize.py`); on F100 they gain 3 % from the first doubling on.
+STALL_DOUBLINGS = 3
+STALL_PROGRESS = 0.05
+
+
 #: Gauss–Newton solves: conjugate gradients preconditioned by the last factorization, to this relative
 #: residual in at most this many steps, else the matrix is factorized anew.
 GN_CG_RTOL = 1e-4
@@ -1038,6 +1046,11 @@ def planarize(
     history: list[float] = []
     converged = False
     it = last_change = 0
+    # method="auto": the maximum planarity at every weight doubling, for the stagnation test; one early
+    # Gauss–Newton attempt at most (if it misses, local/global goes on exactly where it was)
+    at_doubling: list[float] = []
+    early = method == "auto" and fi.size <= NEWTON_LIMIT
+    tried = ["local-global"]
     for it in range(1, lg_cap + 1):
         g = step(x)
         xf = acc.update(xf, g) if acc is not None else g
@@ -1052,6 +1065,17 @@ def planarize(
         if method == "gauss-newton":
             continue
         if adapt and it - last_change >= 10 and pmax > 0.99 * history[-10]:
+            at_doubling.append(pmax)
+            if (early and len(at_doubling) > STALL_DOUBLINGS
+                    and pmax > (1.0 - STALL_PROGRESS) * at_doubling[-1 - STALL_DOUBLINGS]):
+                # stagnating: a mesh-wide deformation the projections reach only slowly (F100), which
+                # Gauss–Newton's second-order steps reach in a few; kept only if it meets the tolerance
+                early = False
+                tried.append("gauss-newton")
+                attempt = run_gauss_newton(x.copy(), it, history, facts, guarded)
+                if attempt[1].converged:
+                    return attempt[0], replace(attempt[1], methods_tried=tried)
+                tried.append("local-global")
             if w_p * 2.0 > MAX_WEIGHT_GROWTH * planarity_weight:
                 break  # stalled at the largest weight: the tolerance is out of reach with these constraints
             w_p *= 2.0
@@ -1063,7 +1087,7 @@ def planarize(
     result = finish(x, converged, it, history, w_p, facts, guarded=guarded)
     if converged or method == "local-global" or (method == "auto" and fi.size > NEWTON_LIMIT):
         return result
-    tried = ["local-global", "gauss-newton"]
+    tried.append("gauss-newton")
     results = [result, run_gauss_newton(x, it, history, facts, guarded)]
     if method == "auto" and not results[-1][1].converged:
         results.append(run_newton(it, history, facts))
