@@ -54,6 +54,7 @@ from .mesh import QuadMesh
 from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
+from .reference import warm_up as reference_kernel_warm_up
 from .linalg import Factorization, QuadraticProblem, factorize, regularization
 from .linalg.quadratic import DIRECT_LIMIT
 from .topology import adjacency, fixed_vertices
@@ -548,12 +549,20 @@ GN_LINE_GROWTH = 2.0
 GN_LINE_FLOOR = 0.01
 
 
+#: With a reference and at least this many vertices, planarize loads the compiled closest-point test on a
+#: second thread at its start (:func:`quadnodes.reference.warm_up`, about a second of CPU): at 100 × 100 the
+#: NumPy test is ~70 % of a local/global iteration, the compiled one a few percent.
+REFERENCE_KERNEL_MIN_VERTICES = 5000
+
 #: ``method="auto"`` tries Gauss–Newton early when the local/global iteration stagnates: the last
 #: :data:`STALL_DOUBLINGS` doublings of the planarity weight (8× the weight) together lowered the maximum
 #: planarity by less than :data:`STALL_PROGRESS` (5 %). On E1–E4 three doublings always gain ≥ 13 %
 #: (`benchmarks/perf/bench_planarize.py`); on F100 they gain 3 % from the first doubling on.
 STALL_DOUBLINGS = 3
 STALL_PROGRESS = 0.05
+#: ... with at most this many Gauss–Newton steps (F100 meets the tolerance in 12, a 50 × 50 sample of its face
+#: in 8; a miss costs the attempt, since local/global then goes on as if it had not been made).
+GN_EARLY_STEPS = 15
 
 
 #: Gauss–Newton solves: conjugate gradients preconditioned by the last factorization, to this relative
@@ -899,6 +908,8 @@ def planarize(
     held = fixed_vertices(mesh, fix, fixed)
     ref: Reference | None = None
     if reference is not None:
+        if mesh.n_vertices >= REFERENCE_KERNEL_MIN_VERTICES:
+            reference_kernel_warm_up()  # hundreds of closest-point calls ahead: load the compiled test meanwhile
         ref = as_reference(reference, mesh, samples=reference_samples)
     if w_c == 0 and w_i == 0:
         # only the held vertices pin the mesh: every connected piece needs one, else it may slide freely
@@ -990,9 +1001,9 @@ def planarize(
         return finish(x, met, its, history + steps_h, w_p, facts + len(steps_h), "newton", steps)
 
     def run_gauss_newton(start: np.ndarray, its: int, history: list[float], facts: int,
-                         guarded: int) -> tuple[QuadMesh, PlanarizeReport]:
+                         guarded: int, cap: int = newton_steps) -> tuple[QuadMesh, PlanarizeReport]:
         x, steps_h, steps, weight, f_gn = _gauss_newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol,
-                                                        newton_steps, relative, keep=shape == "keep", start=start,
+                                                        cap, relative, keep=shape == "keep", start=start,
                                                         windows=w if len(w) else None)
         met = bool(steps_h) and steps_h[-1] <= tol
         return finish(x, met, its, history + steps_h, weight, facts + f_gn, "gauss-newton", steps, guarded=guarded)
@@ -1072,7 +1083,8 @@ def planarize(
                 # Gauss–Newton's second-order steps reach in a few; kept only if it meets the tolerance
                 early = False
                 tried.append("gauss-newton")
-                attempt = run_gauss_newton(x.copy(), it, history, facts, guarded)
+                attempt = run_gauss_newton(x.copy(), it, history, facts, guarded,
+                                           min(newton_steps, GN_EARLY_STEPS))
                 if attempt[1].converged:
                     return attempt[0], replace(attempt[1], methods_tried=tried)
                 tried.append("local-global")
@@ -1086,7 +1098,7 @@ def planarize(
                 acc.reset()
     result = finish(x, converged, it, history, w_p, facts, guarded=guarded)
     if converged or method == "local-global" or (method == "auto" and fi.size > NEWTON_LIMIT):
-        return result
+        return result[0], replace(result[1], methods_tried=tried)
     tried.append("gauss-newton")
     results = [result, run_gauss_newton(x, it, history, facts, guarded)]
     if method == "auto" and not results[-1][1].converged:
