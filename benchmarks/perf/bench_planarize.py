@@ -70,12 +70,13 @@ machine load, and whether the two results are bit-identical.
 
 ``--iteration``: instead of the tables, one local/global iteration (wall, CPU, set-up,
 peak memory) on the F100 recipe at 100×100, and with ``--big`` at 1000×1000 (built
-without the 4× finer sample; ~6 min to build on 2 cores): see :func:`run_iteration`.
+without the 4× finer sample; 1–6 min to build on 2 cores, so ``--cache`` keeps both meshes in
+``out/bench-cache/`` and reuses them): see :func:`run_iteration`.
 Above 20,000 free vertices the global step is conjugate gradients started from the
 current positions instead of a factorization.
 
 Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
-      python benchmarks/perf/bench_planarize.py --iteration [--big]
+      python benchmarks/perf/bench_planarize.py --iteration [--big] [--cache]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
