@@ -556,8 +556,8 @@ REFERENCE_KERNEL_MIN_VERTICES = 5000
 
 #: ``method="auto"`` tries Gauss–Newton early when the local/global iteration stagnates: the last
 #: :data:`STALL_DOUBLINGS` doublings of the planarity weight (8× the weight) together lowered the maximum
-#: planarity by less than :data:`STALL_PROGRESS` (5 %). On E1–E4 three doublings always gain ≥ 13 %
-#: (`benchmarks/perf/bench_planarize.py`); on F100 they gain 3 % from the first doubling on.
+#: planarity by less than :data:`STALL_PROGRESS` (5 %). On E1–E4 three doublings always gain ≥ 13 %,
+#: on F100 3 % from the first doubling on (``benchmarks/studies/planarize_stall.py``).
 STALL_DOUBLINGS = 3
 STALL_PROGRESS = 0.05
 #: ... with at most this many Gauss–Newton steps (F100 meets the tolerance in 12, a 50 × 50 sample of its face
@@ -844,7 +844,11 @@ def planarize(
         folds no quad and shortens no edge below the shape bounds. ``"newton"``:
         planarity as a hard constraint, Gauss–Newton (SQP) steps on the fairness
         and closeness energy from the input, one sparse KKT factorization per step
-        (``w_p`` and ``adapt`` unused). ``"auto"`` (default): local/global, and
+        (``w_p`` and ``adapt`` unused). ``"auto"`` (default): local/global — where
+        it stagnates (:data:`STALL_DOUBLINGS` weight doublings gained less than
+        :data:`STALL_PROGRESS`), one Gauss–Newton attempt of at most
+        :data:`GN_EARLY_STEPS` steps from its iterate, returned if it converges,
+        else local/global goes on unchanged — and
         when it ends above the tolerance with at most :data:`NEWTON_LIMIT` free
         vertices, Gauss–Newton from its result, then (if that misses too) Newton
         from the input; the converged result (else the sound one, else the
