@@ -22,6 +22,7 @@ mesh edge by default: 1/128 of the chord error of the mesh itself).
 
 from __future__ import annotations
 
+import os
 import threading
 from typing import Any
 
@@ -166,6 +167,16 @@ def _load_kernel() -> None:
         _KERNEL["fn"] = closest_on_candidates
     except Exception:  # pragma: no cover - Numba missing or broken: the NumPy path remains
         _KERNEL["fn"] = None
+
+
+def _forget_thread() -> None:
+    """A forked child has none of the parent's threads: load again there if it was not done."""
+    if _KERNEL["fn"] is None:
+        _KERNEL["thread"] = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_thread)
 
 
 def warm_up() -> None:

@@ -133,3 +133,22 @@ def test_compiled_closest_points_equal_the_numpy_path(seed, spread):
         q, d = Reference(ref_mesh).closest(pts)
     np.testing.assert_allclose(q, numpy_q, rtol=0, atol=1e-14)
     np.testing.assert_allclose(d, numpy_d, rtol=0, atol=1e-14)
+
+
+def test_a_forked_child_loads_the_compiled_test_itself(monkeypatch):
+    # after a fork the parent's loading thread does not exist in the child: _forget_thread (registered with
+    # os.register_at_fork) drops it unless the kernel was loaded, so the child loads its own when asked
+    import threading
+
+    import quadnodes.reference as R
+
+    dead = threading.Thread(target=lambda: None)
+    monkeypatch.setattr(R, "_KERNEL", {"thread": dead, "fn": None})
+    R._forget_thread()
+    assert R._KERNEL["thread"] is None
+    loaded = {"thread": dead, "fn": len}
+    monkeypatch.setattr(R, "_KERNEL", loaded)
+    R._forget_thread()
+    assert R._KERNEL["thread"] is dead  # loaded before the fork: kept
+    monkeypatch.setattr(R, "_KERNEL", {"thread": None, "fn": None})
+    assert R._compiled_kernel(R.COMPILED_MIN_POINTS) is not None  # loads (or finds) it synchronously
