@@ -119,3 +119,29 @@ def fresh_runs(script: str, args: list[str], repeat: int) -> tuple[dict, list[fl
 def spread(walls: list[float]) -> str:
     """`` (lo–hi)`` for more than one run."""
     return f" ({walls[0]:.3f}–{walls[-1]:.3f})" if len(walls) > 1 else ""
+
+
+def planarize_case(name: str):
+    """(face, clean mesh, faired noisy mesh) of a planarize benchmark case: "E1"–"E4" or "F100".
+
+    The recipe of ``benchmarks/perf/bench_planarize.py``: the thesis example (or F100, a 100 × 100
+    sample of ``surfaces.wavy(10000, 10000, 400, waves_u=0.5, waves_v=1.0)``), ``perturb`` with its
+    tangential/normal noise (F100: 0.25/0.1), seed 7, corners fixed, then ``fair(noisy, iterations=3)``.
+    """
+    from quadnodes import surfaces
+    from quadnodes.fairing import fair
+    from quadnodes.noise import perturb
+
+    if name == "F100":
+        face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
+        rows, cols, noise = 100, 100, (0.25, 0.1)
+    else:
+        from quadnodes.report import THESIS_EXAMPLES
+
+        ex = THESIS_EXAMPLES[name]
+        face = getattr(surfaces, ex.surface)()
+        rows, cols, noise = ex.rows, ex.cols, ex.noise
+    clean = surfaces.sample(face, rows, cols)
+    noisy, _ = perturb(clean, tangential=noise[0], normal=noise[1], seed=7, fix="corners")
+    faired, _ = fair(noisy, iterations=3)
+    return face, clean, faired

@@ -55,6 +55,7 @@ from .mesh import QuadMesh
 from .flatness import diagonal_distance, quad_diagonal_distance
 from .progress import report_progress
 from .reference import Reference, as_reference
+from .reference import warm_up as reference_kernel_warm_up
 from .linalg import Factorization, QuadraticProblem, factorize, regularization
 from .linalg.quadratic import DIRECT_LIMIT
 from .topology import adjacency, fixed_vertices
@@ -549,6 +550,22 @@ GN_LINE_GROWTH = 2.0
 GN_LINE_FLOOR = 0.01
 
 
+#: With a reference and at least this many vertices, planarize loads the compiled closest-point test on a
+#: second thread at its start (:func:`quadnodes.reference.warm_up`, about a second of CPU): at 100 × 100 the
+#: NumPy test is most of a local/global iteration (0.13 → 0.09 s of CPU with the compiled one).
+REFERENCE_KERNEL_MIN_VERTICES = 5000
+
+#: ``method="auto"`` tries Gauss–Newton early when the local/global iteration stagnates: the last
+#: :data:`STALL_DOUBLINGS` doublings of the planarity weight (8× the weight) together lowered the maximum
+#: planarity by less than :data:`STALL_PROGRESS` (5 %). On E1–E4 three doublings always gain ≥ 13 %,
+#: on F100 3 % from the first doubling on (``benchmarks/studies/planarize_stall.py``).
+STALL_DOUBLINGS = 3
+STALL_PROGRESS = 0.05
+#: ... with at most this many Gauss–Newton steps (F100 meets the tolerance in 12, a 50 × 50 sample of its face
+#: in 8; a miss costs the attempt, since local/global then goes on as if it had not been made).
+GN_EARLY_STEPS = 15
+
+
 #: Gauss–Newton solves: conjugate gradients preconditioned by the last factorization, to this relative
 #: residual in at most this many steps, else the matrix is factorized anew.
 GN_CG_RTOL = 1e-4
@@ -828,7 +845,11 @@ def planarize(
         folds no quad and shortens no edge below the shape bounds. ``"newton"``:
         planarity as a hard constraint, Gauss–Newton (SQP) steps on the fairness
         and closeness energy from the input, one sparse KKT factorization per step
-        (``w_p`` and ``adapt`` unused). ``"auto"`` (default): local/global, and
+        (``w_p`` and ``adapt`` unused). ``"auto"`` (default): local/global — where
+        it stagnates (:data:`STALL_DOUBLINGS` weight doublings gained less than
+        :data:`STALL_PROGRESS`), one Gauss–Newton attempt of at most
+        :data:`GN_EARLY_STEPS` steps from its iterate, returned if it converges,
+        else local/global goes on unchanged — and
         when it ends above the tolerance with at most :data:`NEWTON_LIMIT` free
         vertices, Gauss–Newton from its result, then (if that misses too) Newton
         from the input; the converged result (else the sound one, else the
@@ -892,6 +913,8 @@ def planarize(
     held = fixed_vertices(mesh, fix, fixed)
     ref: Reference | None = None
     if reference is not None:
+        if mesh.n_vertices >= REFERENCE_KERNEL_MIN_VERTICES:
+            reference_kernel_warm_up()  # hundreds of closest-point calls ahead: load the compiled test meanwhile
         ref = as_reference(reference, mesh, samples=reference_samples)
     if w_c == 0 and w_i == 0:
         # only the held vertices pin the mesh: every connected piece needs one, else it may slide freely
@@ -983,9 +1006,9 @@ def planarize(
         return finish(x, met, its, history + steps_h, w_p, facts + len(steps_h), "newton", steps)
 
     def run_gauss_newton(start: np.ndarray, its: int, history: list[float], facts: int,
-                         guarded: int) -> tuple[QuadMesh, PlanarizeReport]:
+                         guarded: int, cap: int = newton_steps) -> tuple[QuadMesh, PlanarizeReport]:
         x, steps_h, steps, weight, f_gn = _gauss_newton(x0, faces, fi, F, (w_f, w_c, w_i), h, closest, tol,
-                                                        newton_steps, relative, keep=shape == "keep", start=start,
+                                                        cap, relative, keep=shape == "keep", start=start,
                                                         windows=w if len(w) else None)
         met = bool(steps_h) and steps_h[-1] <= tol
         return finish(x, met, its, history + steps_h, weight, facts + f_gn, "gauss-newton", steps, guarded=guarded)
@@ -1039,6 +1062,11 @@ def planarize(
     history: list[float] = []
     converged = False
     it = last_change = 0
+    # method="auto": the maximum planarity at every weight doubling, for the stagnation test; one early
+    # Gauss–Newton attempt at most (if it misses, local/global goes on exactly where it was)
+    at_doubling: list[float] = []
+    early = method == "auto" and fi.size <= NEWTON_LIMIT
+    tried = ["local-global"]
     for it in range(1, lg_cap + 1):
         g = step(x)
         xf = acc.update(xf, g) if acc is not None else g
@@ -1053,6 +1081,18 @@ def planarize(
         if method == "gauss-newton":
             continue
         if adapt and it - last_change >= 10 and pmax > 0.99 * history[-10]:
+            at_doubling.append(pmax)
+            if (early and len(at_doubling) > STALL_DOUBLINGS
+                    and pmax > (1.0 - STALL_PROGRESS) * at_doubling[-1 - STALL_DOUBLINGS]):
+                # stagnating: a mesh-wide deformation the projections reach only slowly (F100), which
+                # Gauss–Newton's second-order steps reach in a few; kept only if it meets the tolerance
+                early = False
+                tried.append("gauss-newton")
+                attempt = run_gauss_newton(x.copy(), it, history, facts, guarded,
+                                           min(newton_steps, GN_EARLY_STEPS))
+                if attempt[1].converged:
+                    return attempt[0], replace(attempt[1], methods_tried=tried)
+                tried.append("local-global")
             if w_p * 2.0 > MAX_WEIGHT_GROWTH * planarity_weight:
                 break  # stalled at the largest weight: the tolerance is out of reach with these constraints
             w_p *= 2.0
@@ -1063,8 +1103,8 @@ def planarize(
                 acc.reset()
     result = finish(x, converged, it, history, w_p, facts, guarded=guarded)
     if converged or method == "local-global" or (method == "auto" and fi.size > NEWTON_LIMIT):
-        return result
-    tried = ["local-global", "gauss-newton"]
+        return result[0], replace(result[1], methods_tried=tried)
+    tried.append("gauss-newton")
     results = [result, run_gauss_newton(x, it, history, facts, guarded)]
     if method == "auto" and not results[-1][1].converged:
         results.append(run_newton(it, history, facts))

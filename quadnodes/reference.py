@@ -22,6 +22,8 @@ mesh edge by default: 1/128 of the chord error of the mesh itself).
 
 from __future__ import annotations
 
+import os
+import threading
 from typing import Any
 
 import numpy as np
@@ -31,12 +33,19 @@ from . import _validate
 from .errors import InputError
 from .mesh import QuadMesh
 
-__all__ = ["Reference", "as_reference"]
+__all__ = ["Reference", "as_reference", "warm_up"]
 
 #: Nearest reference vertices whose quads are searched for each point.
 NEAREST = 1
 #: Points handled at once by :meth:`Reference.closest` (bounds its temporary arrays).
 CHUNK = 16384
+#: From this many points on (or once :func:`warm_up` has loaded it), the region test runs compiled
+#: (:mod:`quadnodes._reference_kernels`, the same closest points) on the solver's threads: loading Numba
+#: costs about a second per process, more than the NumPy path takes for one call below this.
+COMPILED_MIN_POINTS = 250_000
+
+_LOCK = threading.Lock()
+_KERNEL: dict[str, Any] = {"thread": None, "fn": None}
 
 
 class Reference:
@@ -109,9 +118,28 @@ class Reference:
         if p.ndim != 2 or p.shape[1] != 3:
             raise InputError(f"points: expected shape (k, 3), got {p.shape}")
         out = np.empty_like(p)
-        for lo in range(0, len(p), CHUNK):  # blocks of points: the candidate arrays stay in cache
-            out[lo:lo + CHUNK] = self._closest(p[lo:lo + CHUNK])
+        kernel = _compiled_kernel(len(p))
+        if kernel is not None:
+            self._closest_compiled(p, out, kernel)
+        else:
+            for lo in range(0, len(p), CHUNK):  # blocks of points: the candidate arrays stay in cache
+                out[lo:lo + CHUNK] = self._closest(p[lo:lo + CHUNK])
         return out, np.linalg.norm(out - p, axis=1)
+
+    def _closest_compiled(self, p: np.ndarray, out: np.ndarray, kernel: Any) -> None:
+        """:meth:`_closest` for all points at once: the k-d tree and the compiled test on the pool's threads."""
+        from .linalg.threads import pool, thread_count
+
+        t = max(1, min(thread_count(), len(p) // CHUNK))
+        k = min(NEAREST, self.mesh.n_vertices)
+        _, near = self._tree.query(p, k=k, workers=t)
+        cand = self._faces_of[near.reshape(len(p), k)].reshape(len(p), -1)
+        cuts = np.linspace(0, len(p), t + 1).astype(np.int64).tolist()
+        args = (p, self._a, self._ab, self._ac, self._gram, cand, self._m, out)
+        futures = [pool().submit(kernel, *args, lo, hi) for lo, hi in zip(cuts[1:-1], cuts[2:])]
+        kernel(*args, cuts[0], cuts[1])
+        for f in futures:
+            f.result()
 
     def _closest(self, p: np.ndarray) -> np.ndarray:
         k = min(NEAREST, self.mesh.n_vertices)
@@ -128,6 +156,53 @@ class Reference:
         rows = np.arange(len(p))
         t = tri[rows, best]
         return self._a[t] + v[rows, best, None] * self._ab[t] + w[rows, best, None] * self._ac[t]
+
+
+def _load_kernel() -> None:
+    try:
+        from ._reference_kernels import closest_on_candidates
+
+        z = np.zeros((1, 3))  # the first call loads (or, the first time ever, compiles) the machine code
+        closest_on_candidates(z, z, z, z, z, np.zeros((1, 1), dtype=np.int64), 1, np.empty((1, 3)), 0, 1)
+        _KERNEL["fn"] = closest_on_candidates
+    except Exception:  # pragma: no cover - Numba missing or broken: the NumPy path remains
+        _KERNEL["fn"] = None
+
+
+def _forget_thread() -> None:
+    """A forked child has none of the parent's threads: load again there if it was not done."""
+    if _KERNEL["fn"] is None:
+        _KERNEL["thread"] = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_thread)
+
+
+def warm_up() -> None:
+    """Start loading the compiled closest-point test on a daemon thread (once per process; returns at once).
+
+    A caller that will ask for many closest points in many calls (``planarize`` on a large mesh)
+    starts it early; :meth:`Reference.closest` uses the kernel as soon as it is loaded.
+
+    Examples
+    --------
+    >>> import quadnodes.reference as R
+    >>> R._KERNEL["fn"] is None or callable(R._KERNEL["fn"])  # (not started here: later doctests' paths stay)
+    True
+    """
+    with _LOCK:
+        if _KERNEL["thread"] is None:
+            _KERNEL["thread"] = threading.Thread(target=_load_kernel, name="quadnodes-reference-kernel", daemon=True)
+            _KERNEL["thread"].start()
+
+
+def _compiled_kernel(points: int) -> Any:
+    """The compiled region test if it is loaded, or loaded now for ``points`` ≥ :data:`COMPILED_MIN_POINTS`; else None."""
+    if _KERNEL["fn"] is None and points >= COMPILED_MIN_POINTS:
+        warm_up()
+        _KERNEL["thread"].join()
+    return _KERNEL["fn"]
 
 
 def _triangle_coordinates(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ac: np.ndarray, gram: np.ndarray,

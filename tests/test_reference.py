@@ -108,3 +108,47 @@ def test_triangle_kernel_equals_trimesh_point_by_point(seed, spread):
     np.testing.assert_allclose(mine, closest_point(tris, pts), atol=1e-9)
     np.testing.assert_allclose(np.sqrt(d2[:, 0]), np.linalg.norm(mine - pts, axis=1), atol=1e-9)
     assert ((v >= -1e-12) & (w >= -1e-12) & (v + w <= 1 + 1e-12)).all()  # on the triangle
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 100_000), spread=st.floats(0.01, 2.0))
+def test_compiled_closest_points_equal_the_numpy_path(seed, spread):
+    # from COMPILED_MIN_POINTS points on the region test runs compiled, on the pool's threads: the same
+    # closest points as the NumPy path (the same formulas; sums of three products may round differently)
+    import quadnodes.reference as R
+    from quadnodes.linalg import threads as linalg_threads
+
+    ref_mesh = _surface()
+    h = ref_mesh.mean_edge_length
+    rng = np.random.default_rng(seed)
+    pts = ref_mesh.vertices[rng.integers(0, ref_mesh.n_vertices, 3000)] + rng.normal(scale=spread * h, size=(3000, 3))
+    with pytest.MonkeyPatch.context() as mp:  # (the kernels may be loaded by an earlier test)
+        mp.setattr(R, "_compiled_kernel", lambda points: None)
+        numpy_q, numpy_d = Reference(ref_mesh).closest(pts)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(R, "COMPILED_MIN_POINTS", 1)
+        mp.setattr(R, "CHUNK", 256)  # several ranges on the threads
+        mp.setattr(linalg_threads, "thread_count", lambda: 2)
+        assert R._compiled_kernel(len(pts)) is not None
+        q, d = Reference(ref_mesh).closest(pts)
+    np.testing.assert_allclose(q, numpy_q, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(d, numpy_d, rtol=0, atol=1e-14)
+
+
+def test_a_forked_child_loads_the_compiled_test_itself(monkeypatch):
+    # after a fork the parent's loading thread does not exist in the child: _forget_thread (registered with
+    # os.register_at_fork) drops it unless the kernel was loaded, so the child loads its own when asked
+    import threading
+
+    import quadnodes.reference as R
+
+    dead = threading.Thread(target=lambda: None)
+    monkeypatch.setattr(R, "_KERNEL", {"thread": dead, "fn": None})
+    R._forget_thread()
+    assert R._KERNEL["thread"] is None
+    loaded = {"thread": dead, "fn": len}
+    monkeypatch.setattr(R, "_KERNEL", loaded)
+    R._forget_thread()
+    assert R._KERNEL["thread"] is dead  # loaded before the fork: kept
+    monkeypatch.setattr(R, "_KERNEL", {"thread": None, "fn": None})
+    assert R._compiled_kernel(R.COMPILED_MIN_POINTS) is not None  # loads (or finds) it synchronously

@@ -70,12 +70,13 @@ machine load, and whether the two results are bit-identical.
 
 ``--iteration``: instead of the tables, one local/global iteration (wall, CPU, set-up,
 peak memory) on the F100 recipe at 100×100, and with ``--big`` at 1000×1000 (built
-without the 4× finer sample; ~6 min to build on 2 cores): see :func:`run_iteration`.
+without the 4× finer sample; 1–6 min to build on 2 cores, so ``--cache`` keeps both meshes in
+``out/bench-cache/`` and reuses them): see :func:`run_iteration`.
 Above 20,000 free vertices the global step is conjugate gradients started from the
 current positions instead of a factorization.
 
 Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
-      python benchmarks/perf/bench_planarize.py --iteration [--big]
+      python benchmarks/perf/bench_planarize.py --iteration [--big] [--cache]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
 """
@@ -198,9 +199,26 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
     }
 
 
-def _big_case(size: int):
-    """(clean, faired) of the F100 recipe at ``size × size`` (no 4× finer sample: 16 M points at 1000)."""
+#: ``--cache``: the inputs of ``--iteration`` rows are kept here (``out/`` is not committed)
+CACHE = Path(__file__).resolve().parents[2] / "out" / "bench-cache"
+
+
+def _big_case(size: int, cache: bool = False):
+    """(clean, faired) of the F100 recipe at ``size × size`` (no 4× finer sample: 16 M points at 1000).
+
+    With ``cache``, the two vertex arrays are read from (or, the first time, written to)
+    ``out/bench-cache/planarize-F{size}.npz``: the same meshes without the ~6 min build at 1000×1000.
+    Delete the file after a change to ``surfaces``, ``perturb`` or ``fair``.
+    """
     from quadnodes import surfaces
+    from quadnodes.mesh import QuadMesh, grid_faces
+
+    path = CACHE / f"planarize-F{size}.npz"
+    if cache and path.exists():
+        data = np.load(path)
+        faces = grid_faces(size, size)
+        return (QuadMesh(data["clean"], faces, grid_shape=(size, size)),
+                QuadMesh(data["faired"], faces, grid_shape=(size, size)))
     from quadnodes.fairing import fair
     from quadnodes.noise import perturb
 
@@ -208,10 +226,15 @@ def _big_case(size: int):
     clean = surfaces.sample(face, size, size)
     noisy, _ = perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")
     faired, _ = fair(noisy, iterations=3)
+    if cache:
+        CACHE.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez(tmp, clean=clean.vertices, faired=faired.vertices)
+        tmp.replace(path)
     return clean, faired
 
 
-def run_iteration(size: int) -> dict:
+def run_iteration(size: int, cache: bool = False) -> dict:
     """Local/global iterations on the F100 recipe at ``size × size``, reference = clean mesh.
 
     ``planarize(faired, reference=clean, method="local-global", adapt=False)`` with
@@ -224,7 +247,7 @@ def run_iteration(size: int) -> dict:
     """
     import quadnodes.planarization as P
 
-    clean, faired = _big_case(size)
+    clean, faired = _big_case(size, cache)
     _ = faired.topology.windows
     stamps: list[tuple[float, float]] = []
     measure = P.quad_diagonal_distance
@@ -248,12 +271,12 @@ def run_iteration(size: int) -> dict:
             "planarity_after": rep.planarity_max, "peak_mb": max(_common.peak_mb() - base, 0.0)}
 
 
-def _iteration_table(sizes: list[int]) -> None:
+def _iteration_table(sizes: list[int], cache: bool = False) -> None:
     print("| mesh | free vertices | global step | iterations | one iteration wall (s) | one iteration CPU (s) "
           "| set-up wall (s) | set-up CPU (s) | planarity after | peak MB |")
     print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|")
     for size in sizes:
-        out = subprocess.run([sys.executable, __file__, "--iteration-row", str(size)],
+        out = subprocess.run([sys.executable, __file__, "--iteration-row", str(size)] + (["--cache"] if cache else []),
                              capture_output=True, text=True, check=True)
         r = json.loads(out.stdout.strip().splitlines()[-1])
         solver = "SuperLU, factorized once" if r["free"] <= 20000 else "CG from the current positions"
@@ -279,6 +302,8 @@ def main() -> None:
                     help="instead of the tables: one local/global iteration on the F100 recipe at 100×100 and "
                          "(with --big) 1000×1000, wall and CPU time, peak memory")
     ap.add_argument("--big", action="store_true", help="with --iteration: add 1000×1000 (~6 min to build)")
+    ap.add_argument("--cache", action="store_true",
+                    help="with --iteration: keep the built inputs in out/bench-cache/ and reuse them")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--iteration-row", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -286,10 +311,10 @@ def main() -> None:
         print(json.dumps(run_row(args.row[0], args.row[1], args.shape)))
         return
     if args.iteration_row:
-        print(json.dumps(run_iteration(args.iteration_row)))
+        print(json.dumps(run_iteration(args.iteration_row, args.cache)))
         return
     if args.iteration:
-        _iteration_table([100] + ([1000] if args.big else []))
+        _iteration_table([100] + ([1000] if args.big else []), args.cache)
         return
     cases = list(EXAMPLES) + ([] if args.quick else [FREEFORM])
     if args.shapes:

@@ -17,7 +17,14 @@ column per right-hand side. The known unknowns move to the right-hand side
 - ``"cg"``: conjugate gradients on all right-hand sides at once
   (:func:`~quadnodes.linalg.cg.block_cg`, threaded row ranges, BLAS pinned),
   started from a guess, falling back to the direct factorization if it does not
-  converge. Without constraints only.
+  converge. Without constraints only. Optionally preconditioned (``"jacobi"``:
+  the diagonal; ``"block-jacobi"``: exact inverses of 4 × 4 diagonal blocks of
+  consecutive unknowns). A matrix with few distinct diagonals (the operator of a
+  structured grid: ``Q[i, j] ≠ 0`` only for ``j − i`` in a short list) is kept in
+  diagonal storage and multiplied by a compiled kernel from its upper diagonals
+  (:class:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks`, about a third of CSR's
+  memory traffic): the known unknowns stay in it as identity rows with a zero
+  right-hand side, so the iterates are those of the reduced system.
 
 ``"auto"`` factorizes up to :data:`DIRECT_LIMIT` unknowns or with constraints,
 else uses CG.
@@ -33,14 +40,20 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from ..errors import InputError
-from .cg import block_cg
+from .cg import BlockJacobi, SymmetricDiagonalBlocks, block_cg
 from .direct import Factorization, factorize, regularization
 from .threads import RowBlocks
 
-__all__ = ["DIRECT_LIMIT", "QuadraticProblem"]
+__all__ = ["DIRECT_LIMIT", "DIAGONAL_MIN_UNKNOWNS", "MAX_DIAGONALS", "QuadraticProblem"]
 
 #: Unknowns up to which ``method="auto"`` factorizes.
 DIRECT_LIMIT = 20000
+#: ``storage="auto"`` keeps CG's matrix in diagonal storage from this many rows on (or wherever the
+#: compiled kernels are loaded already): loading them costs about a second per process.
+DIAGONAL_MIN_UNKNOWNS = 250_000
+#: ... if it has at most this many distinct diagonals (a grid's 9-point stencil plus steps of 2 along
+#: its lines has 13).
+MAX_DIAGONALS = 25
 
 
 class QuadraticProblem:
@@ -68,6 +81,14 @@ class QuadraticProblem:
         definite, so it is factorized in a fill-reducing symmetric order without
         pivoting (several times faster than the pivoted factorization of the exact
         system, which is used when ``ε = 0``).
+    preconditioner : {"none", "jacobi", "block-jacobi"}
+        For CG: none, the diagonal, or exact inverses of the ``4 × 4`` diagonal
+        blocks of consecutive unknowns.
+    storage : {"auto", "csr", "diagonal"}
+        CG's matrix: compressed rows, or diagonal storage with a compiled product
+        (``Q`` with at most :data:`MAX_DIAGONALS` distinct diagonals; ``"auto"``
+        takes it from :data:`DIAGONAL_MIN_UNKNOWNS` rows on or where the compiled
+        kernels are loaded already).
     what : str
         Named in error messages.
 
@@ -79,6 +100,8 @@ class QuadraticProblem:
         The back-end in use (``"direct"`` or ``"cg"``).
     iterations : int
         CG steps of the last solve (0 when factorized).
+    storage : str
+        CG's matrix storage in use (``"csr"`` or ``"diagonal"``; ``"csr"`` when factorized).
 
     Raises
     ------
@@ -97,6 +120,9 @@ class QuadraticProblem:
     >>> q = QuadraticProblem(L, known=[0], Aeq=sp.csr_matrix(np.ones((1, 5))))  # and the sum held
     >>> q.solve(np.zeros(5), Y=[0.0], Beq=[5.0]).round(12).tolist()
     [0.0, 1.0, 1.5, 1.5, 1.0]
+    >>> c = QuadraticProblem(L, known=[0, 4], method="cg", preconditioner="jacobi", storage="diagonal")
+    >>> c.storage, c.solve(np.zeros(5), Y=[0.0, 4.0]).round(8).tolist()
+    ('diagonal', [0.0, 1.0, 2.0, 3.0, 4.0])
     """
 
     def __init__(
@@ -109,6 +135,8 @@ class QuadraticProblem:
         rtol: float = 1e-10,
         shift: float = 0.0,
         constraint_shift: float = 0.0,
+        preconditioner: Literal["none", "jacobi", "block-jacobi"] = "none",
+        storage: Literal["auto", "csr", "diagonal"] = "auto",
         what: str = "quadratic problem",
     ) -> None:
         Q = sp.csr_matrix(Q)
@@ -129,6 +157,10 @@ class QuadraticProblem:
                 is_known[kn] = True
         if method not in ("auto", "direct", "cg"):
             raise InputError(f"method: expected 'auto', 'direct' or 'cg', got {method!r}")
+        if preconditioner not in ("none", "jacobi", "block-jacobi"):
+            raise InputError(f"preconditioner: expected 'none', 'jacobi' or 'block-jacobi', got {preconditioner!r}")
+        if storage not in ("auto", "csr", "diagonal"):
+            raise InputError(f"storage: expected 'auto', 'csr' or 'diagonal', got {storage!r}")
         self.n = n
         self.known = np.flatnonzero(is_known)
         self.unknown = np.flatnonzero(~is_known)
@@ -162,6 +194,9 @@ class QuadraticProblem:
         self.residual = 0.0
         self._factor: Factorization | None = None
         self._blocks: RowBlocks | None = None
+        self._precond: object | None = None
+        self.storage = "csr"
+        self.preconditioner = preconditioner
         if method == "direct":
             self._factorize()
         else:
@@ -170,7 +205,61 @@ class QuadraticProblem:
             if bad.size:
                 raise InputError(f"{what}: the matrix is not positive definite (diagonal entry {int(bad[0])} is "
                                  f"{d[bad[0]]:.3g}); the energy does not determine every unknown")
-            self._blocks = RowBlocks(self._Quu)
+            M = self._Quu
+            if storage != "csr":
+                M = self._diagonal_storage(Q, d, forced=storage == "diagonal")
+            if M is None or M is self._Quu:
+                self._blocks = RowBlocks(self._Quu)
+                M = self._Quu
+            if preconditioner != "none":
+                self._precond = BlockJacobi(sp.csr_matrix(M), 1 if preconditioner == "jacobi" else 4)
+
+    def _diagonal_storage(self, Q: sp.csr_matrix, d_unknown: np.ndarray, *, forced: bool) -> sp.spmatrix | None:
+        """Set up :class:`SymmetricDiagonalBlocks` for the whole ``Q`` (known rows as identity rows).
+
+        Returns that matrix (for a preconditioner) or None where diagonal storage does not apply
+        (too many diagonals, not worth loading the kernels, kernels missing) and is not ``forced``.
+        One pass over ``Q``'s entries: no sort, no format conversion.
+        """
+        from . import compiled
+
+        n, k = self.n, self.unknown.size
+        row = np.repeat(np.arange(n, dtype=np.int64), np.diff(Q.indptr))
+        col = Q.indices.astype(np.int64)
+        off = col - row
+        keep = off != 0  # (the diagonal is set below: the unknowns' from Q_uu, with its shift)
+        if self.known.size:
+            is_known = np.zeros(n, dtype=bool)
+            is_known[self.known] = True
+            keep &= ~(is_known[row] | is_known[col])
+        counts = np.bincount(off[keep] + n, minlength=2 * n + 1)
+        counts[n] = 1
+        offsets = np.flatnonzero(counts) - n
+        fits = offsets.size <= MAX_DIAGONALS and np.array_equal(offsets, -offsets[::-1])
+        if not (forced or (fits and (k >= DIAGONAL_MIN_UNKNOWNS or compiled.ready()))):
+            return None
+        if not fits:
+            raise InputError(f"{self.what}: storage='diagonal' needs a symmetric matrix with at most {MAX_DIAGONALS} "
+                             f"distinct diagonals, this one has {offsets.size}; use 'auto' or 'csr'")
+        if not compiled.wait():  # pragma: no cover - Numba missing: compressed rows
+            if forced:
+                raise InputError(f"{self.what}: storage='diagonal' needs the compiled kernels (Numba)")
+            return None
+        slot = np.zeros(2 * n + 1, dtype=np.int64)
+        slot[offsets + n] = np.arange(offsets.size)
+        data = np.zeros((offsets.size, n))  # data[d, j] = M[j - offsets[d], j] (SciPy's diagonal storage)
+        if not Q.has_canonical_format:  # (repeated entries: summed, as Q means)
+            Q = Q.copy()
+            Q.sum_duplicates()
+            return self._diagonal_storage(Q, d_unknown, forced=forced)
+        sel = np.flatnonzero(keep)
+        data.reshape(-1)[slot[off[sel] + n] * n + col[sel]] = Q.data[sel]
+        main = data[slot[n]]
+        main[:] = 1.0  # known unknowns: identity rows (their right-hand side and start are 0 in solve())
+        main[self.unknown] = d_unknown
+        self._blocks = SymmetricDiagonalBlocks(offsets, data)
+        self.storage = "diagonal"
+        return self._blocks.M
 
     def _factorize(self) -> Factorization:
         if self._factor is None:
@@ -239,7 +328,15 @@ class QuadraticProblem:
             zu = self._factorize().solve(np.vstack([rhs, bq]))[: self.unknown.size]
         elif self.method == "cg":
             x0 = np.zeros_like(rhs) if guess is None else np.asarray(guess, dtype=np.float64).reshape(rhs.shape)
-            zu, its, res = block_cg(self._blocks, rhs, x0, rtol=self.rtol, maxiter=20000)  # type: ignore[arg-type]
+            if self.storage == "diagonal":  # the whole vector, the known rows 0 (identity rows, zero right side)
+                full_rhs, full_x0 = np.zeros((self.n, c)), np.zeros((self.n, c))
+                full_rhs[self.unknown], full_x0[self.unknown] = rhs, x0
+                zf, its, res = block_cg(self._blocks, full_rhs, full_x0, rtol=self.rtol, maxiter=20000,  # type: ignore[arg-type]
+                                        precond=self._precond)
+                zu = zf[self.unknown]
+            else:
+                zu, its, res = block_cg(self._blocks, rhs, x0, rtol=self.rtol, maxiter=20000,  # type: ignore[arg-type]
+                                        precond=self._precond)
             self.iterations, self.residual = its, res
             if not res <= self.rtol:
                 warnings.warn(f"{self.what}: conjugate gradients reached a relative residual of {res:.1e} after "

@@ -134,3 +134,66 @@ def test_constraint_shift_is_the_regularized_kkt_system(n, m, seed):
     assert np.abs(A @ z - Beq).max() <= 1e-6 * (1 + np.abs(Beq).max() + np.abs(exact).max())
     with pytest.raises(InputError, match="constraint_shift"):
         QuadraticProblem(Q, Aeq=A, constraint_shift=-1.0)
+
+
+def _grid_operator(rows: int, cols: int, seed: int) -> sp.csr_matrix:
+    """An SPD grid operator with 13 diagonals: quad couplings plus steps of two along the lines, as planarize's."""
+    rng = np.random.default_rng(seed)
+    n = rows * cols
+    idx = np.arange(n).reshape(rows, cols)
+    pairs = [(idx[:, :-1], idx[:, 1:]), (idx[:-1], idx[1:]), (idx[:-1, :-1], idx[1:, 1:]),
+             (idx[:-1, 1:], idx[1:, :-1]), (idx[:, :-2], idx[:, 2:]), (idx[:-2], idx[2:])]
+    i = np.concatenate([a.ravel() for a, _ in pairs])
+    j = np.concatenate([b.ravel() for _, b in pairs])
+    w = rng.random(i.size) + 0.1
+    W = sp.coo_matrix((w, (i, j)), shape=(n, n)).tocsr()
+    W = W + W.T
+    L = sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W
+    return (L + sp.diags(0.05 + rng.random(n))).tocsr()
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(3, 12), st.integers(3, 12), st.floats(0.0, 0.5), st.integers(0, 10_000),
+       st.sampled_from(["none", "jacobi", "block-jacobi"]), st.sampled_from(["csr", "diagonal"]))
+def test_preconditioned_and_diagonal_storage_cg_equal_a_dense_solve(rows, cols, share, seed, preconditioner,
+                                                                    storage):
+    rng = np.random.default_rng(seed)
+    Q = _grid_operator(rows, cols, seed)
+    n = rows * cols
+    known = np.flatnonzero(rng.random(n) < share)
+    if known.size == n:
+        known = known[1:]
+    Y = rng.normal(size=(known.size, 3))
+    B = rng.normal(size=(n, 3))
+    p = QuadraticProblem(Q, known=known, method="cg", rtol=1e-13, preconditioner=preconditioner, storage=storage)
+    assert p.storage == storage
+    guess = rng.normal(size=(n - known.size, 3))
+    z = p.solve(B, Y=Y, guess=guess)
+    np.testing.assert_array_equal(z[known], Y)
+    ref = _dense(Q, known, Y, B)
+    np.testing.assert_allclose(z, ref, rtol=0, atol=1e-8 * max(1.0, np.abs(ref).max()))
+
+
+def test_diagonal_storage_takes_the_iterates_of_the_reduced_system():
+    # the known unknowns stay in diagonal storage as identity rows with a zero right-hand side:
+    # CG takes the same steps as on the reduced system in compressed rows
+    Q = _grid_operator(30, 40, 3)
+    rng = np.random.default_rng(3)
+    known = [0, 39, 1160, 1199, 600]
+    B, Y = rng.normal(size=(1200, 3)), rng.normal(size=(5, 3))
+    a = QuadraticProblem(Q, known=known, method="cg", rtol=1e-10, storage="csr")
+    b = QuadraticProblem(Q, known=known, method="cg", rtol=1e-10, storage="diagonal")
+    za, zb = a.solve(B, Y=Y), b.solve(B, Y=Y)
+    assert (a.storage, b.storage) == ("csr", "diagonal") and a.iterations == b.iterations
+    np.testing.assert_allclose(za, zb, rtol=0, atol=1e-9 * np.abs(za).max())
+
+
+def test_diagonal_storage_and_preconditioner_refusals():
+    with pytest.raises(InputError, match="preconditioner"):
+        QuadraticProblem(sp.identity(3), method="cg", preconditioner="ilu")
+    with pytest.raises(InputError, match="storage"):
+        QuadraticProblem(sp.identity(3), method="cg", storage="dense")
+    Q = _spd(60, 2)  # a random graph: many distinct diagonals
+    with pytest.raises(InputError, match="at most 25 distinct diagonals"):
+        QuadraticProblem(Q, method="cg", storage="diagonal")
+    assert QuadraticProblem(Q, method="cg").storage == "csr"  # auto: compressed rows
