@@ -21,13 +21,19 @@ def _surface(n: int = 12) -> object:
     return grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y))
 
 
+def _points_near(seed: int, spread: float, count: int):
+    """The test surface and ``count`` seeded points scattered ``spread`` edge lengths about its vertices."""
+    ref_mesh = _surface()
+    rng = np.random.default_rng(seed)
+    at = rng.integers(0, ref_mesh.n_vertices, count)
+    return ref_mesh, ref_mesh.vertices[at] + rng.normal(scale=spread * ref_mesh.mean_edge_length, size=(count, 3))
+
+
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 100_000), spread=st.floats(0.01, 1.0))
 def test_closest_points_equal_the_exhaustive_search(seed, spread):
-    ref_mesh = _surface()
+    ref_mesh, pts = _points_near(seed, spread, 60)
     h = ref_mesh.mean_edge_length
-    rng = np.random.default_rng(seed)
-    pts = ref_mesh.vertices[rng.integers(0, ref_mesh.n_vertices, 60)] + rng.normal(scale=spread * h, size=(60, 3))
     q, d = Reference(ref_mesh).closest(pts)
     # brute force: every point against every triangle (trimesh.proximity.closest_point, which
     # metrics.distance_to_mesh uses, is off by up to ~1e-5 h for points this close to the surface)
@@ -118,10 +124,7 @@ def test_compiled_closest_points_equal_the_numpy_path(seed, spread):
     import quadnodes.reference as R
     from quadnodes.linalg import threads as linalg_threads
 
-    ref_mesh = _surface()
-    h = ref_mesh.mean_edge_length
-    rng = np.random.default_rng(seed)
-    pts = ref_mesh.vertices[rng.integers(0, ref_mesh.n_vertices, 3000)] + rng.normal(scale=spread * h, size=(3000, 3))
+    ref_mesh, pts = _points_near(seed, spread, 3000)
     with pytest.MonkeyPatch.context() as mp:  # (the kernels may be loaded by an earlier test)
         mp.setattr(R, "_compiled_kernel", lambda points: None)
         numpy_q, numpy_d = Reference(ref_mesh).closest(pts)

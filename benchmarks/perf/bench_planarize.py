@@ -113,24 +113,13 @@ LABELS = {
 
 
 def _case(name: str):
-    """(face, clean mesh, 4× finer sample of the face, faired noisy mesh) of one benchmark case."""
+    """(face, clean mesh, 4× finer sample of the face, faired noisy mesh) of one benchmark case
+    (``_common.planarize_case``'s recipe)."""
     from quadnodes import surfaces
-    from quadnodes.fairing import fair
-    from quadnodes.noise import perturb
 
-    if name == FREEFORM:
-        face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
-        rows, cols, noise = 100, 100, (0.25, 0.1)
-    else:
-        from quadnodes.report import THESIS_EXAMPLES
-
-        ex = THESIS_EXAMPLES[name]
-        face = getattr(surfaces, ex.surface)()
-        rows, cols, noise = ex.rows, ex.cols, ex.noise
-    clean = surfaces.sample(face, rows, cols)
+    face, clean, faired = _common.planarize_case(name)
+    rows, cols = clean.grid_shape
     fine = surfaces.sample(face, 4 * (rows - 1) + 1, 4 * (cols - 1) + 1)
-    noisy, _ = perturb(clean, tangential=noise[0], normal=noise[1], seed=7, fix="corners")
-    faired, _ = fair(noisy, iterations=3)
     return face, clean, fine, faired
 
 
