@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ._arrays import cross_rows, norm_rows
 from .errors import InputError
 
 __all__ = [
@@ -182,20 +183,34 @@ def corner_turns(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
     >>> against.tolist(), no_area.tolist()
     ([0, 4, 0], [False, True, False])
     """
-    p = np.take(vertices, faces, axis=0)
+    # coordinates as rows, (3, m) per corner: contiguous passes (NumPy's cross products and norms over an
+    # inner dimension of 3 are several times slower); the same operations in the same order as before
+    X = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)
+    F = np.ascontiguousarray(np.asarray(faces).T)
+    p = [np.take(X, F[k], axis=1) for k in range(4)]
+    against = np.zeros(F.shape[1], dtype=np.int64)
+    finite = np.ones(F.shape[1], dtype=bool)
     with np.errstate(over="ignore", invalid="ignore"):  # coordinates near the float limit: not judged
-        area = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
-        nxt = np.roll(p, -1, axis=1) - p
-        prv = np.roll(p, 1, axis=1) - p
-        corner = np.cross(nxt, prv)
-        dot = np.einsum("fkj,fj->fk", corner, area)
-        size = np.linalg.norm(area, axis=1)
-        scale = np.linalg.norm(corner, axis=2) * size[:, None]
-        against = (dot <= 1e-12 * scale).sum(axis=1)
-        diag = 0.5 * (np.linalg.norm(p[:, 2] - p[:, 0], axis=1) + np.linalg.norm(p[:, 3] - p[:, 1], axis=1))
+        d02, d13 = p[2] - p[0], p[3] - p[1]
+        area = cross_rows(d02, d13)
+        size = norm_rows(area)
+        for k in range(4):
+            corner = cross_rows(p[(k + 1) % 4] - p[k], p[k - 1] - p[k])
+            dot = corner[0] * area[0]
+            dot += corner[2] * area[2]  # (np.einsum's order on rows of 3, which this replaced: same bits)
+            dot += corner[1] * area[1]
+            scale = norm_rows(corner)
+            scale *= size
+            scale *= 1e-12
+            against += dot <= scale
+            finite &= np.isfinite(dot)
+        diag = norm_rows(d02)
+        diag += norm_rows(d13)
+        diag *= 0.5
         no_area = size <= 1e-12 * diag**2
-    finite = np.isfinite(dot).all(axis=1) & np.isfinite(diag)
+    finite &= np.isfinite(diag)
     return np.where(finite, against, 0), no_area & finite
+
 
 
 def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:

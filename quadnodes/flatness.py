@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _validate
+from ._arrays import cross_rows, norm_rows
 from .errors import InputError
 from .mesh import QuadMesh
 from .units import parse_length
@@ -70,20 +71,25 @@ def quad_diagonal_distance(vertices: np.ndarray, faces: np.ndarray, *, relative:
     >>> round(float(quad_diagonal_distance(v, np.array([[0, 1, 2, 3]]))[0]), 4)
     0.2595
     """
-    p = vertices[faces]
-    p0, p1, p2, p3 = p[:, 0], p[:, 1], p[:, 2], p[:, 3]
+    # coordinates as rows, (3, m): every pass below runs on contiguous rows (NumPy's cross product and
+    # norms over an inner dimension of 3 are several times slower); the same operations in the same order
+    X = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)
+    F = np.ascontiguousarray(np.asarray(faces).T)
+    p0, p1, p2, p3 = (np.take(X, F[k], axis=1) for k in range(4))
     d1, d2 = p2 - p0, p3 - p1
-    n = np.cross(d1, d2)
-    nn = np.linalg.norm(n, axis=1)
-    l1, l2 = np.linalg.norm(d1, axis=1), np.linalg.norm(d2, axis=1)
+    n = cross_rows(d1, d2)
+    nn, l1, l2 = norm_rows(n), norm_rows(d1), norm_rows(d2)
     w = p1 - p0
     skew = nn > 1e-12 * l1 * l2
-    dist = np.empty(len(nn))
-    dist[skew] = np.abs(np.einsum("ij,ij->i", w[skew], n[skew])) / nn[skew]
+    dot = w[0] * n[0]
+    dot += w[2] * n[2]  # (the order of np.einsum("ij,ij->i") on rows of 3, which this replaced: same bits)
+    dot += w[1] * n[1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dist = np.abs(dot) / nn
     # parallel diagonals (degenerate quad): distance between the parallel lines
     par = ~skew
     if par.any():
-        dist[par] = np.linalg.norm(np.cross(w[par], d1[par]), axis=1) / np.maximum(l1[par], 1e-300)
+        dist[par] = norm_rows(cross_rows(w[:, par], d1[:, par])) / np.maximum(l1[par], 1e-300)
     if relative:
         dist = dist / (0.5 * (l1 + l2))
     return dist

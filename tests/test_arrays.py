@@ -34,3 +34,19 @@ def test_unique_rows_is_np_unique_axis0(k, m, top, negative, seed):
 def test_unique_rows_refuses_other_shapes():
     with pytest.raises(ValueError, match="2-D"):
         unique_rows(np.arange(4))
+
+
+@settings(max_examples=40, deadline=None)
+@given(hnp.arrays(np.float64, st.tuples(st.integers(0, 30), st.just(3)),
+                  elements=st.floats(-1e150, 1e150, allow_nan=False)),
+       hnp.arrays(np.float64, st.tuples(st.integers(0, 30), st.just(3)),
+                  elements=st.floats(-1e150, 1e150, allow_nan=False)))
+def test_cross_and_norm_rows_are_numpys_to_the_bit(a, b):
+    """Coordinates as rows: the same numbers as np.cross and np.linalg.norm of (m, 3) arrays."""
+    from quadnodes._arrays import cross_rows, norm_rows
+
+    m = min(len(a), len(b))
+    a, b = a[:m], b[:m]
+    with np.errstate(over="ignore", invalid="ignore"):
+        np.testing.assert_array_equal(cross_rows(a.T.copy(), b.T.copy()).T, np.cross(a, b) if m else a)
+        np.testing.assert_array_equal(norm_rows(a.T.copy()), np.linalg.norm(a, axis=1))
