@@ -48,7 +48,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from . import _validate
-from ._arrays import unique_rows
+from ._arrays import cross_rows, norm_rows, unique_rows
 from .errors import InputError
 from .fairing import fairing_matrix
 from .mesh import QuadMesh
@@ -113,13 +113,24 @@ def quad_plane_projection(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray
     >>> np.round(q[0], 3).tolist()
     [[-0.5, -0.5, -0.5], [0.5, -0.5, 0.0], [0.5, 0.5, 0.5], [-0.5, 0.5, 0.0]]
     """
-    p = vertices[faces]
-    c = p.mean(axis=1, keepdims=True)
-    r = p - c
-    n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
-    nn = np.linalg.norm(n, axis=1, keepdims=True)
+    X = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)  # (3, n): contiguous passes
+    F = np.ascontiguousarray(np.asarray(faces).T)
+    p = [np.take(X, F[k], axis=1) for k in range(4)]
+    c = p[0] + p[1]  # (the mean's order: the same bits as before, as _ShapeKeeper.project's)
+    c += p[2]
+    c += p[3]
+    c /= 4.0
+    n = cross_rows(p[2] - p[0], p[3] - p[1])
+    nn = norm_rows(n)
     n = np.divide(n, nn, out=np.zeros_like(n), where=nn > 0)
-    return r - np.einsum("mk,mj->mkj", np.einsum("mkj,mj->mk", r, n), n)
+    q = np.empty((F.shape[1], 4, 3))
+    for k in range(4):
+        r = p[k] - c
+        t = r[0] * n[0]
+        t += r[2] * n[2]  # (np.einsum's order on rows of 3)
+        t += r[1] * n[1]
+        q[:, k, :] = (r - t * n).T
+    return q
 
 
 def _panel_coordinates(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -178,33 +189,57 @@ class _ShapeKeeper:
         self.faces = faces
         self.min_height = np.where(convex[:, None], KEPT_CORNER_HEIGHT * h, -np.inf)
         self.min_length = KEPT_EDGE_RATIO * np.linalg.norm(np.roll(p, -1, axis=1) - p, axis=2)
+        # the same, corners as rows (project() works on (3, m) coordinate rows per corner)
+        self._corners = np.ascontiguousarray(faces.T)
+        self._min_height_rows = np.ascontiguousarray(self.min_height.T)
+        self._min_length_rows = np.ascontiguousarray(self.min_length.T)
 
     def project(self, x: np.ndarray) -> tuple[np.ndarray, int]:
         """Centred target corners ``(m, 4, 3)`` and how many quads the bounds changed."""
-        # the arithmetic of quad_plane_projection (bit for bit), sharing its normal with the bound check
-        p = x[self.faces]
-        r = p - p.mean(axis=1, keepdims=True)
-        d1 = p[:, 2] - p[:, 0]
-        n = np.cross(d1, p[:, 3] - p[:, 1])
-        nn = np.linalg.norm(n, axis=1, keepdims=True)
+        # the arithmetic of quad_plane_projection (bit for bit), sharing its normal with the bound check, on
+        # (3, m) coordinate rows per corner: contiguous passes (NumPy's cross products, norms and einsums over
+        # an inner dimension of 3 are several times slower); every sum in the order NumPy takes it there
+        X = np.ascontiguousarray(x.T)
+        p = [np.take(X, self._corners[k], axis=1) for k in range(4)]
+        c = p[0] + p[1]
+        c += p[2]
+        c += p[3]
+        c /= 4.0
+        r = [pk - c for pk in p]
+        d1 = p[2] - p[0]
+        n = cross_rows(d1, p[3] - p[1])
+        nn = norm_rows(n)
         n = np.divide(n, nn, out=np.zeros_like(n), where=nn > 0)
-        q = r - np.einsum("mk,mj->mkj", np.einsum("mkj,mj->mk", r, n), n)
-        l1 = np.linalg.norm(d1, axis=1, keepdims=True)
+        l1 = norm_rows(d1)
         e1 = np.divide(d1, l1, out=np.zeros_like(d1), where=l1 > 0)
-        e2 = np.cross(n, e1)
-        u = np.einsum("mkj,mj->mk", r, e1)  # in-plane coordinates (r and q differ only along n)
-        w = np.einsum("mkj,mj->mk", r, e2)
+        e2 = cross_rows(n, e1)
+
+        def along(v: np.ndarray, e: np.ndarray) -> np.ndarray:  # (the order of np.einsum("mkj,mj->mk"))
+            out = v[0] * e[0]
+            out += v[2] * e[2]
+            out += v[1] * e[1]
+            return out
+
+        q = np.empty((len(nn), 4, 3))
+        for k in range(4):
+            q[:, k, :] = (r[k] - along(r[k], n) * n).T
+        u = [along(rk, e1) for rk in r]  # in-plane coordinates (r and q differ only along n)
+        w = [along(rk, e2) for rk in r]
         # a corner's height over its neighbours' chord d = z[k+1] − z[k−1], outwards: −(d × (z[k] − z[k−1]))/|d|
-        du, dw = np.roll(u, -1, axis=1) - np.roll(u, 1, axis=1), np.roll(w, -1, axis=1) - np.roll(w, 1, axis=1)
-        cross = du * (w - np.roll(w, 1, axis=1)) - dw * (u - np.roll(u, 1, axis=1))
-        low = -cross < self.min_height * np.hypot(du, dw)
-        short = np.hypot(np.roll(u, -1, axis=1) - u, np.roll(w, -1, axis=1) - w) < self.min_length
-        bad = (low | short).any(axis=1) & (nn[:, 0] > 0) & (l1[:, 0] > 0)
+        bad = np.zeros(len(nn), dtype=bool)
+        for k in range(4):
+            kp, km = (k + 1) % 4, (k - 1) % 4
+            du, dw = u[kp] - u[km], w[kp] - w[km]
+            cross = du * (w[k] - w[km]) - dw * (u[k] - u[km])
+            bad |= -cross < self._min_height_rows[k] * np.hypot(du, dw)
+            bad |= np.hypot(u[kp] - u[k], w[kp] - w[k]) < self._min_length_rows[k]
+        bad &= (nn > 0) & (l1 > 0)
         if not bad.any():
             return q, 0
         v = np.flatnonzero(bad)
-        zk = self._repair(u[v] + 1j * w[v], self.min_length[v], self.min_height[v])
-        q[v] = zk.real[:, :, None] * e1[v][:, None, :] + zk.imag[:, :, None] * e2[v][:, None, :]
+        zk = self._repair(np.stack([u[k][v] + 1j * w[k][v] for k in range(4)], axis=1), self.min_length[v],
+                          self.min_height[v])
+        q[v] = zk.real[:, :, None] * e1[:, v].T[:, None, :] + zk.imag[:, :, None] * e2[:, v].T[:, None, :]
         return q, int(v.size)
 
     def _repair(self, z: np.ndarray, lmin: np.ndarray, hmin: np.ndarray) -> np.ndarray:
