@@ -15,9 +15,14 @@ every free vertex inside a cylinder centred on its input position, axis along
 the input's vertex normal, radius ``r`` (tangential) and half-height ``h``
 (normal): a convex set, so the constrained problem is a convex QP with a unique
 minimizer. It is solved as one — by default by a semismooth Newton method
-(primal-dual active set on the KKT conditions, warm-started by ADMM: each step
-one sparse positive definite solve on the coordinates the active constraints
-leave free), or by ADMM alone (``Q + ρI`` factorized once per ρ; the z-step is
+(primal-dual active set on the KKT conditions). Where few vertices end on their
+cylinder it runs in the space of the contact forces (the *contact method*,
+:func:`_contacts`: from the unconstrained minimizer, adding the vertices
+farthest outside round by round, each Newton step one dense solve of the active
+constraints' size with ``P⁻¹`` on the contact vertices); where many touch it
+gives way to the primal method (warm-started by ADMM: each step one sparse
+positive definite solve on the coordinates the active constraints leave free).
+ADMM alone (``Q + ρI`` factorized once per ρ; the z-step is
 the exact projection onto each cylinder) or accelerated projected gradient
 (FISTA, step ``1/L`` from a Gershgorin bound). All stop on the KKT residual
 (see ``tolerance``) and end with the exact projection. When the unconstrained
@@ -274,13 +279,16 @@ def fair_web(
         More vertices to hold.
     solver : {"newton", "admm", "projected_gradient"}
         For the constrained problem (see the module docstring): ``"newton"``
-        (the default) converged in 2-60 steps in every measured case (small to
-        large cylinders, 100² and 300² grids), each step one sparse factorization
-        of a 3n system (minutes at 300²); the two first-order methods are cheap
-        per step but need very many steps on large networks (E2's matrix has
-        condition number ~ n⁴) and are for small ones.
+        (the default) converged in every measured case (small to large
+        cylinders, 100² and 300² grids): with few vertices touching by the
+        contact method (300², bench cylinders: 11 s), with many by 2-3 primal
+        steps, each one sparse factorization of a 3n system; the two
+        first-order methods are cheap per step but need very many steps on
+        large networks (E2's matrix has condition number ~ n⁴) and are for
+        small ones.
     max_iterations : int
-        Cap on Newton steps / ADMM / projected-gradient iterations.
+        Cap on Newton steps / ADMM / projected-gradient iterations (and on the
+        contact method's rounds).
     tolerance : float
         Stop when the KKT residual is below ``tolerance`` mean edge lengths h
         (one projected Jacobi step ``x − Π(x − (Px − b) / max diag P)`` moves no

@@ -122,7 +122,9 @@ def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
         note = (f"{'converged' if rep.converged else 'NOT converged'}, CPU {cpu:.1f} s, "
                 f"KKT {rep.kkt_residual:.1e} h, "
                 f"{rep.n_on_cylinder} on cylinder, projection moved {rep.projection_move / h:.0e} h")
-        if solver == "newton":
+        if solver == "newton" and rep.contact_vertices:
+            note += f", contact method: {rep.contact_vertices} vertices, {rep.contact_rounds} rounds"
+        elif solver == "newton":
             note += f", after {rep.warm_start_iterations} ADMM"
         if web.get("distance"):  # outside the clock: the distance to a tightly converged reference
             ref, _ = qn.fair_web(m, **settings, solver="newton", tolerance=1e-9, max_iterations=200)

@@ -37,12 +37,15 @@ import numpy as np
 from ..errors import InputError
 from .direct import Factorization
 
-__all__ = ["inverse_columns", "InverseBlock", "BLOCK", "COMPILED_MIN"]
+__all__ = ["inverse_columns", "InverseBlock", "BLOCK", "COMPILED_MIN", "SWEEP_MIN"]
 
 #: Columns swept together through the triangular factors.
 BLOCK = 16
 #: Below this many entries of the result (rows × columns) SciPy's own solve is used (no compiled kernel loaded).
 COMPILED_MIN = 2_000_000
+#: :class:`InverseBlock` sweeps the factors (compiled) from this many unknowns, or when the compiled kernels are
+#: loaded already; below, plain solves (at 100² about 2 ms per column, against a second to load Numba).
+SWEEP_MIN = 40_000
 
 
 def inverse_columns(f: Factorization, cols: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
@@ -88,6 +91,12 @@ def inverse_columns(f: Factorization, cols: np.ndarray, rows: np.ndarray | None 
     if not np.isfinite(out).all():
         raise InputError(f"{f.what}: the linear system is numerically singular (the solution is not finite)")
     return out
+
+
+def _compiled_ready() -> bool:
+    from . import compiled
+
+    return compiled.ready()
 
 
 def _kernel() -> Any:
@@ -162,7 +171,8 @@ class InverseBlock:
         n = f.shape[0]
         self.index = np.zeros(0, dtype=np.int64)
         self.block = np.zeros((0, 0))
-        self._sweeps = f.backend == "superlu" and _kernel() is not None
+        # loading Numba costs about a second per process: below SWEEP_MIN unknowns plain solves are cheaper
+        self._sweeps = f.backend == "superlu" and (n >= SWEEP_MIN or _compiled_ready()) and _kernel() is not None
         if self._sweeps:
             import scipy.sparse as sp
 

@@ -29,6 +29,7 @@ def test_inverse_block_equals_dense_inverse(monkeypatch, kind, order, compiled):
         monkeypatch.setattr(inverse, "COMPILED_MIN", 1 << 62)
     else:
         monkeypatch.setattr(inverse, "COMPILED_MIN", 0)
+        monkeypatch.setattr(inverse, "SWEEP_MIN", 0)
     M = plate(9)
     dense = np.linalg.inv(M.toarray())
     f = factorize(M, kind=kind, order=order if order == "minimum_degree" else nested_dissection(M))
@@ -37,6 +38,7 @@ def test_inverse_block_equals_dense_inverse(monkeypatch, kind, order, compiled):
     block = InverseBlock(f)
     for part in (S[:1], S[1:25], S[25:]):
         block.extend(part)
+    assert block._sweeps == compiled
     np.testing.assert_array_equal(block.index, S)
     np.testing.assert_allclose(block.block, dense[np.ix_(S, S)], atol=1e-10 * np.abs(dense).max())
     np.testing.assert_allclose(inverse_columns(f, S[:7], S), dense[np.ix_(S, S[:7])],
