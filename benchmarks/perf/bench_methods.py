@@ -16,7 +16,8 @@ Rows (settings as named; each in a fresh process, modules imported before the cl
   default). ``--cylinders``: ``bench`` radius 0.5 h, half-height 0.2 h (the default); ``small`` 0.1 h /
   0.05 h; ``large`` 2 h / 1 h; ``mixed`` 0.5 h / 0.2 h times a seeded random 0.1, 1 or 10 per vertex.
   The note says converged or not, the process's CPU time (on a loaded machine a steadier measure than the
-  wall time), the KKT residual reached, Newton steps after the ADMM warm start, and
+  wall time), the KKT residual reached, Newton steps after the ADMM warm start (or the contact method's
+  working set and rounds, see ``docs/methods.md``), and
   how far the final exact projection moved any vertex; with ``--distance`` also how far the result is from a
   Newton run to 1e-9 h (outside the clock);
 - ``spring``: Yamada's spring model, boundary fixed, to tolerance 1e-4 or ``--cap`` iterations;

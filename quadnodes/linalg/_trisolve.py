@@ -14,7 +14,7 @@ __all__ = ["lower_unit_sweep", "upper_sweep", "upper_transposed_sweep"]
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def lower_unit_sweep(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, W: np.ndarray) -> None:  # pragma: no cover
-    """``W ← L⁻¹ W`` for a unit lower triangular ``L`` given by its strictly lower part in CSC."""
+    """``W ← L⁻¹ W`` for a unit lower triangular ``L`` in CSC (a stored diagonal is skipped)."""
     n, w = W.shape
     for j in range(n):
         xj = W[j]
@@ -26,8 +26,11 @@ def lower_unit_sweep(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, W: np.nd
         if zero:
             continue
         for q in range(ptr[j], ptr[j + 1]):
+            i = idx[q]
+            if i == j:  # a stored diagonal entry (SuperLU's L keeps its ones)
+                continue
             v = val[q]
-            xi = W[idx[q]]
+            xi = W[i]
             for c in range(w):
                 xi[c] -= v * xj[c]
 
@@ -52,7 +55,7 @@ def upper_sweep(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, diag: np.ndar
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def upper_transposed_sweep(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, diag: np.ndarray,
                            W: np.ndarray) -> None:  # pragma: no cover
-    """``W ← U⁻ᵀ W`` for an upper triangular ``U`` given by its strictly upper part in CSR and its diagonal
+    """``W ← U⁻ᵀ W`` for an upper triangular ``U`` in CSR (a stored diagonal is skipped) and its diagonal
     (``Uᵀ`` is lower triangular: a forward sweep, which skips the rows a unit right-hand side does not reach)."""
     n, w = W.shape
     for j in range(n):
@@ -68,7 +71,10 @@ def upper_transposed_sweep(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, di
         for c in range(w):
             xj[c] *= d
         for q in range(ptr[j], ptr[j + 1]):
+            i = idx[q]
+            if i == j:  # a stored diagonal entry (SuperLU's L keeps its ones)
+                continue
             v = val[q]
-            xi = W[idx[q]]
+            xi = W[i]
             for c in range(w):
                 xi[c] -= v * xj[c]

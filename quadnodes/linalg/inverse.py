@@ -177,11 +177,11 @@ class InverseBlock:
             import scipy.sparse as sp
 
             lu = f._lu
-            L = sp.tril(lu.L, k=-1, format="csc")
+            L = lu.L  # CSC with its unit diagonal stored (the sweeps skip diagonal entries)
             self._L = (L.indptr.astype(np.int64), L.indices.astype(np.int64), L.data)
-            U = lu.U.tocsr()
-            self._diag = U.diagonal().copy()
-            U = sp.triu(U, k=1, format="csr")
+            U = lu.U
+            self._diag = U.diagonal()
+            U = U.tocsr()
             self._Ut = (U.indptr.astype(np.int64), U.indices.astype(np.int64), U.data)
             p = np.arange(n) if f._perm is None else f._perm
             pinv = np.empty(n, dtype=np.int64)
