@@ -216,11 +216,11 @@ class InverseBlock:
                 W = np.zeros((n, c.size))
                 W[self._row[c], np.arange(c.size)] = 1.0
                 _trisolve.upper_transposed_sweep(*self._Ut, self._diag, W)
-                Zs.append(sp.csc_matrix(W))
+                Zs.append(_sparse(W))
                 W = np.zeros((n, c.size))
                 W[self._col[c], np.arange(c.size)] = 1.0
                 _trisolve.lower_unit_sweep(*self._L, W)
-                Ys.append(sp.csc_matrix(W))
+                Ys.append(_sparse(W))
             Zn, Yn = sp.hstack(Zs, format="csc"), sp.hstack(Ys, format="csc")
             Z2 = sp.hstack([self._Z, Zn], format="csc")
             right = (Z2.T @ Yn).toarray()  # M⁻¹[S2, new]
@@ -236,3 +236,12 @@ class InverseBlock:
         if not np.isfinite(G).all():
             raise InputError(f"{self._f.what}: the linear system is numerically singular (the solution is not finite)")
         self.index, self.block = S2, G
+
+
+def _sparse(W: np.ndarray) -> Any:
+    """A swept block as a CSC matrix, read only on the rows it reached (``csc_matrix(W)`` scans every entry)."""
+    import scipy.sparse as sp
+
+    r = np.flatnonzero(W.any(axis=1))
+    i, j = np.nonzero(W[r])
+    return sp.csc_matrix((W[r[i], j], (r[i], j)), shape=W.shape)
