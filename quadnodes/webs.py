@@ -281,7 +281,7 @@ def fair_web(
         For the constrained problem (see the module docstring): ``"newton"``
         (the default) converged in every measured case (small to large
         cylinders, 100² and 300² grids): with few vertices touching by the
-        contact method (300², bench cylinders: 11 s), with many by 2-3 primal
+        contact method (300², bench cylinders: about 11 s of CPU), with many by 2-3 primal
         steps, each one sparse factorization of a 3n system; the two
         first-order methods are cheap per step but need very many steps on
         large networks (E2's matrix has condition number ~ n⁴) and are for
