@@ -15,9 +15,14 @@ every free vertex inside a cylinder centred on its input position, axis along
 the input's vertex normal, radius ``r`` (tangential) and half-height ``h``
 (normal): a convex set, so the constrained problem is a convex QP with a unique
 minimizer. It is solved as one — by default by a semismooth Newton method
-(primal-dual active set on the KKT conditions, warm-started by ADMM: each step
-one sparse positive definite solve on the coordinates the active constraints
-leave free), or by ADMM alone (``Q + ρI`` factorized once per ρ; the z-step is
+(primal-dual active set on the KKT conditions). Where few vertices end on their
+cylinder it runs in the space of the contact forces (the *contact method*,
+:func:`_contacts`: from the unconstrained minimizer, adding the vertices
+farthest outside round by round, each Newton step one dense solve of the active
+constraints' size with ``P⁻¹`` on the contact vertices); where many touch it
+gives way to the primal method (warm-started by ADMM: each step one sparse
+positive definite solve on the coordinates the active constraints leave free).
+ADMM alone (``Q + ρI`` factorized once per ρ; the z-step is
 the exact projection onto each cylinder) or accelerated projected gradient
 (FISTA, step ``1/L`` from a Gershgorin bound). All stop on the KKT residual
 (see ``tolerance``) and end with the exact projection. When the unconstrained
@@ -32,10 +37,12 @@ from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 from scipy.sparse.csgraph import connected_components
 from .linalg import NESTED_DISSECTION_MIN, expand_order, factorize, nested_dissection
+from .linalg.inverse import InverseBlock
 from .linalg.threads import blas_pinned
 
 from . import _validate
@@ -198,7 +205,9 @@ class WebReport:
     distance to the minimizer below ``tolerance``); ``projection_move``: how
     far (mesh unit) the final exact projection onto the cylinders moved any
     vertex of the solver's last iterate; ``warm_start_iterations``: the ADMM iterations before the Newton
-    steps (``iterations``) of ``solver="newton"``.
+    steps (``iterations``) of ``solver="newton"``; ``contact_vertices`` / ``contact_rounds``: the working set
+    and rounds of the contact method (0 when the primal Newton method solved it; its ``iterations`` are then
+    the dense Newton steps in the space of the contact forces, summed over the rounds).
     """
 
     energy_kind: str
@@ -222,6 +231,8 @@ class WebReport:
     kkt_residual: float = 0.0
     projection_move: float = 0.0
     warm_start_iterations: int = 0
+    contact_vertices: int = 0
+    contact_rounds: int = 0
 
     def to_dict(self) -> dict:
         """Plain-Python form (JSON-ready)."""
@@ -268,13 +279,16 @@ def fair_web(
         More vertices to hold.
     solver : {"newton", "admm", "projected_gradient"}
         For the constrained problem (see the module docstring): ``"newton"``
-        (the default) converged in 2-60 steps in every measured case (small to
-        large cylinders, 100² and 300² grids), each step one sparse factorization
-        of a 3n system (minutes at 300²); the two first-order methods are cheap
-        per step but need very many steps on large networks (E2's matrix has
-        condition number ~ n⁴) and are for small ones.
+        (the default) converged in every measured case (small to large
+        cylinders, 100² and 300² grids): with few vertices touching by the
+        contact method (300², bench cylinders: about 11 s of CPU), with many by 2-3 primal
+        steps, each one sparse factorization of a 3n system; the two
+        first-order methods are cheap per step but need very many steps on
+        large networks (E2's matrix has condition number ~ n⁴) and are for
+        small ones.
     max_iterations : int
-        Cap on Newton steps / ADMM / projected-gradient iterations.
+        Cap on Newton steps / ADMM / projected-gradient iterations (and on the
+        contact method's rounds).
     tolerance : float
         Stop when the KKT residual is below ``tolerance`` mean edge lengths h
         (one projected Jacobi step ``x − Π(x − (Px − b) / max diag P)`` moves no
@@ -347,7 +361,8 @@ def fair_web(
             "minimum; fix vertices (fix='boundary' or 'corners', or fixed=...), give closeness > 0 or "
             "tolerance cylinders"
         )
-    x_unc = None
+    x_unc, lu_unc = None, None
+    contacts, rounds = 0, 0
     iterations = 0
     converged = True
     # one nested-dissection order of the free vertices serves every factorization below (P, P + ρI, and the
@@ -355,7 +370,8 @@ def fair_web(
     nd = nested_dissection(P) if (3 if has_cyl else 1) * free.size >= NESTED_DISSECTION_MIN else None
     if unique:
         try:  # symmetric order, diagonal pivots preferred (fast); pivoting left on: a singular P raises
-            x_unc = factorize(P, kind="symmetric", what="fair_web", order=_order(nd, free.size)).solve(b)
+            lu_unc = factorize(P, kind="symmetric", what="fair_web", order=_order(nd, free.size))
+            x_unc = lu_unc.solve(b)
             res = np.abs(P @ x_unc - b).max() / max(np.abs(b).max(), np.abs(P).max() * hlen, 1e-300)
         except InputError:  # singular, or a solution that is not finite
             x_unc, res = None, np.inf
@@ -372,8 +388,14 @@ def fair_web(
             start = cen if x_unc is None else project_to_cylinders(x_unc, cen, ax, r_f, h_f)
             ran = True
             with blas_pinned():  # one BLAS thread: SuperLU's small dense blocks gain nothing from more
-                x_it, iterations, converged, kkt, warm = _constrained(solver, P, b, start, cen, ax, r_f, h_f,
-                                                                      tol * hlen, max_iterations, rho, nd)
+                found = None
+                if solver == "newton" and lu_unc is not None:
+                    found = _contacts(lu_unc, P, b, x_unc, cen, ax, r_f, h_f, tol * hlen, max_iterations)
+                if found is not None:
+                    x_it, iterations, converged, kkt, contacts, rounds = found
+                else:
+                    x_it, iterations, converged, kkt, warm = _constrained(solver, P, b, start, cen, ax, r_f, h_f,
+                                                                          tol * hlen, max_iterations, rho, nd)
             # never a point outside a cylinder: the exact projection last (a no-op on the solvers' iterates,
             # which are projections already; reported)
             x_free = project_to_cylinders(x_it, cen, ax, r_f, h_f)
@@ -401,7 +423,7 @@ def fair_web(
     rep = WebReport(energy, tau, c, solver if ran else "direct", fix, int(hold.sum()),
                     int(free.size), iterations, bool(converged), e_in, e_unc, total(x), we["E1"], we["E2"],
                     has_cyl, on, outside, time.perf_counter() - t0, kkt / hlen, moved,
-                    warm)
+                    warm, contacts, rounds)
     return out, rep
 
 
@@ -577,9 +599,10 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
         disk = tl >= r
         er, ec = _frames(ax, t)
         mu = np.where(disk, np.maximum(0.0, -np.einsum("ij,ij->i", g, er)), 0.0)
-        curv = np.where(disk, mu / np.where(disk, r, 1.0), 0.0)
+        pin = disk & (r == 0)  # a zero radius holds the circumferential direction too (no curvature term)
+        curv = np.where(disk & ~pin, mu / np.where(disk & ~pin, r, 1.0), 0.0)
         # free directions of every vertex: the normal (slab inactive), the radial (disk inactive), the circumferential
-        use = np.column_stack([~slab, ~disk, np.ones(k, dtype=bool)])
+        use = np.column_stack([~slab, ~disk, ~pin])
         vi, di = np.nonzero(use)
         # a vertex with no active constraint keeps x, y, z: its coordinates then couple only through P, which
         # keeps the factorization near that of three separate systems when few constraints are active
@@ -635,3 +658,154 @@ def _fista(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, 
         if it % 200 == 0:
             report_progress(it / max_it, f"projected gradient iteration {it}: KKT residual {kkt:.2e}")
     return x, max_it, False, kkt
+
+
+#: The contact method gives way to the primal Newton method when its working set would pass this many vertices
+#: (its dense matrices are that size squared: 3,000 vertices are 72 MB) or this fraction of the free vertices.
+_CONTACT_MAX = 3000
+_CONTACT_FRACTION = 0.25
+#: Rounds of the contact method (each adds vertices to the working set) before it gives way.
+_CONTACT_ROUNDS = 60
+#: Newton steps within one round of the contact method before it gives way.
+_CONTACT_STEPS = 60
+#: A round adds only vertices at least this share as far outside as the farthest (the others usually come
+#: inside once those touch).
+_CONTACT_SHARE = 0.1
+#: ... and are the farthest outside within this many steps in the energy's graph (a supported plate touches at
+#: separated points; at 100² bench cylinders 1, 2 and 4 steps gave working sets of 476, 248 and 185 vertices for
+#: the 152 that end touching).
+_CONTACT_HOPS = 4
+#: The method gives way when the number of vertices outside their cylinder has fallen by less than 10 % over two
+#: rounds (from round 5, while it exceeds the working set): every vertex will touch, the primal method's case.
+_CONTACT_STALL = 0.9
+
+
+def _contact_step(G: np.ndarray, u: np.ndarray, y: np.ndarray, g: np.ndarray, cen: np.ndarray, ax: np.ndarray,
+                  r: np.ndarray, h: np.ndarray, gamma: float) -> tuple[np.ndarray, int, int]:
+    """One semismooth Newton step of the contact method, in the space of the contact forces.
+
+    On the working set ``S`` the energy's minimizer under forces ``F`` at ``S`` is ``y = u − G F``
+    (``G = P⁻¹[S, S]``, ``u`` the unconstrained minimizer there). The active set is read from
+    ``w = y − γ g`` exactly as in :func:`_newton`; every active constraint is a row ``c·y = d`` (slab:
+    the normal, disk: the radial direction) and every active disk adds the Lagrangian's curvature
+    ``κ = μ/r`` across (a row ``e_c·(y − c) = s/κ``). With ``B`` those directions the forces ``F = B φ``
+    solve ``(Bᵀ G B + diag(0, 1/κ)) φ = Bᵀ u − d``: one dense SPD system of the active constraints'
+    size — the primal Newton step of :func:`_newton` restricted to ``S``, without its 3n factorization.
+    Returns the forces ``F`` (|S|, 3) (the gradient of the energy on ``S`` is ``−F``) and the numbers of
+    active slabs and disks.
+    """
+    d = y - gamma * g - cen
+    a = np.einsum("ij,ij->i", d, ax)
+    t = d - a[:, None] * ax
+    tl = np.sqrt(np.einsum("ij,ij->i", t, t))
+    slab = np.abs(a) >= h
+    disk = tl >= r
+    er, ec = _frames(ax, t)
+    mu = np.where(disk, np.maximum(0.0, -np.einsum("ij,ij->i", g, er)), 0.0)
+    vs, vd = np.flatnonzero(slab), np.flatnonzero(disk)
+    vk = np.flatnonzero(disk & ((mu > 0) | (r == 0)))  # r = 0: the circumferential direction is held too
+    vert = np.concatenate([vs, vd, vk])
+    vec = np.concatenate([ax[vs], er[vd], ec[vk]])
+    rel = u[vert] - cen[vert]
+    bound = np.concatenate([np.sign(a[vs]) * h[vs], r[vd], np.zeros(vk.size)])
+    rhs = np.einsum("ij,ij->i", vec, rel) - bound
+    F = np.zeros_like(y)
+    if vert.size:
+        K = G[np.ix_(vert, vert)] * (vec @ vec.T)
+        K[np.arange(vs.size + vd.size, vert.size), np.arange(vs.size + vd.size, vert.size)] += (
+            r[vk] / np.where(mu[vk] > 0, mu[vk], 1.0))
+        phi = sla.cho_solve(sla.cho_factor(K, lower=True, check_finite=False), rhs, check_finite=False)
+        np.add.at(F, vert, phi[:, None] * vec)
+    return F, int(slab.sum()), int(disk.sum())
+
+
+def _contacts(lu: Any, P: sp.csc_matrix, b: np.ndarray, x_unc: np.ndarray, cen: np.ndarray, ax: np.ndarray,
+              r: np.ndarray, h: np.ndarray, tol: float, max_it: int
+              ) -> tuple[np.ndarray, int, bool, float, int, int] | None:
+    """The constrained minimizer from the unconstrained one, by adding contact vertices (a range-space method).
+
+    The minimizer is ``x = x_unc − P⁻¹F`` with the cylinders' forces ``F`` nonzero only where a vertex
+    touches its cylinder. Starting from ``x_unc`` (factorization ``lu`` of ``P``, already made), every round
+    adds to the working set ``S`` the vertices outside their cylinder whose distance outside is largest
+    within ``_CONTACT_HOPS`` steps in ``P``'s graph (and at least ``_CONTACT_SHARE`` of the farthest), extends
+    ``P⁻¹[S][:, S]`` by them (:class:`~quadnodes.linalg.inverse.InverseBlock`: sparse sweeps, no whole columns),
+    and solves the problem restricted to ``S`` — forces only on ``S``, every vertex of ``S`` inside its
+    cylinder — by the semismooth Newton steps of :func:`_contact_step` (dense, the size of the active
+    constraints). Then ``x`` follows from one solve with three right-hand sides. It stops when no vertex
+    is outside its cylinder, the KKT residual of the whole problem at the projected point and the change
+    the last Newton step made to any vertex are below ``tol``: the rule of :func:`_newton`. Where many
+    vertices touch (small cylinders) the working set grows past ``_CONTACT_MAX`` / ``_CONTACT_FRACTION``
+    and it returns None: the primal method (:func:`_newton`, one sparse factorization per step) is then
+    the cheaper one.
+
+    Returns ``(x, Newton steps, converged, KKT residual, |S|, rounds)`` or None.
+    """
+    k = P.shape[0]
+    Pr = P.tocsr()
+    gamma = 1.0 / float(P.diagonal().max())
+    cap = min(_CONTACT_MAX, max(16, int(_CONTACT_FRACTION * k)))
+    ptr, nbr = Pr.indptr, Pr.indices
+    S = np.zeros(0, dtype=np.int64)
+    inverse = InverseBlock(lu)  # P⁻¹[S][:, S], grown with S
+    F = np.zeros((0, 3))
+    x = x_unc
+    steps = 0
+    outside: list[int] = []
+    for rnd in range(1, min(_CONTACT_ROUNDS, max_it) + 1):
+        out = np.sqrt(np.einsum("ij,ij->i", x - project_to_cylinders(x, cen, ax, r, h),
+                                x - project_to_cylinders(x, cen, ax, r, h)))
+        out[S] = 0.0
+        # the vertices farthest outside among their neighbours: a supported plate touches at separated points
+        near = out
+        for _ in range(_CONTACT_HOPS):
+            near = np.maximum.reduceat(near[nbr], ptr[:-1]) if nbr.size else near
+        new = np.flatnonzero((out > max(0.1 * tol, _CONTACT_SHARE * out.max())) & (out >= near))
+        if new.size == 0:
+            if rnd == 1:
+                return None  # nothing outside: the caller has returned x_unc already
+            break
+        outside.append(int((out > tol).sum()))
+        # many vertices touch (small cylinders): the vertices outside stop falling while the working set grows
+        stalled = rnd >= 5 and outside[-1] >= _CONTACT_STALL * outside[-3] and outside[-1] > S.size
+        if S.size + new.size > cap or stalled:
+            return None
+        inverse.extend(new)
+        S = inverse.index
+        G = 0.5 * (inverse.block + inverse.block.T)
+        F = np.concatenate([F, np.zeros((new.size, 3))])
+        u, cS, aS, rS, hS = x_unc[S], cen[S], ax[S], r[S], h[S]
+        y = u - G @ F
+        g = -F
+        z_last = project_to_cylinders(y, cS, aS, rS, hS)
+        for _ in range(_CONTACT_STEPS):
+            F_prev = F
+            try:
+                F, n_slab, n_disk = _contact_step(G, u, y, g, cS, aS, rS, hS, gamma)
+            except (np.linalg.LinAlgError, ValueError):
+                return None
+            y, g = u - G @ F, -F
+            steps += 1
+            z = project_to_cylinders(y, cS, aS, rS, hS)
+            step, z_last = float(np.abs(z - z_last).max()), z
+            res = float(np.abs(y - project_to_cylinders(y - gamma * g, cS, aS, rS, hS)).max())
+            report_progress(min(steps / 30, 0.99), f"contact round {rnd}, Newton step {steps}: "
+                                                   f"{S.size} contact vertices, {n_slab} slabs and {n_disk} disks "
+                                                   f"active, residual {res:.2e}")
+            if res < 0.1 * tol and step < 0.1 * tol:
+                break
+        else:
+            return None
+        Fs = np.zeros_like(x_unc)
+        Fs[S] = F
+        x = x_unc - lu.solve(Fs)
+    else:
+        return None
+    z = project_to_cylinders(x, cen, ax, r, h)
+    kkt = _natural_residual(z, Pr, b, gamma, cen, ax, r, h)
+    # the distance estimate of the Newton rule: how far the last step moved any vertex (not only those of S)
+    dF = np.zeros_like(x_unc)
+    dF[S] = F - F_prev
+    last = float(np.abs(lu.solve(dF)).max())
+    if not (kkt < tol and last < tol):
+        return None
+    return z, steps, True, kkt, int(S.size), rnd

@@ -220,16 +220,38 @@ def cylinder_problem(rows, cols, seed, energy, closeness):
     return m, h, r, hc, hold, Q, axes
 
 
+def force_path(monkeypatch, path):
+    """Make ``solver="newton"`` take the contact method (``"contact"``, whatever the share of touching vertices)
+    or the primal Newton method (``"primal"``) alone."""
+    import quadnodes.webs as webs
+
+    if path == "primal":
+        monkeypatch.setattr(webs, "_CONTACT_MAX", 0)
+    else:
+        monkeypatch.setattr(webs, "_CONTACT_FRACTION", 1.0)
+        monkeypatch.setattr(webs, "_CONTACT_STALL", np.inf)
+        monkeypatch.setattr(webs, "_CONTACT_ROUNDS", 10_000)
+
+
+def check_path(rep, path):
+    assert (rep.contact_vertices > 0) == (path == "contact") and (rep.warm_start_iterations > 0) == (path == "primal")
+
+
+@pytest.mark.parametrize("path", ["contact", "primal"])
 @pytest.mark.parametrize("energy,closeness", [("E1", 0.0), ("E2", 0.0), ("tension", 0.0), ("E2", 0.2),
                                               ("tension", 0.05)])
-def test_kkt_and_scipy_reference(energy, closeness):
-    """The Newton result is the constrained minimizer: KKT residual below the tolerance, and equal to SLSQP's."""
+def test_kkt_and_scipy_reference(monkeypatch, energy, closeness, path):
+    """The Newton result is the constrained minimizer: KKT residual below the tolerance, and equal to SLSQP's —
+    by the contact method and by the primal method."""
     from scipy.optimize import minimize
 
+    force_path(monkeypatch, path)
     m, h, r, hc, hold, Q, axes = cylinder_problem(6, 7, 11, energy, closeness)
     out, rep = fair_web(m, energy=energy, tension=0.5, closeness=closeness, fix="corners", cylinder_radius=r,
                         cylinder_height=hc, tolerance=1e-7)
     assert rep.solver == "newton" and rep.converged and rep.kkt_residual <= 1e-7
+    if energy != "E1" or closeness:  # (E1 without closeness: ADMM's warm start alone converges on the primal path)
+        check_path(rep, path)
     assert rep.max_outside <= 1e-12 * h and rep.projection_move <= 1e-12 * h
     x0 = m.vertices
     f = np.flatnonzero(~hold)
@@ -311,3 +333,56 @@ def test_nested_dissection_gives_the_same_minimizer(monkeypatch, cholmod):
     assert rep.converged and rep_ref.converged and rep.iterations >= 1
     assert "given" in calls  # the vertex order reached the factorizations
     np.testing.assert_allclose(out.vertices, ref.vertices, atol=1e-9 * h)
+
+
+@pytest.mark.parametrize("cylinders", [(0.5, 0.2), (2.0, 1.0), (0.1, 0.05)])
+def test_contact_method_equals_primal_method(monkeypatch, cylinders):
+    """On a 16 × 17 height field (E2, corners fixed) with few vertices touching (0.5 h / 0.2 h, 2 h / 1 h) and
+    with every one touching (0.1 h / 0.05 h) the contact method and the primal Newton method reach the same
+    minimizer, and the default takes the contact method exactly where few touch."""
+    import quadnodes.webs as webs
+
+    y, x = np.meshgrid(np.linspace(0, 1, 16), np.linspace(0, 1, 17), indexing="ij")
+    m, _ = perturb(grid(16, 17, spacing=1.0 / 15, height=0.3 * np.sin(3 * x) * np.cos(2 * y)), tangential=0.2,
+                   normal=0.05, seed=3)
+    h = m.mean_edge_length
+    kw = dict(energy="E2", fix="corners", cylinder_radius=cylinders[0] * h, cylinder_height=cylinders[1] * h,
+              tolerance=1e-9)
+    _, default = fair_web(m, **kw)
+    out = {}
+    for path in ("contact", "primal"):
+        with monkeypatch.context() as mp:
+            force_path(mp, path)
+            out[path], rep = fair_web(m, **kw)
+        assert rep.converged and rep.kkt_residual <= 1e-9 and rep.max_outside <= 1e-12 * h
+        check_path(rep, path)
+    np.testing.assert_allclose(out["contact"].vertices, out["primal"].vertices, atol=1e-8 * h)
+    few = default.n_on_cylinder < 0.25 * default.n_free
+    assert few == (cylinders[0] > 0.1) and (default.contact_vertices > 0) == few
+    assert default.n_on_cylinder <= default.contact_vertices or not few
+    assert webs._CONTACT_MAX > 0
+
+
+def test_contact_method_zero_radius(monkeypatch):
+    """A zero radius pins a vertex across its axis (the contact step holds the circumferential direction too)."""
+    force_path(monkeypatch, "contact")
+    m, _ = perturb(grid(8, 9), tangential=0.3, normal=0.3, seed=5)
+    h = m.mean_edge_length
+    r = np.full(m.n_vertices, 0.5 * h)
+    r[[20, 31]] = 0.0
+    out, rep = fair_web(m, energy="E2", fix="corners", cylinder_radius=r, cylinder_height=0.2 * h, tolerance=1e-9)
+    assert rep.converged and rep.contact_vertices > 0
+    n = vertex_normals_of(m)
+    d = out.vertices[[20, 31]] - m.vertices[[20, 31]]
+    t = d - np.einsum("ij,ij->i", d, n[[20, 31]])[:, None] * n[[20, 31]]
+    assert np.abs(t).max() <= 1e-12 * h
+    force_path(monkeypatch, "primal")
+    ref, rep_p = fair_web(m, energy="E2", fix="corners", cylinder_radius=r, cylinder_height=0.2 * h, tolerance=1e-9)
+    assert rep_p.converged
+    np.testing.assert_allclose(out.vertices, ref.vertices, atol=1e-8 * h)
+
+
+def vertex_normals_of(m):
+    from quadnodes.discrete_curvature import vertex_normals
+
+    return vertex_normals(m.vertices, m.faces)

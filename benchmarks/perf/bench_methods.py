@@ -16,7 +16,8 @@ Rows (settings as named; each in a fresh process, modules imported before the cl
   default). ``--cylinders``: ``bench`` radius 0.5 h, half-height 0.2 h (the default); ``small`` 0.1 h /
   0.05 h; ``large`` 2 h / 1 h; ``mixed`` 0.5 h / 0.2 h times a seeded random 0.1, 1 or 10 per vertex.
   The note says converged or not, the process's CPU time (on a loaded machine a steadier measure than the
-  wall time), the KKT residual reached, Newton steps after the ADMM warm start, and
+  wall time), the KKT residual reached, Newton steps after the ADMM warm start (or the contact method's
+  working set and rounds, see ``docs/methods.md``), and
   how far the final exact projection moved any vertex; with ``--distance`` also how far the result is from a
   Newton run to 1e-9 h (outside the clock);
 - ``spring``: Yamada's spring model, boundary fixed, to tolerance 1e-4 or ``--cap`` iterations;
@@ -122,7 +123,9 @@ def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
         note = (f"{'converged' if rep.converged else 'NOT converged'}, CPU {cpu:.1f} s, "
                 f"KKT {rep.kkt_residual:.1e} h, "
                 f"{rep.n_on_cylinder} on cylinder, projection moved {rep.projection_move / h:.0e} h")
-        if solver == "newton":
+        if solver == "newton" and rep.contact_vertices:
+            note += f", contact method: {rep.contact_vertices} vertices, {rep.contact_rounds} rounds"
+        elif solver == "newton":
             note += f", after {rep.warm_start_iterations} ADMM"
         if web.get("distance"):  # outside the clock: the distance to a tightly converged reference
             ref, _ = qn.fair_web(m, **settings, solver="newton", tolerance=1e-9, max_iterations=200)
