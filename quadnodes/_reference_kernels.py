@@ -39,8 +39,10 @@ def closest_on_candidates(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ac: np.n
                 e1x, e1y, e1z = ab[t, 0], ab[t, 1], ab[t, 2]
                 e2x, e2y, e2z = ac[t, 0], ac[t, 1], ac[t, 2]
                 apx, apy, apz = px - ax, py - ay, pz - az
-                d1 = e1x * apx + e1y * apy + e1z * apz
-                d2 = e2x * apx + e2y * apy + e2z * apz
+                # sums of three products in np.einsum's order on rows of 3 (first and third, then the
+                # second): the NumPy path's numbers to the bit, so a result does not depend on which ran
+                d1 = (e1x * apx + e1z * apz) + e1y * apy
+                d2 = (e2x * apx + e2z * apz) + e2y * apy
                 bb, bc, cc = gram[t, 0], gram[t, 1], gram[t, 2]
                 d3, d4 = d1 - bb, d2 - bc
                 d5, d6 = d1 - bc, d2 - cc
@@ -68,7 +70,7 @@ def closest_on_candidates(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ac: np.n
                 rx = apx - v * e1x - w * e2x
                 ry = apy - v * e1y - w * e2y
                 rz = apz - v * e1z - w * e2z
-                d = rx * rx + ry * ry + rz * rz
+                d = (rx * rx + rz * rz) + ry * ry
                 if d < best:
                     best = d
                     bx = ax + v * e1x + w * e2x
