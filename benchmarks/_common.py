@@ -10,6 +10,7 @@ default) import this module after putting ``benchmarks/`` on ``sys.path``::
 from __future__ import annotations
 
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -114,6 +115,24 @@ def fresh_runs(script: str, args: list[str], repeat: int) -> tuple[dict, list[fl
     walls = sorted(r["wall_s"] for r in runs)
     median = runs[[r["wall_s"] for r in runs].index(walls[len(walls) // 2])]
     return median, walls
+
+
+def interleaved_runs(script: str, args: list[str], repeat: int, against: str) -> tuple[tuple, tuple]:
+    """``fresh_runs`` of this checkout and of the package at ``against`` (a checkout's root, put first on
+    ``PYTHONPATH``), one process of each in turn: on a machine whose speed drifts, both see the same drift.
+    Returns ``((median, walls), (median, walls))``, this checkout's first."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [against, os.environ.get("PYTHONPATH")])))
+    runs: tuple[list, list] = ([], [])
+    for _ in range(max(1, repeat)):
+        for side, extra in ((0, None), (1, env)):
+            out = subprocess.run([sys.executable, script, "--row", *args], capture_output=True, text=True, check=True,
+                                 env=extra)
+            runs[side].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    result = []
+    for side in runs:
+        walls = sorted(r["wall_s"] for r in side)
+        result.append((side[[r["wall_s"] for r in side].index(walls[len(walls) // 2])], walls))
+    return result[0], result[1]
 
 
 def spread(walls: list[float]) -> str:

@@ -34,7 +34,7 @@ Rows
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
 Run:  python benchmarks/perf/bench_core.py [--sizes 100 300 1000] [--noise zigzag broadband]
-            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--warm]
+            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--warm] [--against PATH]
 """
 
 from __future__ import annotations
@@ -174,6 +174,9 @@ def main() -> None:
     ap.add_argument("--only", nargs="+", choices=list(LABELS), help="run only these rows")
     ap.add_argument("--repeat", type=int, default=3,
                     help="fresh processes per row; the table shows the median time (default 3)")
+    ap.add_argument("--against", metavar="PATH",
+                    help="also run every row with the package at PATH (another checkout's root, e.g. a git worktree "
+                         "of an older commit) on PYTHONPATH, one process of each in turn, and print its row below")
     ap.add_argument("--row", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
@@ -202,12 +205,17 @@ def main() -> None:
             if args.cube_sphere and kind in FAIR_KINDS:
                 noises.append("cube-sphere")
             for noise in noises:
-                r, walls = _common.fresh_runs(__file__, [kind, str(n), noise], args.repeat)
+                row = [kind, str(n), noise]
+                if args.against:
+                    results = _common.interleaved_runs(__file__, row, args.repeat, args.against)
+                else:
+                    results = (_common.fresh_runs(__file__, row, args.repeat),)
                 mesh = {"torus": f"torus {n}×{n}", "cube-sphere": f"cube-sphere ~{n}²"}.get(noise, f"{n}×{n}")
                 label = "broadband" if noise in ("torus", "cube-sphere") else noise
                 label += ", kernels loaded" if args.warm else ""
-                print(f"| {mesh} | {label} | {LABELS[kind]} | {r['wall_s']:.3f}{_common.spread(walls)} | "
-                      f"{r['peak_mb']:.0f} | {r['note']} |", flush=True)
+                for (r, walls), who in zip(results, ("", f" [{args.against}]")):
+                    print(f"| {mesh} | {label} | {LABELS[kind]}{who} | {r['wall_s']:.3f}{_common.spread(walls)} | "
+                          f"{r['peak_mb']:.0f} | {r['note']} |", flush=True)
 
 
 if __name__ == "__main__":
