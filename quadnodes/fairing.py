@@ -88,7 +88,7 @@ COMPILED_MIN_UNKNOWNS = 250_000
 #: From this many vertices on, fair() serves its large temporaries from the heap instead of fresh
 #: pages (:func:`quadnodes.linalg.heap.reused_heap`): at a million vertices a (3, 2·10⁶) temporary
 #: costs a page fault per 4 KB otherwise; at 300² (2 MB temporaries, above glibc's first mmap
-#: threshold) the whole fair() is about 12 % faster with it (median of 9 fresh processes each).
+#: threshold) the whole fair() is about 12 % faster with it (median of 9 fresh processes each, a throwaway A/B).
 HEAP_MIN_VERTICES = 10_000
 #: On a complete vertex grid, solve in the grid's own numbering with diagonal storage
 #: (13 diagonals, 1.3-1.7x faster products than CSR) when at least this share of the
