@@ -545,6 +545,24 @@ def _admm(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, a
     return z, max_it, False, kkt
 
 
+def _active_set(d: np.ndarray, g: np.ndarray, ax: np.ndarray, r: np.ndarray,
+                h: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The active constraints read from ``d = w − c`` (``w = x − γ∇E``), as both Newton methods read them.
+
+    Returns the normal coordinate ``a`` (k,), the active slabs ``|a| ≥ h`` and disks (tangential part
+    at least ``r``) (k,) bool, the radial and circumferential directions ``er``, ``ec`` (k, 3), and the
+    disks' multipliers ``μ = max(0, −e_r·g)`` (0 where the disk is not active).
+    """
+    a = np.einsum("ij,ij->i", d, ax)
+    t = d - a[:, None] * ax
+    tl = np.sqrt(np.einsum("ij,ij->i", t, t))
+    slab = np.abs(a) >= h
+    disk = tl >= r
+    er, ec = _frames(ax, t)
+    mu = np.where(disk, np.maximum(0.0, -np.einsum("ij,ij->i", g, er)), 0.0)
+    return a, slab, disk, er, ec, mu
+
+
 def _frames(ax: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit radial ``e_r`` (along ``t``, any tangent when ``t = 0``) and circumferential ``e_c = n × e_r``."""
     tl = np.sqrt(np.einsum("ij,ij->i", t, t))
@@ -591,14 +609,7 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
     jj = (blk[:, None, None] + np.zeros(3, dtype=np.int64)[:, None] + np.arange(3)[None, None, :]).ravel()
     for it in range(1, max_it + 1):
         g = Pr @ x - b
-        d = x - gamma * g - cen
-        a = np.einsum("ij,ij->i", d, ax)
-        t = d - a[:, None] * ax
-        tl = np.sqrt(np.einsum("ij,ij->i", t, t))
-        slab = np.abs(a) >= h
-        disk = tl >= r
-        er, ec = _frames(ax, t)
-        mu = np.where(disk, np.maximum(0.0, -np.einsum("ij,ij->i", g, er)), 0.0)
+        a, slab, disk, er, ec, mu = _active_set(x - gamma * g - cen, g, ax, r, h)
         pin = disk & (r == 0)  # a zero radius holds the circumferential direction too (no curvature term)
         curv = np.where(disk & ~pin, mu / np.where(disk & ~pin, r, 1.0), 0.0)
         # free directions of every vertex: the normal (slab inactive), the radial (disk inactive), the circumferential
@@ -694,14 +705,7 @@ def _contact_step(G: np.ndarray, u: np.ndarray, y: np.ndarray, g: np.ndarray, ce
     Returns the forces ``F`` (|S|, 3) (the gradient of the energy on ``S`` is ``−F``) and the numbers of
     active slabs and disks.
     """
-    d = y - gamma * g - cen
-    a = np.einsum("ij,ij->i", d, ax)
-    t = d - a[:, None] * ax
-    tl = np.sqrt(np.einsum("ij,ij->i", t, t))
-    slab = np.abs(a) >= h
-    disk = tl >= r
-    er, ec = _frames(ax, t)
-    mu = np.where(disk, np.maximum(0.0, -np.einsum("ij,ij->i", g, er)), 0.0)
+    a, slab, disk, er, ec, mu = _active_set(y - gamma * g - cen, g, ax, r, h)
     vs, vd = np.flatnonzero(slab), np.flatnonzero(disk)
     vk = np.flatnonzero(disk & ((mu > 0) | (r == 0)))  # r = 0: the circumferential direction is held too
     vert = np.concatenate([vs, vd, vk])

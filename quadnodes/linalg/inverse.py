@@ -138,7 +138,7 @@ def _sweep(factors: tuple, cols: np.ndarray, n: int) -> np.ndarray:
     pos[into] = np.arange(n)
     w = np.zeros((n, cols.size))
     w[pos[cols], np.arange(cols.size)] = 1.0
-    _trisolve.lower_unit_sweep(lp, li, lv, w)
+    _trisolve.forward_sweep(lp, li, lv, None, w)
     _trisolve.upper_sweep(up, ui, uv, diag, w)
     x = np.empty_like(w)
     x[p] = w[pc]
@@ -215,11 +215,11 @@ class InverseBlock:
                 c = idx[a:a + BLOCK]
                 W = np.zeros((n, c.size))
                 W[self._row[c], np.arange(c.size)] = 1.0
-                _trisolve.upper_transposed_sweep(*self._Ut, self._diag, W)
+                _trisolve.forward_sweep(*self._Ut, self._diag, W)
                 Zs.append(_sparse(W))
                 W = np.zeros((n, c.size))
                 W[self._col[c], np.arange(c.size)] = 1.0
-                _trisolve.lower_unit_sweep(*self._L, W)
+                _trisolve.forward_sweep(*self._L, None, W)
                 Ys.append(_sparse(W))
             Zn, Yn = sp.hstack(Zs, format="csc"), sp.hstack(Ys, format="csc")
             Z2 = sp.hstack([self._Z, Zn], format="csc")
