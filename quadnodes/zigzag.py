@@ -12,6 +12,7 @@ from numpy.typing import ArrayLike
 
 from . import _validate
 from .mesh import QuadMesh
+from .linalg import compiled as _compiled, threads as _threads
 from .topology import fixed_vertices
 
 __all__ = [
@@ -212,6 +213,8 @@ def _window_geometry(
     """
     if walk is not None:
         ext, start = walk
+        if _compiled.ready():  # (loaded by a server, a watch, a large grid's fair: one pass, the same numbers)
+            return _compiled_window_geometry(vertices, ext, start, alternation, even)
         e, inv = _walk_edges(vertices, ext)
         with np.errstate(divide="ignore", invalid="ignore"):  # (an edge of length 0: its window's is nan)
             extra: tuple[np.ndarray, ...] = ()
@@ -253,6 +256,42 @@ def _window_geometry(
     r *= 0.5
     r -= u[1]
     return np.einsum("ij,ij->i", r, r), inverse
+
+
+#: Windows per thread below which the compiled geometry runs on one thread.
+_PARALLEL_MIN_WINDOWS = 40_000
+
+
+def _compiled_window_geometry(vertices: np.ndarray, ext: np.ndarray, start: np.ndarray, alternation: bool,
+                              even: bool) -> tuple[np.ndarray, ...]:
+    """:func:`_window_geometry` along a walk by :func:`quadnodes._zigzag_kernels.window_geometry` (to the bit)."""
+    from ._zigzag_kernels import window_geometry
+
+    V = np.ascontiguousarray(vertices, dtype=np.float64)
+    ext, start = np.asarray(ext, dtype=np.int64), np.asarray(start, dtype=np.int64)  # (one compiled signature)
+    w = len(start)
+    dev, inverse = np.empty(w), np.empty((3, w))
+    alt = np.empty(w if alternation else 0)
+    mean, energy = (np.empty((w, 3)), np.empty(w)) if even else (np.empty((0, 3)), np.empty(0))
+    t = min(_threads.thread_count(), max(1, w // _PARALLEL_MIN_WINDOWS))
+    cuts = [w * i // t for i in range(t + 1)]
+    args = (V, ext, start, dev, inverse, alt, mean, energy, alternation, even)
+    jobs = [_threads.pool().submit(window_geometry, *args, lo, hi) for lo, hi in zip(cuts[1:-1], cuts[2:])]
+    window_geometry(*args, cuts[0], cuts[1])
+    for job in jobs:
+        job.result()
+    out: tuple[np.ndarray, ...] = (dev, inverse.T)
+    return out + ((alt,) if alternation else ()) + ((mean, energy) if even else ())
+
+
+def _load_kernel() -> None:
+    """First call of the compiled geometry (loads its machine code; :func:`quadnodes.linalg.compiled.also_load`)."""
+    V = np.zeros((5, 3))
+    V[:, 0] = np.arange(5.0)
+    _compiled_window_geometry(V, np.arange(5, dtype=np.int64), np.array([0, 1], dtype=np.int64), True, True)
+
+
+_compiled.also_load(_load_kernel)
 
 
 def _mesh_window_deviation(mesh: QuadMesh) -> np.ndarray:

@@ -110,3 +110,47 @@ def test_thesis_detection_is_eq30_and_alternating_leaves_a_bend_alone():
     assert alt.vertex_alternation.max() <= 0.1 and th.vertex_alternation is None
     noisy, _ = perturb(m, tangential=0.2, seed=2)
     assert detect(noisy, 0.1).n_free > 0.5 * noisy.n_vertices - 2 * (7 + 5)
+
+
+
+def _same_bits(a, b):
+    return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+def _both_geometries(vertices, topology, **kw):
+    """The window geometry along the walk from NumPy and from the compiled kernel."""
+    from quadnodes import zigzag
+
+    args = (vertices, topology.windows, topology.window_walk)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(zigzag._compiled, "ready", lambda: False)
+        numpy_path = zigzag._window_geometry(*args, **kw)
+        mp.setattr(zigzag._compiled, "ready", lambda: True)
+        compiled_path = zigzag._window_geometry(*args, **kw)
+    return numpy_path, compiled_path
+
+
+@settings(max_examples=25, deadline=None)
+@given(mesh=meshes(), seed=st.integers(0, 1000), alternation=st.booleans(), even=st.booleans())
+def test_compiled_window_geometry_equals_numpy_to_the_bit(mesh, seed, alternation, even):
+    # detection and fairing must not depend on whether the kernel was loaded in time
+    v = mesh.vertices + np.random.default_rng(seed).normal(scale=0.2 * mesh.mean_edge_length, size=mesh.vertices.shape)
+    a, b = _both_geometries(v, mesh.topology, alternation=alternation, even=even)
+    assert len(a) == len(b) == 2 + alternation + 2 * even
+    assert all(_same_bits(x, y) for x, y in zip(a, b))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_compiled_window_geometry_on_a_torus_with_degenerate_edges_and_threads(monkeypatch, threads):
+    from quadnodes import zigzag
+    from quadnodes.mesh import torus
+
+    monkeypatch.setattr(zigzag, "_PARALLEL_MIN_WINDOWS", 7)
+    monkeypatch.setattr(zigzag._threads, "thread_count", lambda: threads)
+    m = torus(9, 12)
+    v = m.vertices + np.random.default_rng(3).normal(scale=0.05, size=m.vertices.shape)
+    v[5] = v[6]  # an edge of length 0: inf and NaN where NumPy has them
+    v[40, 0] = np.nan
+    a, b = _both_geometries(v, m.topology, alternation=True, even=True)
+    assert np.isnan(a[0]).any() and np.isinf(a[1]).any() and np.isfinite(a[0]).sum() > len(a[0]) // 2
+    assert all(_same_bits(x, y) for x, y in zip(a, b))

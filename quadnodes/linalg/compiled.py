@@ -19,12 +19,15 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Callable
 
-__all__ = ["warm_up", "wait", "ready"]
+__all__ = ["warm_up", "wait", "ready", "also_load"]
 
 _LOCK = threading.Lock()
 _THREAD: threading.Thread | None = None
 _STATE: dict[str, object] = {"ready": False, "error": None}
+#: Other modules' kernels to load with these (:func:`also_load`).
+_ALSO: list[Callable[[], None]] = []
 
 
 def _load() -> None:
@@ -45,6 +48,8 @@ def _load() -> None:
         band = np.ones((4, 8))
         k.path_band_solve(band, band[3].copy(), np.arange(8, dtype=np.int64), X.T.copy(), np.zeros((8, 3)),
                           np.empty((8, 3)), 0, 8)
+        for load in list(_ALSO):  # before "ready": a caller that sees it pays no load time for these either
+            load()
         _STATE["ready"] = True
         from .threads import prime_blas_controller
 
@@ -62,6 +67,18 @@ def _forget_thread() -> None:
 
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_forget_thread)
+
+
+def also_load(load: Callable[[], None]) -> None:
+    """Have the background load call ``load`` too, before :func:`ready` turns true.
+
+    For a module of the package with compiled kernels of its own: ``load`` makes each kernel's
+    first call (which loads its machine code), so callers that check :func:`ready` use them at
+    no load cost. Register at import, before any :func:`warm_up`; registered later, the
+    kernel loads on its own first use instead. A ``load`` that raises leaves :func:`ready`
+    false (the NumPy paths remain).
+    """
+    _ALSO.append(load)
 
 
 def warm_up() -> None:
