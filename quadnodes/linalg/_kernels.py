@@ -12,7 +12,7 @@ import numba as nb
 import numpy as np
 
 __all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines",
-           "cg_update", "cg_direction", "row_dots", "strided_band_cholesky"]
+           "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "open_grid_family"]
 
 #: Rows of the product computed per chunk (the chunk's slices of every diagonal stay in cache).
 _CHUNK = 1024
@@ -392,3 +392,47 @@ def strided_band_cholesky(A: np.ndarray, F: np.ndarray, stride: int, length: int
                 return a + i
             f[i] = np.sqrt(f[i])
     return -1
+
+
+@nb.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
+def open_grid_family(coef: np.ndarray, first: np.ndarray, F: np.ndarray, rows: int, cols: int, family: int,
+                     weight: float, data: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover - compiled
+    """One family's share of an open grid's ``AᵀA + ωI`` in diagonal storage, its lines ``lo:hi``.
+
+    ``coef`` ``(w, 4)``: the rows of ``A``; the windows of line ``l`` of ``family`` (0: grid rows,
+    1: grid columns) are ``coef[first[l] : first[l] + L - 3]`` in order along it. ``F`` ``(n,)``:
+    1.0 on the unknowns, 0.0 elsewhere (a fixed node drops out of every window). ``data`` ``(13, n)``
+    as ``GridPattern.normal_matrix``: family 0 writes its diagonals and sets the main diagonal,
+    family 1 (after it) writes its own, adds to the main diagonal and then ``ω`` (1 off the
+    unknowns). Sums in ``GridPattern._open_normal_matrix``'s order, so the numbers are its to the bit.
+    Columns are taken 16 side by side, row by row, so that reads and writes stay near each other.
+    """
+    length = cols if family == 0 else rows
+    k = length - 3
+    step = 1 if family == 0 else cols
+    tile = 1 if family == 0 else 16
+    for t0 in range(lo, hi, tile):
+        t1 = min(t0 + tile, hi)
+        for x in range(length):
+            for line in range(t0, t1):
+                node = line * cols + x if family == 0 else x * cols + line
+                p = first[line]
+                for d in range(4):
+                    s = 0.0
+                    for i in range(4 - d):
+                        j = x - i  # the window whose slot i is this node (slot i + d is d steps on)
+                        if 0 <= j and j < k:
+                            s += (coef[p + j, i] * F[node]) * (coef[p + j, i + d] * F[node + d * step])
+                    if d == 0:
+                        if family == 0:
+                            data[6, node] = s
+                        else:
+                            s = data[6, node] + s
+                            data[6, node] = s + (weight if F[node] != 0.0 else 1.0)
+                    elif x + d < length:
+                        if family == 0:
+                            data[6 + d, node + d] = s  # M[a, a + d] at column a + d
+                            data[6 - d, node] = s  # M[a + d, a] at column a
+                        else:
+                            data[9 + d, node + d * cols] = s
+                            data[3 - d, node] = s

@@ -21,6 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from . import compiled, threads
+
 __all__ = ["GridPattern"]
 
 
@@ -134,6 +136,11 @@ class GridPattern:
     def _open_normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:
         """:meth:`normal_matrix`'s data for :meth:`open_grid`: shifted products on grid-shaped arrays."""
         rows, cols, n = self.rows, self.cols, self.n
+        expected = sum(count * max((cols if family == 0 else rows) - 3, 0) for family, _, count in self.blocks)
+        if len(coef) != expected:
+            raise ValueError(f"coef: expected {expected} rows for this grid, got {len(coef)}")
+        if compiled.ready():  # one pass per family, the same numbers to the bit
+            return self._compiled_open_normal_matrix(coef, free, weight)
         F = free.reshape(rows, cols).astype(np.float64)
         # upper[f][d][l, x]: entry (node x of line l, node x + d of line l) of family f's AᵀA, lines as rows
         upper = [np.zeros((4, rows, cols)), np.zeros((4, cols, rows))]
@@ -152,8 +159,6 @@ class GridPattern:
             for d in range(4):
                 for i in range(4 - d):
                     u[d][:, i : i + k] += c[i] * c[i + d]
-        if pos != len(coef):
-            raise ValueError(f"coef: expected {pos} rows for this grid, got {len(coef)}")
         data = np.zeros((13, rows, cols))
         ur, uc = upper[0], upper[1].transpose(0, 2, 1)  # both as (4, rows, cols)
         data[6] = ur[0] + uc[0]
@@ -164,6 +169,31 @@ class GridPattern:
             data[9 + d][d:] = uc[d][: rows - d]
             data[3 - d][: rows - d] = uc[d][: rows - d]
         return data.reshape(13, n)
+
+    def _compiled_open_normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:
+        """:meth:`_open_normal_matrix` by :func:`quadnodes.linalg._kernels.open_grid_family` (rows split over threads)."""
+        from ._kernels import open_grid_family
+
+        rows, cols, n = self.rows, self.cols, self.n
+        first = [np.zeros(rows, dtype=np.int64), np.zeros(cols, dtype=np.int64)]
+        pos = 0
+        for family, line, count in self.blocks:
+            k = max((cols if family == 0 else rows) - 3, 0)
+            first[family][line : line + count] = pos + k * np.arange(count)
+            pos += count * k
+        coef = np.ascontiguousarray(coef, dtype=np.float64)
+        F = free.astype(np.float64)
+        data = np.zeros((13, n))
+        t = min(threads.thread_count(), max(1, n // threads.PARALLEL_MIN_ROWS))
+        for family in (0, 1):  # (family 1 adds to the main diagonal family 0 wrote)
+            lines = rows if family == 0 else cols
+            cuts = [lines * i // t // 16 * 16 for i in range(t)] + [lines]
+            args = (coef, first[family], F, rows, cols, family, float(weight), data)
+            jobs = [threads.pool().submit(open_grid_family, *args, lo, hi) for lo, hi in zip(cuts[1:-1], cuts[2:])]
+            open_grid_family(*args, cuts[0], cuts[1])
+            for job in jobs:
+                job.result()
+        return data
 
     def normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray]:
         """``AᵀA + ωI`` in the grid's numbering as ``(offsets, data)``; other rows and columns are the identity's.
