@@ -271,6 +271,11 @@ def _window_energy(vertices: np.ndarray, windows: np.ndarray, inverse: np.ndarra
 def _coefficients(i0: np.ndarray, i1: np.ndarray, i2: np.ndarray) -> np.ndarray:
     """Eq. 32 coefficients from the inverse lengths of the windows' three edges."""
     c = np.empty((len(i0), 4))
+    if kernels.ready():  # row by row (the same numbers): NumPy writes the columns with a stride
+        from ._window_kernels import window_coefficients
+
+        window_coefficients(*(np.asarray(i, dtype=np.float64) for i in (i0, i1, i2)), c, 0, len(c))
+        return c
     c[:, 0] = -0.5 * i0
     c[:, 1] = 0.5 * i0 + i1
     c[:, 2] = -i1 - 0.5 * i2

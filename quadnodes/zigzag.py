@@ -264,8 +264,8 @@ _PARALLEL_MIN_WINDOWS = 40_000
 
 def _compiled_window_geometry(vertices: np.ndarray, ext: np.ndarray, start: np.ndarray, alternation: bool,
                               even: bool) -> tuple[np.ndarray, ...]:
-    """:func:`_window_geometry` along a walk by :func:`quadnodes._zigzag_kernels.window_geometry` (to the bit)."""
-    from ._zigzag_kernels import window_geometry
+    """:func:`_window_geometry` along a walk by :func:`quadnodes._window_kernels.window_geometry` (to the bit)."""
+    from ._window_kernels import window_geometry
 
     V = np.ascontiguousarray(vertices, dtype=np.float64)
     ext, start = np.asarray(ext, dtype=np.int64), np.asarray(start, dtype=np.int64)  # (one compiled signature)
@@ -284,14 +284,17 @@ def _compiled_window_geometry(vertices: np.ndarray, ext: np.ndarray, start: np.n
     return out + ((alt,) if alternation else ()) + ((mean, energy) if even else ())
 
 
-def _load_kernel() -> None:
-    """First call of the compiled geometry (loads its machine code; :func:`quadnodes.linalg.compiled.also_load`)."""
+def _load_kernels() -> None:
+    """First calls of the compiled window kernels (load their machine code; :func:`quadnodes.linalg.compiled.also_load`)."""
+    from ._window_kernels import window_coefficients
+
     V = np.zeros((5, 3))
     V[:, 0] = np.arange(5.0)
     _compiled_window_geometry(V, np.arange(5, dtype=np.int64), np.array([0, 1], dtype=np.int64), True, True)
+    window_coefficients(V[:, 0], V[:, 1], V[:, 2], np.empty((5, 4)), 0, 5)
 
 
-_compiled.also_load(_load_kernel)
+_compiled.also_load(_load_kernels)
 
 
 def _mesh_window_deviation(mesh: QuadMesh) -> np.ndarray:

@@ -979,3 +979,16 @@ def test_line_curvature_fair_is_the_default_and_bad_values_are_named():
     np.testing.assert_array_equal(fair(noisy)[0].vertices, fair(noisy, line_curvature="fair")[0].vertices)
     with pytest.raises(InputError, match="line_curvature"):
         fair(noisy, line_curvature="keep")
+
+
+def test_compiled_coefficients_equal_numpy_to_the_bit(monkeypatch):
+    from quadnodes import fairing as fairing_module
+    # (the kernels load on first call; compiled.wait() would switch this process's later tests to them)
+    inverse = np.random.default_rng(5).random((3, 1000)).T * 10.0 ** np.arange(-3, 4).repeat(150)[:1000, None]
+    inverse[7, 1] = np.inf  # an edge of length 0
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)
+    a = fairing_module._coefficients(inverse[:, 0], inverse[:, 1], inverse[:, 2])
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
+    b = fairing_module._coefficients(inverse[:, 0], inverse[:, 1], inverse[:, 2])
+    assert a.shape == b.shape == (1000, 4) and b.flags.c_contiguous
+    assert np.array_equal(a.view(np.int64), b.view(np.int64))

@@ -17,7 +17,7 @@ def test_warm_up_loads_in_the_background_and_fair_uses_the_kernels_at_any_size_t
         assert not compiled.ready()
         compiled.warm_up(); compiled.warm_up()  # once per process
         assert compiled.wait() and compiled.ready()
-        from quadnodes._zigzag_kernels import window_geometry  # other modules' kernels (also_load) came too
+        from quadnodes._window_kernels import window_geometry  # other modules' kernels (also_load) came too
         assert len(window_geometry.signatures) == 1
         m = grid(60, 60)
         m = m.with_vertices(m.vertices + np.random.default_rng(1).normal(scale=0.1, size=m.vertices.shape))

@@ -1,4 +1,4 @@
-"""Compiled kernel (Numba) for :mod:`quadnodes.zigzag`: every window's geometry in one pass.
+"""Compiled kernels (Numba) for the windows of :mod:`quadnodes.zigzag` and :mod:`quadnodes.fairing`.
 
 :func:`window_geometry` computes what ``zigzag._window_geometry`` computes along the
 topology's window walk — each window's deviation (eq. 30), the inverse lengths of its
@@ -7,7 +7,8 @@ length and energy — reading the window's four vertices once, instead of some t
 NumPy passes over the whole walk. IEEE arithmetic throughout (no ``fastmath``; NumPy's
 division by zero gives ``inf``, not an exception), with NumPy's formulas and order of
 operations, so both paths give the same numbers to the bit: detection and fairing do
-not depend on whether the kernel was loaded in time.
+not depend on whether the kernel was loaded in time. :func:`window_coefficients` writes eq. 32's
+coefficients row by row (NumPy writes the columns of a ``(w, 4)`` array with a stride).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["window_geometry"]
+__all__ = ["window_geometry", "window_coefficients"]
 
 
 @nb.njit(cache=True, nogil=True, fastmath=False, boundscheck=False, error_model="numpy")
@@ -61,3 +62,16 @@ def window_geometry(V: np.ndarray, ext: np.ndarray, start: np.ndarray, dev: np.n
             pz = (bz - az) * (cz - bz)
             a = -((px + py) + pz)
             alt[w] = a if (a > 0.0 or a != a) else 0.0
+
+
+@nb.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
+def window_coefficients(i0: np.ndarray, i1: np.ndarray, i2: np.ndarray, out: np.ndarray, lo: int,
+                        hi: int) -> None:  # pragma: no cover - compiled
+    """Rows ``lo:hi`` of ``out`` ``(w, 4)``: eq. 32's coefficients from the inverse lengths of the three edges
+    (``quadnodes.fairing._coefficients``'s formulas)."""
+    for w in range(lo, hi):
+        a, b, c = i0[w], i1[w], i2[w]
+        out[w, 0] = -0.5 * a
+        out[w, 1] = 0.5 * a + b
+        out[w, 2] = -b - 0.5 * c
+        out[w, 3] = 0.5 * c
