@@ -128,7 +128,7 @@ class Reference:
 
     def _closest_compiled(self, p: np.ndarray, out: np.ndarray, kernel: Any) -> None:
         """:meth:`_closest` for all points at once: the k-d tree and the compiled test on the pool's threads."""
-        from .linalg.threads import pool, thread_count
+        from .linalg.threads import run_tasks, thread_count
 
         t = max(1, min(thread_count(), len(p) // CHUNK))
         k = min(NEAREST, self.mesh.n_vertices)
@@ -136,10 +136,7 @@ class Reference:
         cand = self._faces_of[near.reshape(len(p), k)].reshape(len(p), -1)
         cuts = np.linspace(0, len(p), t + 1).astype(np.int64).tolist()
         args = (p, self._a, self._ab, self._ac, self._gram, cand, self._m, out)
-        futures = [pool().submit(kernel, *args, lo, hi) for lo, hi in zip(cuts[1:-1], cuts[2:])]
-        kernel(*args, cuts[0], cuts[1])
-        for f in futures:
-            f.result()
+        run_tasks(kernel, [args + (lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:])])
 
     def _closest(self, p: np.ndarray) -> np.ndarray:
         k = min(NEAREST, self.mesh.n_vertices)

@@ -276,10 +276,7 @@ def _compiled_window_geometry(vertices: np.ndarray, ext: np.ndarray, start: np.n
     t = min(_threads.thread_count(), max(1, w // _PARALLEL_MIN_WINDOWS))
     cuts = [w * i // t for i in range(t + 1)]
     args = (V, ext, start, dev, inverse, alt, mean, energy, alternation, even)
-    jobs = [_threads.pool().submit(window_geometry, *args, lo, hi) for lo, hi in zip(cuts[1:-1], cuts[2:])]
-    window_geometry(*args, cuts[0], cuts[1])
-    for job in jobs:
-        job.result()
+    _threads.run_tasks(window_geometry, [args + (lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:])])
     out: tuple[np.ndarray, ...] = (dev, inverse.T)
     return out + ((alt,) if alternation else ()) + ((mean, energy) if even else ())
 

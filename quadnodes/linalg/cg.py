@@ -647,10 +647,10 @@ class LinePreconditioner:
         blocks = [self._scratch[i * c * cols * LANES : (i + 1) * c * cols * LANES].reshape(c, cols, LANES)
                   for i in range(len(self._row_ranges))]
         # the column lines first, solved in place in Z; then the row lines, added block by block
-        _run([((a, b), None) for a, b in self._col_ranges],
-             lambda ab, _: strided_line_solve(F2, d2, cols, Rc, Zc, Zc, ab[0], ab[1], False))
-        _run(list(zip(self._row_ranges, blocks)),
-             lambda ab, B: row_line_solve(F1, d1, cols, rows, Rc, B, Zc, ab[0], ab[1], True))
+        _threads.run_tasks(lambda ab, _: strided_line_solve(F2, d2, cols, Rc, Zc, Zc, ab[0], ab[1], False),
+                           [((a, b), None) for a, b in self._col_ranges])
+        _threads.run_tasks(lambda ab, B: row_line_solve(F1, d1, cols, rows, Rc, B, Zc, ab[0], ab[1], True),
+                           list(zip(self._row_ranges, blocks)))
         if Zc is Z:
             Z[:, n:] = 0.0
         elif columns:
@@ -666,14 +666,3 @@ def _split(count: int, parts: int) -> list[tuple[int, int]]:
     parts = max(1, min(parts, count))
     cuts = np.linspace(0, count, parts + 1).round().astype(int).tolist()
     return list(zip(cuts[:-1], cuts[1:]))
-
-
-def _run(tasks: list[tuple], fn: object) -> None:
-    """``fn(*task)`` for every task, on the solver's pool (the caller takes the first)."""
-    if len(tasks) == 1:
-        fn(*tasks[0])  # type: ignore[operator]
-        return
-    futures = [_threads.pool().submit(fn, *task) for task in tasks[1:]]  # type: ignore[arg-type]
-    fn(*tasks[0])  # type: ignore[operator]
-    for f in futures:
-        f.result()

@@ -189,10 +189,7 @@ class GridPattern:
             lines = rows if family == 0 else cols
             cuts = [lines * i // t // 16 * 16 for i in range(t)] + [lines]
             args = (coef, first[family], F, rows, cols, family, float(weight), data)
-            jobs = [threads.pool().submit(open_grid_family, *args, lo, hi) for lo, hi in zip(cuts[1:-1], cuts[2:])]
-            open_grid_family(*args, cuts[0], cuts[1])
-            for job in jobs:
-                job.result()
+            threads.run_tasks(open_grid_family, [args + (lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:])])
         return data
 
     def normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray]:

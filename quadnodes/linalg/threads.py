@@ -14,7 +14,7 @@ import contextlib
 import os
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -32,6 +32,7 @@ __all__ = [
     "COLUMNS_MAX_NNZ",
     "thread_count",
     "pool",
+    "run_tasks",
     "blas_pinned",
     "prime_blas_controller",
     "RowBlocks",
@@ -79,6 +80,23 @@ def pool() -> ThreadPoolExecutor:
     if _POOL is None:
         _POOL = ThreadPoolExecutor(max_workers=MAX_THREADS - 1, thread_name_prefix="quadnodes")
     return _POOL
+
+
+def run_tasks(fn: Callable[..., object], tasks: Sequence[tuple]) -> list:
+    """``fn(*task)`` for every task, the first on the calling thread and the others on :func:`pool`; the results in order.
+
+    For kernels that release the GIL (Numba's ``nogil``, SciPy's sparse kernels, NumPy's loops) on ranges of rows.
+
+    Examples
+    --------
+    >>> run_tasks(lambda lo, hi: sum(range(lo, hi)), [(0, 3), (3, 5)])
+    [3, 7]
+    """
+    if len(tasks) == 1:
+        return [fn(*tasks[0])]
+    futures = [pool().submit(fn, *task) for task in tasks[1:]]
+    first = fn(*tasks[0])
+    return [first] + [f.result() for f in futures]
 
 
 def _forget_pool() -> None:
@@ -200,11 +218,7 @@ class RowBlocks:
         self._indices = M.indices.astype(idx, copy=False)
 
     def run(self, fn: Callable[[int, int], object]) -> list:
-        if len(self.ranges) == 1:
-            return [fn(*self.ranges[0])]
-        futures = [pool().submit(fn, lo, hi) for lo, hi in self.ranges[1:]]
-        first = fn(*self.ranges[0])
-        return [first] + [f.result() for f in futures]
+        return run_tasks(fn, self.ranges)
 
     def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
                accumulate: bool = False) -> None:
