@@ -585,8 +585,8 @@ GN_LINE_GROWTH = 2.0
 GN_LINE_FLOOR = 0.01
 
 
-#: With a reference and at least this many vertices, planarize loads the compiled closest-point test on a
-#: second thread at its start (:func:`quadnodes.reference.warm_up`, about a second of CPU): at 100 × 100 the
+#: With a reference and at least this many vertices, planarize loads the compiled kernels, the closest-point
+#: test among them, on a second thread at its start (:func:`quadnodes.reference.warm_up`, about 1.5 s of CPU): at 100 × 100 the
 #: NumPy test is most of a local/global iteration (0.13 → 0.09 s of CPU with the compiled one).
 REFERENCE_KERNEL_MIN_VERTICES = 5000
 

@@ -22,8 +22,6 @@ mesh edge by default: 1/128 of the chord error of the mesh itself).
 
 from __future__ import annotations
 
-import os
-import threading
 from typing import Any
 
 import numpy as np
@@ -31,6 +29,7 @@ from numpy.typing import ArrayLike
 
 from . import _validate
 from .errors import InputError
+from .linalg import compiled as _compiled
 from .mesh import QuadMesh
 
 __all__ = ["Reference", "as_reference", "warm_up"]
@@ -44,8 +43,6 @@ CHUNK = 16384
 #: costs about a second per process, more than the NumPy path takes for one call below this.
 COMPILED_MIN_POINTS = 250_000
 
-_LOCK = threading.Lock()
-_KERNEL: dict[str, Any] = {"thread": None, "fn": None}
 
 
 class Reference:
@@ -156,50 +153,41 @@ class Reference:
 
 
 def _load_kernel() -> None:
-    try:
-        from ._reference_kernels import closest_on_candidates
+    """First call of the compiled region test (loads its machine code; :func:`quadnodes.linalg.compiled.also_load`)."""
+    from ._reference_kernels import closest_on_candidates
 
-        z = np.zeros((1, 3))  # the first call loads (or, the first time ever, compiles) the machine code
-        closest_on_candidates(z, z, z, z, z, np.zeros((1, 1), dtype=np.int64), 1, np.empty((1, 3)), 0, 1)
-        _KERNEL["fn"] = closest_on_candidates
-    except Exception:  # pragma: no cover - Numba missing or broken: the NumPy path remains
-        _KERNEL["fn"] = None
+    z = np.zeros((1, 3))  # the first call loads (or, the first time ever, compiles) the machine code
+    closest_on_candidates(z, z, z, z, z, np.zeros((1, 1), dtype=np.int64), 1, np.empty((1, 3)), 0, 1)
 
 
-def _forget_thread() -> None:
-    """A forked child has none of the parent's threads: load again there if it was not done."""
-    if _KERNEL["fn"] is None:
-        _KERNEL["thread"] = None
-
-
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_forget_thread)
+_compiled.also_load(_load_kernel)
 
 
 def warm_up() -> None:
-    """Start loading the compiled closest-point test on a daemon thread (once per process; returns at once).
+    """Start loading the compiled kernels, this module's closest-point test among them, on a daemon thread
+    (:func:`quadnodes.linalg.compiled.warm_up`: once per process; returns at once).
 
     A caller that will ask for many closest points in many calls (``planarize`` on a large mesh)
     starts it early; :meth:`Reference.closest` uses the kernel as soon as it is loaded.
 
     Examples
     --------
-    >>> import quadnodes.reference as R
-    >>> R._KERNEL["fn"] is None or callable(R._KERNEL["fn"])  # (not started here: later doctests' paths stay)
+    >>> from quadnodes.linalg import compiled
+    >>> compiled.ready() in (True, False)  # (not started here: later doctests' paths stay)
     True
     """
-    with _LOCK:
-        if _KERNEL["thread"] is None:
-            _KERNEL["thread"] = threading.Thread(target=_load_kernel, name="quadnodes-reference-kernel", daemon=True)
-            _KERNEL["thread"].start()
+    _compiled.warm_up()
 
 
 def _compiled_kernel(points: int) -> Any:
-    """The compiled region test if it is loaded, or loaded now for ``points`` ≥ :data:`COMPILED_MIN_POINTS`; else None."""
-    if _KERNEL["fn"] is None and points >= COMPILED_MIN_POINTS:
-        warm_up()
-        _KERNEL["thread"].join()
-    return _KERNEL["fn"]
+    """The compiled region test if the kernels are loaded, or loaded now for ``points`` ≥ :data:`COMPILED_MIN_POINTS`; else None."""
+    if not _compiled.ready() and points >= COMPILED_MIN_POINTS:
+        _compiled.wait()
+    if not _compiled.ready():
+        return None
+    from ._reference_kernels import closest_on_candidates
+
+    return closest_on_candidates
 
 
 def _triangle_coordinates(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ac: np.ndarray, gram: np.ndarray,

@@ -407,12 +407,13 @@ def test_gauss_newton_meets_the_tolerance_on_a_free_form_sample_in_a_few_steps()
 
 
 def _reference_kernel_settled() -> None:
-    """Finish a load of the compiled closest-point test that an earlier test started (reference.warm_up),
-    so that two runs compared bit for bit take the same path (the two paths agree to 1e-14, not to the bit)."""
-    from quadnodes import reference
+    """Finish a load of the compiled kernels that an earlier test started (reference.warm_up), so that two
+    runs compared bit for bit take the same paths (the closest points agree to the bit; the solver's own
+    compiled product does not)."""
+    from quadnodes.linalg import compiled
 
-    if reference._KERNEL["thread"] is not None:
-        reference._KERNEL["thread"].join()
+    if compiled._THREAD is not None:
+        compiled._THREAD.join()
 
 
 def test_auto_switches_to_gauss_newton_where_local_global_stagnates():

@@ -133,26 +133,8 @@ def test_compiled_closest_points_equal_the_numpy_path(seed, spread):
         mp.setattr(R, "COMPILED_MIN_POINTS", 1)
         mp.setattr(R, "CHUNK", 256)  # several ranges on the threads
         mp.setattr(linalg_threads, "thread_count", lambda: 2)
-        assert R._compiled_kernel(len(pts)) is not None
+        mp.setattr(R._compiled, "ready", lambda: True)  # (the kernel loads on its first call; no wait() that
+        assert R._compiled_kernel(len(pts)) is not None  # would switch this process's later tests to the kernels)
         q, d = Reference(ref_mesh).closest(pts)
     np.testing.assert_array_equal(q, numpy_q)
     np.testing.assert_array_equal(d, numpy_d)
-
-
-def test_a_forked_child_loads_the_compiled_test_itself(monkeypatch):
-    # after a fork the parent's loading thread does not exist in the child: _forget_thread (registered with
-    # os.register_at_fork) drops it unless the kernel was loaded, so the child loads its own when asked
-    import threading
-
-    import quadnodes.reference as R
-
-    dead = threading.Thread(target=lambda: None)
-    monkeypatch.setattr(R, "_KERNEL", {"thread": dead, "fn": None})
-    R._forget_thread()
-    assert R._KERNEL["thread"] is None
-    loaded = {"thread": dead, "fn": len}
-    monkeypatch.setattr(R, "_KERNEL", loaded)
-    R._forget_thread()
-    assert R._KERNEL["thread"] is dead  # loaded before the fork: kept
-    monkeypatch.setattr(R, "_KERNEL", {"thread": None, "fn": None})
-    assert R._compiled_kernel(R.COMPILED_MIN_POINTS) is not None  # loads (or finds) it synchronously

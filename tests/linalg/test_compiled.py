@@ -33,3 +33,56 @@ def test_warm_up_loads_in_the_background_and_fair_uses_the_kernels_at_any_size_t
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "ok"
+
+
+def test_a_forked_child_loads_the_kernels_itself(monkeypatch):
+    # after a fork the parent's loading thread does not exist in the child: _forget_thread (registered with
+    # os.register_at_fork) drops it unless the kernels were loaded, so the child loads its own when asked
+    import threading
+
+    from quadnodes.linalg import compiled
+
+    dead = threading.Thread(target=lambda: None)
+    monkeypatch.setattr(compiled, "_THREAD", dead)
+    monkeypatch.setattr(compiled, "_STATE", {"ready": False, "error": None})
+    compiled._forget_thread()
+    assert compiled._THREAD is None
+    monkeypatch.setattr(compiled, "_THREAD", dead)
+    monkeypatch.setattr(compiled, "_STATE", {"ready": True, "error": None})
+    compiled._forget_thread()
+    assert compiled._THREAD is dead  # loaded before the fork: kept
+
+
+def test_other_modules_kernels_load_with_these_and_a_failing_one_leaves_the_numpy_paths():
+    code = textwrap.dedent(
+        """
+        from quadnodes.linalg import compiled
+        import quadnodes.reference, quadnodes.zigzag  # (register their kernels at import)
+        calls = []
+        compiled.also_load(lambda: calls.append(compiled.ready()))
+        assert compiled.wait() and calls == [False]  # called before "ready"
+        from quadnodes._reference_kernels import closest_on_candidates
+        from quadnodes._window_kernels import window_coefficients, window_geometry
+        assert all(len(k.signatures) == 1 for k in (closest_on_candidates, window_coefficients, window_geometry))
+        assert quadnodes.reference._compiled_kernel(1) is closest_on_candidates
+        print("ok")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+    code = textwrap.dedent(
+        """
+        from quadnodes.linalg import compiled
+        import quadnodes.reference
+        def broken():
+            raise RuntimeError("no machine code")
+        compiled.also_load(broken)
+        assert not compiled.wait() and not compiled.ready()
+        assert quadnodes.reference._compiled_kernel(10**7) is None  # the NumPy path
+        print("ok")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
