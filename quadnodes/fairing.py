@@ -52,6 +52,10 @@ __all__ = [
     "DEFAULT_LINE_SPACING",
     "LINE_CURVATURE_MODES",
     "DEFAULT_LINE_CURVATURE",
+    "CURVATURE_CHANGE",
+    "CURVATURE_CONTRAST",
+    "CURVATURE_NOISE_SHARE",
+    "curvature_windows",
     "fairing_matrix",
     "fairing_energy",
     "FairingSystem",
@@ -147,9 +151,80 @@ DEFAULT_LINE_SPACING = "fair"
 #: The values of ``line_curvature`` in :func:`fair`: ``"fair"`` fairs every curvature change along the lines
 #: (eq. 34, the thesis), ``"hold"`` gives back the smooth part of what one solve removed (Tukey's twicing at
 #: half the weight), so the design's own curvature changes are held (docs/fairing.md, "The design's curvature").
-LINE_CURVATURE_MODES: tuple[str, ...] = ("fair", "hold")
-#: Kept at the thesis's: ``"hold"`` gains on curved designs and loses 1–5 % on nearly flat ones (docs/fairing.md).
-DEFAULT_LINE_CURVATURE = "fair"
+LINE_CURVATURE_MODES: tuple[str, ...] = ("fair", "hold", "auto")
+#: ``"auto"``: measured on the real meshes and E1–E4 (docs/fairing.md, "The design's curvature"); ``"hold"``
+#: gains on curved designs and loses 1–5 % on nearly flat ones, ``"auto"`` corrects only the former.
+DEFAULT_LINE_CURVATURE = "auto"
+#: ``line_curvature="auto"`` holds a window's line term at the faired value x₁ where it is above all three
+#: levels (:func:`curvature_windows`): this change of turning per window (in the line's unit directions: about
+#: 3°), so evenly curved and finely sampled designs are left to the single solve, ...
+CURVATURE_CHANGE = 0.055
+#: ... this multiple of the median of the windows' terms on x₁ (a curvature change stands out of the design's
+#: own lines; residual noise and even curvature do not), ...
+CURVATURE_CONTRAST = 2.0
+#: ... and this share of the median of their terms on the input (what one solve leaves of the noise scales with
+#: it). Measured on the real meshes and E1–E4 (docs/fairing.md, "The design's curvature").
+CURVATURE_NOISE_SHARE = 0.08
+
+
+def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """The windows whose line term ``line_curvature="auto"`` holds: the design's curvature changes.
+
+    One solve suppresses the noise's line terms (high frequencies, by about ``ω/λ``)
+    and keeps most of a design's curvature change; so a window whose term on the
+    faired result ``x₁`` is still large marks where the design's lines change their
+    curvature (a rounded edge's start and end), which the solve begins to fair away.
+    A window is held when its term on ``x₁`` is above :data:`CURVATURE_CHANGE`,
+    :data:`CURVATURE_CONTRAST` times the median over the inner windows on ``x₁`` and
+    :data:`CURVATURE_NOISE_SHARE` times their median on the input; when it is an
+    inner window (its four vertices free: a held or unfound vertex's noise is not
+    design); and when the window before or after it along its line is held by the
+    same rules (a design's curvature change spans consecutive windows, the largest
+    terms residual noise leaves are isolated).
+
+    Parameters
+    ----------
+    faired : (r, 3) float64
+        The rows' line terms at ``x₁`` (``A x₁ + b``); the first ``w`` rows are ``windows``,
+        any later rows (the line-end term's) are never held.
+    noisy : (r, 3) float64
+        The same rows at the input (the anchor).
+    windows : (w, 4) int
+        The windows of the first ``w`` rows, consecutive windows of a line next to each other.
+    inner : (r,) bool
+        Rows whose vertices are all free.
+
+    Returns
+    -------
+    (r,) bool
+
+    Examples
+    --------
+    One line of 11 vertices (8 windows), the faired terms large at windows 3 and 4:
+
+    >>> win = np.arange(8)[:, None] + np.arange(4)
+    >>> f1 = np.zeros((8, 3)); f1[3:5, 2] = 0.1
+    >>> np.flatnonzero(curvature_windows(f1, np.full((8, 3), 0.3), win, np.ones(8, bool))).tolist()
+    [3, 4]
+    >>> f1[4] = 0.0  # an isolated large term is residual noise
+    >>> curvature_windows(f1, np.full((8, 3), 0.3), win, np.ones(8, bool)).any()
+    np.False_
+    """
+    w = len(windows)
+    s1 = np.sqrt(np.einsum("ij,ij->i", faired[:w], faired[:w]))
+    inside = inner[:w]
+    held = np.zeros(len(faired), dtype=bool)
+    if w < 2 or not inside.any():
+        return held
+    s0 = np.sqrt(np.einsum("ij,ij->i", noisy[:w][inside], noisy[:w][inside]))
+    level = max(CURVATURE_CHANGE, CURVATURE_CONTRAST * float(np.median(s1[inside])),
+                CURVATURE_NOISE_SHARE * float(np.median(s0)))
+    above = inside & (s1 > level)
+    follows = (windows[1:, :3] == windows[:-1, 1:]).all(axis=1)  # window i+1 continues window i's line
+    pair = follows & above[:-1] & above[1:]
+    held[:w - 1] |= pair
+    held[1:w] |= pair
+    return held
 
 
 def even_lengths(inverse: np.ndarray) -> np.ndarray:
@@ -822,6 +897,8 @@ class IterationReport:
     ``energy_before``/``energy_after`` are the linearized energy (eq. 32) of the
     whole mesh with lengths frozen at the iterate's start (each window's mean
     length with ``line_spacing="fair"``); ``deviation_*`` the exact eq. 30 sums.
+    ``n_curvature_held``: windows whose line term ``line_curvature="auto"`` held
+    (:func:`curvature_windows`; 0: the iteration solved once).
     """
 
     iteration: int
@@ -837,6 +914,7 @@ class IterationReport:
     solver: str = "none"
     cg_iterations: int = 0
     residual: float = 0.0
+    n_curvature_held: int = 0
 
 
 @dataclass(frozen=True)
@@ -940,7 +1018,7 @@ def fair(
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
     line_spacing: Literal["fair", "hold"] = DEFAULT_LINE_SPACING,
     gaps: Literal["auto", "fair", "hold"] = "auto",
-    line_curvature: Literal["fair", "hold"] = DEFAULT_LINE_CURVATURE,
+    line_curvature: Literal["fair", "hold", "auto"] = DEFAULT_LINE_CURVATURE,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -1015,8 +1093,8 @@ def fair(
         regions are filled, not grown (a lone spike is faired as with ``"hold"``).
         ``"auto"`` (default): the detection's (:data:`quadnodes.zigzag.DEFAULT_GAPS`:
         ``"fair"`` with ``"alternating"``, ``"hold"`` with ``"thesis"``).
-    line_curvature : {"fair", "hold"}
-        ``"fair"`` (default, the thesis): each iteration's solve fairs every change
+    line_curvature : {"fair", "hold", "auto"}
+        ``"fair"`` (the thesis): each iteration's solve fairs every change
         of curvature along the lines, the design's own too — a clean mesh whose
         lines change curvature (rounded edges and corners) drifts where every
         vertex is free. ``"hold"``: bias correction (Tukey's twicing) — the
@@ -1028,6 +1106,14 @@ def fair(
         response is the same (``≈ ω/λ``), middle frequencies pass somewhat more.
         Better on curved designs under noise that frees every vertex, 1–5 % worse
         on nearly flat ones (``docs/fairing.md``); each iteration costs two solves.
+        ``"auto"`` (default): the correction only where the design's lines change curvature —
+        the windows whose line term is still large on the faired result ``x₁``
+        (:func:`curvature_windows`) keep that term in a second solve of the same
+        system at the same weight, ``min ‖A x + b − H(A x₁ + b)‖² + ω‖x − a‖²``
+        (``H`` those windows; all of them would be twicing at ``ω``); where no
+        window qualifies (nearly flat, evenly curved or finely sampled designs)
+        the result is ``"fair"``'s, bit for bit, after one solve. The report's
+        ``n_curvature_held`` counts the held windows.
 
     Returns
     -------
@@ -1083,7 +1169,7 @@ def _fair(
     detection: Literal["alternating", "thesis"],
     line_spacing: Literal["fair", "hold"],
     gaps: Literal["auto", "fair", "hold"],
-    line_curvature: Literal["fair", "hold"] = DEFAULT_LINE_CURVATURE,
+    line_curvature: Literal["fair", "hold", "auto"] = DEFAULT_LINE_CURVATURE,
 ) -> tuple[QuadMesh, FairingReport]:
     """:func:`fair` on a validated mesh."""
     iterations = _validate.iteration_count(iterations, "iterations")
@@ -1202,6 +1288,20 @@ def _fair(
         else:
             target = np.take(x if anchor == "current" else x0, system.free_index, axis=0)
         new_free = system.solve(target)
+        n_held = 0
+        if line_curvature == "auto":
+            # the design's curvature changes: their line terms at x₁ are held by a second solve of the same
+            # system, min ‖A x + b − H(A x₁ + b)‖² + ω‖x − a‖² (H: the held rows), i.e. the anchor a + AᵀH(A x₁ + b)/ω
+            f1 = system.A @ new_free + system.b
+            inner = np.zeros(system.A.shape[0], dtype=bool)
+            inner[:len(system._windows)] = free[system._windows].all(axis=1)
+            rows = curvature_windows(f1, system.A @ target + system.b, system._windows, inner)
+            n_held = int(np.count_nonzero(rows))
+            if n_held:
+                first = system.iterations
+                f1[~rows] = 0.0
+                new_free = system.solve(target + (system.A.T @ f1) * (1.0 / system.weight))
+                system.iterations += first  # the report counts the CG steps of both solves
         if line_curvature == "hold":
             # twicing: x₁ + S(a − x₁) = S(2a − x₁) (the fixed vertices' part enters once), the same system
             first = system.iterations
@@ -1229,6 +1329,7 @@ def _fair(
                 solver=system.solver,
                 cg_iterations=system.iterations,
                 residual=system.residual,
+                n_curvature_held=n_held,
             )
         )
         x = x_new
