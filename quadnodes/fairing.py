@@ -216,14 +216,14 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     held = np.zeros(len(faired), dtype=bool)
     if w < 2 or not inside.any():
         return held
-    s0 = np.sqrt(np.einsum("ij,ij->i", noisy[:w][inside], noisy[:w][inside]))
+    s0 = np.sqrt(np.einsum("ij,ij->i", noisy[:w], noisy[:w]))
     level = max(CURVATURE_CHANGE, CURVATURE_CONTRAST * float(np.median(s1[inside])),
-                CURVATURE_NOISE_SHARE * float(np.median(s0)))
+                CURVATURE_NOISE_SHARE * float(np.median(s0[inside])))
     above = inside & (s1 > level)
-    follows = (windows[1:, :3] == windows[:-1, 1:]).all(axis=1)  # window i+1 continues window i's line
-    pair = follows & above[:-1] & above[1:]
-    held[:w - 1] |= pair
-    held[1:w] |= pair
+    i = np.flatnonzero(above[:-1] & above[1:])
+    i = i[(windows[i + 1, :3] == windows[i, 1:]).all(axis=1)]  # window i+1 continues window i's line
+    held[i] = True
+    held[i + 1] = True
     return held
 
 
@@ -1294,7 +1294,9 @@ def _fair(
             # system, min ‖A x + b − H(A x₁ + b)‖² + ω‖x − a‖² (H: the held rows), i.e. the anchor a + AᵀH(A x₁ + b)/ω
             f1 = system.A @ new_free + system.b
             inner = np.zeros(system.A.shape[0], dtype=bool)
-            inner[:len(system._windows)] = free[system._windows].all(axis=1)
+            # a window's four flags as one 32-bit word: all free when every byte is 1
+            inner[:len(system._windows)] = (np.ascontiguousarray(free[system._windows]).view(np.uint32).reshape(-1)
+                                            == np.frombuffer(b"\x01" * 4, np.uint32)[0])
             rows = curvature_windows(f1, system.A @ target + system.b, system._windows, inner)
             n_held = int(np.count_nonzero(rows))
             if n_held:
