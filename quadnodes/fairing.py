@@ -55,6 +55,7 @@ __all__ = [
     "CURVATURE_CHANGE",
     "CURVATURE_CONTRAST",
     "CURVATURE_NOISE_SHARE",
+    "CURVATURE_MIN_SHARE",
     "curvature_windows",
     "fairing_matrix",
     "fairing_energy",
@@ -165,6 +166,10 @@ CURVATURE_CONTRAST = 2.0
 #: ... and this share of the median of their terms on the input (what one solve leaves of the noise scales with
 #: it). Measured on the real meshes and E1–E4 (docs/fairing.md, "The design's curvature").
 CURVATURE_NOISE_SHARE = 0.08
+#: Fewer held windows than this share of the inner windows are not worth a second solve of the whole mesh (its
+#: cost is global, its effect local): on the broadband benchmark sheets about 0.1 % pass, residual noise all; the
+#: curved meshes of docs/real-meshes.md hold 1.5–27 %.
+CURVATURE_MIN_SHARE = 0.005
 
 
 def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray, inner: np.ndarray) -> np.ndarray:
@@ -180,7 +185,9 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     inner window (its four vertices free: a held or unfound vertex's noise is not
     design); and when the window before or after it along its line is held by the
     same rules (a design's curvature change spans consecutive windows, the largest
-    terms residual noise leaves are isolated).
+    terms residual noise leaves are isolated). When fewer than :data:`CURVATURE_MIN_SHARE`
+    of the inner windows qualify, none is held (a second solve of the whole mesh for
+    a few windows is not worth its cost).
 
     Parameters
     ----------
@@ -224,6 +231,8 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     i = i[(windows[i + 1, :3] == windows[i, 1:]).all(axis=1)]  # window i+1 continues window i's line
     held[i] = True
     held[i + 1] = True
+    if np.count_nonzero(held) < CURVATURE_MIN_SHARE * np.count_nonzero(inside):
+        held[:] = False
     return held
 
 
