@@ -151,7 +151,8 @@ LINE_SPACING_MODES: tuple[str, ...] = ("fair", "hold")
 DEFAULT_LINE_SPACING = "fair"
 #: The values of ``line_curvature`` in :func:`fair`: ``"fair"`` fairs every curvature change along the lines
 #: (eq. 34, the thesis), ``"hold"`` gives back the smooth part of what one solve removed (Tukey's twicing at
-#: half the weight), so the design's own curvature changes are held (docs/fairing.md, "The design's curvature").
+#: half the weight), so the design's own curvature changes are held (docs/fairing.md, "The design's curvature"),
+#: ``"auto"`` holds them only in the windows where the faired lines change curvature (:func:`curvature_windows`).
 LINE_CURVATURE_MODES: tuple[str, ...] = ("fair", "hold", "auto")
 #: ``"auto"``: measured on the real meshes and E1–E4 (docs/fairing.md, "The design's curvature"); ``"hold"``
 #: gains on curved designs and loses 1–5 % on nearly flat ones, ``"auto"`` corrects only the former.
@@ -205,6 +206,11 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     -------
     (r,) bool
 
+    Raises
+    ------
+    InputError
+        When the shapes do not fit together (the argument is named).
+
     Examples
     --------
     One line of 11 vertices (8 windows), the faired terms large at windows 3 and 4:
@@ -217,6 +223,16 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     >>> curvature_windows(f1, np.full((8, 3), 0.3), win, np.ones(8, bool)).any()
     np.False_
     """
+    faired, noisy, windows, inner = (np.asarray(a) for a in (faired, noisy, windows, inner))
+    if faired.ndim != 2 or faired.shape[1:] != (3,):
+        raise InputError(f"faired: expected shape (r, 3), got {faired.shape}")
+    r = faired.shape[0]
+    if noisy.shape != faired.shape:
+        raise InputError(f"noisy: expected the shape of faired {faired.shape}, got {noisy.shape}")
+    if windows.ndim != 2 or windows.shape[1:] != (4,) or windows.shape[0] > r:
+        raise InputError(f"windows: expected shape (w, 4) with w <= {r}, got {windows.shape}")
+    if inner.shape != (r,) or inner.dtype != bool:
+        raise InputError(f"inner: expected a bool array of shape ({r},), got {inner.dtype} {inner.shape}")
     w = len(windows)
     s1 = np.sqrt(np.einsum("ij,ij->i", faired[:w], faired[:w]))
     inside = inner[:w]

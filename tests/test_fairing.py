@@ -1071,3 +1071,12 @@ def test_curvature_windows_needs_two_consecutive_windows_above_every_level():
     f_end = np.vstack([f1, np.full((3, 3), 0.5)])
     out = curvature_windows(f_end, np.vstack([noisy, noisy[:3]]), win, np.ones(13, bool))
     assert out.shape == (13,) and not out[10:].any()
+    # shapes that do not fit are named
+    with pytest.raises(InputError, match="noisy"):
+        curvature_windows(f1, noisy[:5], win, np.ones(10, bool))
+    with pytest.raises(InputError, match="windows"):
+        curvature_windows(f1, noisy, np.vstack([win, win]), np.ones(10, bool))
+    with pytest.raises(InputError, match="inner"):
+        curvature_windows(f1, noisy, win, np.ones(10))
+    with pytest.raises(InputError, match="faired"):
+        curvature_windows(f1[:, :2], noisy, win, np.ones(10, bool))
