@@ -1138,7 +1138,12 @@ def fair(
         (``H`` those windows; all of them would be twicing at ``ω``); where no
         window qualifies (nearly flat, evenly curved or finely sampled designs)
         the result is ``"fair"``'s, bit for bit, after one solve. The report's
-        ``n_curvature_held`` counts the held windows.
+        ``n_curvature_held`` counts the held windows. Only with
+        ``line_spacing="fair"``: with ``"hold"`` the terms are measured with the
+        frozen noisy edge lengths, so on ``x₁`` they show the lengths' noise, not
+        the design's curvature, and ``"auto"`` solves once, as ``"fair"`` (so
+        ``extraordinary="hold", detection="thesis", line_spacing="hold"`` is the
+        thesis exactly with the default).
 
     Returns
     -------
@@ -1314,7 +1319,7 @@ def _fair(
             target = np.take(x if anchor == "current" else x0, system.free_index, axis=0)
         new_free = system.solve(target)
         n_held = 0
-        if line_curvature == "auto":
+        if line_curvature == "auto" and line_spacing == "fair":
             # the design's curvature changes: their line terms at x₁ are held by a second solve of the same
             # system, min ‖A x + b − H(A x₁ + b)‖² + ω‖x − a‖² (H: the held rows), i.e. the anchor a + AᵀH(A x₁ + b)/ω
             f1 = system.A @ new_free + system.b

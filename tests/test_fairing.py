@@ -1,4 +1,5 @@
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -1038,6 +1039,21 @@ def test_auto_curvature_holds_the_windows_where_a_line_starts_to_bend():
         held = rep.iterations[0].n_curvature_held
     assert held > 0
     assert err["auto"] < 0.85 * err["fair"]
+
+
+def test_auto_curvature_solves_once_with_the_lengths_held():
+    # line_spacing="hold" freezes the noisy edge lengths: the faired terms then show the lengths' noise, so "auto"
+    # is "fair" there — and the thesis's triple with the default line_curvature is the thesis exactly
+    from quadnodes.io import load
+
+    box = load(Path(__file__).parent / "data" / "rounded_box.obj")
+    noisy, _ = perturb(box, normal=0.2, seed=0, fix="corners")
+    thesis = dict(extraordinary="hold", detection="thesis", line_spacing="hold")
+    out, rep = fair(noisy, **thesis)
+    np.testing.assert_array_equal(out.vertices, fair(noisy, **thesis, line_curvature="fair")[0].vertices)
+    assert rep.iterations[0].n_free > 0 and rep.iterations[0].n_curvature_held == 0
+    # with the default spacing the same noisy box holds windows
+    assert fair(noisy)[1].iterations[0].n_curvature_held > 0
 
 
 def test_curvature_windows_needs_two_consecutive_windows_above_every_level():
