@@ -169,7 +169,7 @@ CURVATURE_CONTRAST = 2.0
 CURVATURE_NOISE_SHARE = 0.08
 #: Fewer held windows than this share of the inner windows are not worth a second solve of the whole mesh (its
 #: cost is global, its effect local): on the broadband benchmark sheets about 0.1 % pass, residual noise all; the
-#: curved meshes of docs/real-meshes.md hold 1.5–27 %.
+#: curved meshes of docs/real-meshes.md hold 1.6–28 %.
 CURVATURE_MIN_SHARE = 0.005
 
 
