@@ -52,6 +52,11 @@ __all__ = [
     "DEFAULT_LINE_SPACING",
     "LINE_CURVATURE_MODES",
     "DEFAULT_LINE_CURVATURE",
+    "CURVATURE_CHANGE",
+    "CURVATURE_CONTRAST",
+    "CURVATURE_NOISE_SHARE",
+    "CURVATURE_MIN_SHARE",
+    "curvature_windows",
     "fairing_matrix",
     "fairing_energy",
     "FairingSystem",
@@ -146,10 +151,105 @@ LINE_SPACING_MODES: tuple[str, ...] = ("fair", "hold")
 DEFAULT_LINE_SPACING = "fair"
 #: The values of ``line_curvature`` in :func:`fair`: ``"fair"`` fairs every curvature change along the lines
 #: (eq. 34, the thesis), ``"hold"`` gives back the smooth part of what one solve removed (Tukey's twicing at
-#: half the weight), so the design's own curvature changes are held (docs/fairing.md, "The design's curvature").
-LINE_CURVATURE_MODES: tuple[str, ...] = ("fair", "hold")
-#: Kept at the thesis's: ``"hold"`` gains on curved designs and loses 1–5 % on nearly flat ones (docs/fairing.md).
-DEFAULT_LINE_CURVATURE = "fair"
+#: half the weight), so the design's own curvature changes are held (docs/fairing.md, "The design's curvature"),
+#: ``"auto"`` holds them only in the windows where the faired lines change curvature (:func:`curvature_windows`).
+LINE_CURVATURE_MODES: tuple[str, ...] = ("fair", "hold", "auto")
+#: ``"auto"``: measured on the real meshes and E1–E4 (docs/fairing.md, "The design's curvature"); ``"hold"``
+#: gains on curved designs and loses 1–5 % on nearly flat ones, ``"auto"`` corrects only the former.
+DEFAULT_LINE_CURVATURE = "auto"
+#: ``line_curvature="auto"`` holds a window's line term at the faired value x₁ where it is above all three
+#: levels (:func:`curvature_windows`): this change of turning per window (in the line's unit directions: about
+#: 3°), so evenly curved and finely sampled designs are left to the single solve, ...
+CURVATURE_CHANGE = 0.055
+#: ... this multiple of the median of the windows' terms on x₁ (a curvature change stands out of the design's
+#: own lines; residual noise and even curvature do not), ...
+CURVATURE_CONTRAST = 2.0
+#: ... and this share of the median of their terms on the input (what one solve leaves of the noise scales with
+#: it). Measured on the real meshes and E1–E4 (docs/fairing.md, "The design's curvature").
+CURVATURE_NOISE_SHARE = 0.08
+#: Fewer held windows than this share of the inner windows are not worth a second solve of the whole mesh (its
+#: cost is global, its effect local): on the broadband benchmark sheets about 0.1 % pass, residual noise all; the
+#: curved meshes of docs/real-meshes.md hold 1.6–28 %.
+CURVATURE_MIN_SHARE = 0.005
+
+
+def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """The windows whose line term ``line_curvature="auto"`` holds: the design's curvature changes.
+
+    One solve suppresses the noise's line terms (high frequencies, by about ``ω/λ``)
+    and keeps most of a design's curvature change; so a window whose term on the
+    faired result ``x₁`` is still large marks where the design's lines change their
+    curvature (a rounded edge's start and end), which the solve begins to fair away.
+    A window is held when its term on ``x₁`` is above :data:`CURVATURE_CHANGE`,
+    :data:`CURVATURE_CONTRAST` times the median over the inner windows on ``x₁`` and
+    :data:`CURVATURE_NOISE_SHARE` times their median on the input; when it is an
+    inner window (its four vertices free: a held or unfound vertex's noise is not
+    design); and when the window before or after it along its line is held by the
+    same rules (a design's curvature change spans consecutive windows, the largest
+    terms residual noise leaves are isolated). When fewer than :data:`CURVATURE_MIN_SHARE`
+    of the inner windows qualify, none is held (a second solve of the whole mesh for
+    a few windows is not worth its cost).
+
+    Parameters
+    ----------
+    faired : (r, 3) float64
+        The rows' line terms at ``x₁`` (``A x₁ + b``); the first ``w`` rows are ``windows``,
+        any later rows (the line-end term's) are never held.
+    noisy : (r, 3) float64
+        The same rows at the input (the anchor).
+    windows : (w, 4) int
+        The windows of the first ``w`` rows, consecutive windows of a line next to each other.
+    inner : (r,) bool
+        Rows whose vertices are all free.
+
+    Returns
+    -------
+    (r,) bool
+
+    Raises
+    ------
+    InputError
+        When the shapes do not fit together (the argument is named).
+
+    Examples
+    --------
+    One line of 11 vertices (8 windows), the faired terms large at windows 3 and 4:
+
+    >>> win = np.arange(8)[:, None] + np.arange(4)
+    >>> f1 = np.zeros((8, 3)); f1[3:5, 2] = 0.1
+    >>> np.flatnonzero(curvature_windows(f1, np.full((8, 3), 0.3), win, np.ones(8, bool))).tolist()
+    [3, 4]
+    >>> f1[4] = 0.0  # an isolated large term is residual noise
+    >>> curvature_windows(f1, np.full((8, 3), 0.3), win, np.ones(8, bool)).any()
+    np.False_
+    """
+    faired, noisy, windows, inner = (np.asarray(a) for a in (faired, noisy, windows, inner))
+    if faired.ndim != 2 or faired.shape[1:] != (3,):
+        raise InputError(f"faired: expected shape (r, 3), got {faired.shape}")
+    r = faired.shape[0]
+    if noisy.shape != faired.shape:
+        raise InputError(f"noisy: expected the shape of faired {faired.shape}, got {noisy.shape}")
+    if windows.ndim != 2 or windows.shape[1:] != (4,) or windows.shape[0] > r:
+        raise InputError(f"windows: expected shape (w, 4) with w <= {r}, got {windows.shape}")
+    if inner.shape != (r,) or inner.dtype != bool:
+        raise InputError(f"inner: expected a bool array of shape ({r},), got {inner.dtype} {inner.shape}")
+    w = len(windows)
+    s1 = np.sqrt(np.einsum("ij,ij->i", faired[:w], faired[:w]))
+    inside = inner[:w]
+    held = np.zeros(len(faired), dtype=bool)
+    if w < 2 or not inside.any():
+        return held
+    s0 = np.sqrt(np.einsum("ij,ij->i", noisy[:w], noisy[:w]))
+    level = max(CURVATURE_CHANGE, CURVATURE_CONTRAST * float(np.median(s1[inside])),
+                CURVATURE_NOISE_SHARE * float(np.median(s0[inside])))
+    above = inside & (s1 > level)
+    i = np.flatnonzero(above[:-1] & above[1:])
+    i = i[(windows[i + 1, :3] == windows[i, 1:]).all(axis=1)]  # window i+1 continues window i's line
+    held[i] = True
+    held[i + 1] = True
+    if np.count_nonzero(held) < CURVATURE_MIN_SHARE * np.count_nonzero(inside):
+        held[:] = False
+    return held
 
 
 def even_lengths(inverse: np.ndarray) -> np.ndarray:
@@ -827,6 +927,8 @@ class IterationReport:
     ``energy_before``/``energy_after`` are the linearized energy (eq. 32) of the
     whole mesh with lengths frozen at the iterate's start (each window's mean
     length with ``line_spacing="fair"``); ``deviation_*`` the exact eq. 30 sums.
+    ``n_curvature_held``: windows whose line term ``line_curvature="auto"`` held
+    (:func:`curvature_windows`; 0: the iteration solved once).
     """
 
     iteration: int
@@ -842,6 +944,7 @@ class IterationReport:
     solver: str = "none"
     cg_iterations: int = 0
     residual: float = 0.0
+    n_curvature_held: int = 0
 
 
 @dataclass(frozen=True)
@@ -945,7 +1048,7 @@ def fair(
     detection: Literal["alternating", "thesis"] = DEFAULT_DETECTION,
     line_spacing: Literal["fair", "hold"] = DEFAULT_LINE_SPACING,
     gaps: Literal["auto", "fair", "hold"] = "auto",
-    line_curvature: Literal["fair", "hold"] = DEFAULT_LINE_CURVATURE,
+    line_curvature: Literal["fair", "hold", "auto"] = DEFAULT_LINE_CURVATURE,
 ) -> tuple[QuadMesh, FairingReport]:
     """Fair the zigzag structure lines of a quad mesh (thesis chapter 4).
 
@@ -1020,8 +1123,8 @@ def fair(
         regions are filled, not grown (a lone spike is faired as with ``"hold"``).
         ``"auto"`` (default): the detection's (:data:`quadnodes.zigzag.DEFAULT_GAPS`:
         ``"fair"`` with ``"alternating"``, ``"hold"`` with ``"thesis"``).
-    line_curvature : {"fair", "hold"}
-        ``"fair"`` (default, the thesis): each iteration's solve fairs every change
+    line_curvature : {"fair", "hold", "auto"}
+        ``"fair"`` (the thesis): each iteration's solve fairs every change
         of curvature along the lines, the design's own too — a clean mesh whose
         lines change curvature (rounded edges and corners) drifts where every
         vertex is free. ``"hold"``: bias correction (Tukey's twicing) — the
@@ -1033,6 +1136,19 @@ def fair(
         response is the same (``≈ ω/λ``), middle frequencies pass somewhat more.
         Better on curved designs under noise that frees every vertex, 1–5 % worse
         on nearly flat ones (``docs/fairing.md``); each iteration costs two solves.
+        ``"auto"`` (default): the correction only where the design's lines change curvature —
+        the windows whose line term is still large on the faired result ``x₁``
+        (:func:`curvature_windows`) keep that term in a second solve of the same
+        system at the same weight, ``min ‖A x + b − H(A x₁ + b)‖² + ω‖x − a‖²``
+        (``H`` those windows; all of them would be twicing at ``ω``); where no
+        window qualifies (nearly flat, evenly curved or finely sampled designs)
+        the result is ``"fair"``'s, bit for bit, after one solve. The report's
+        ``n_curvature_held`` counts the held windows. Only with
+        ``line_spacing="fair"``: with ``"hold"`` the terms are measured with the
+        frozen noisy edge lengths, so on ``x₁`` they show the lengths' noise, not
+        the design's curvature, and ``"auto"`` solves once, as ``"fair"`` (so
+        ``extraordinary="hold", detection="thesis", line_spacing="hold"`` is the
+        thesis exactly with the default).
 
     Returns
     -------
@@ -1088,7 +1204,7 @@ def _fair(
     detection: Literal["alternating", "thesis"],
     line_spacing: Literal["fair", "hold"],
     gaps: Literal["auto", "fair", "hold"],
-    line_curvature: Literal["fair", "hold"] = DEFAULT_LINE_CURVATURE,
+    line_curvature: Literal["fair", "hold", "auto"] = DEFAULT_LINE_CURVATURE,
 ) -> tuple[QuadMesh, FairingReport]:
     """:func:`fair` on a validated mesh."""
     iterations = _validate.iteration_count(iterations, "iterations")
@@ -1207,6 +1323,22 @@ def _fair(
         else:
             target = np.take(x if anchor == "current" else x0, system.free_index, axis=0)
         new_free = system.solve(target)
+        n_held = 0
+        if line_curvature == "auto" and line_spacing == "fair":
+            # the design's curvature changes: their line terms at x₁ are held by a second solve of the same
+            # system, min ‖A x + b − H(A x₁ + b)‖² + ω‖x − a‖² (H: the held rows), i.e. the anchor a + AᵀH(A x₁ + b)/ω
+            f1 = system.A @ new_free + system.b
+            inner = np.zeros(system.A.shape[0], dtype=bool)
+            # a window's four flags as one 32-bit word: all free when every byte is 1
+            inner[:len(system._windows)] = (np.ascontiguousarray(free[system._windows]).view(np.uint32).reshape(-1)
+                                            == np.frombuffer(b"\x01" * 4, np.uint32)[0])
+            rows = curvature_windows(f1, system.A @ target + system.b, system._windows, inner)
+            n_held = int(np.count_nonzero(rows))
+            if n_held:
+                first = system.iterations
+                f1[~rows] = 0.0
+                new_free = system.solve(target + (system.A.T @ f1) * (1.0 / system.weight))
+                system.iterations += first  # the report counts the CG steps of both solves
         if line_curvature == "hold":
             # twicing: x₁ + S(a − x₁) = S(2a − x₁) (the fixed vertices' part enters once), the same system
             first = system.iterations
@@ -1234,6 +1366,7 @@ def _fair(
                 solver=system.solver,
                 cg_iterations=system.iterations,
                 residual=system.residual,
+                n_curvature_held=n_held,
             )
         )
         x = x_new

@@ -350,7 +350,7 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
          detection: Literal["alternating", "thesis"] = "alternating",
          line_spacing: Literal["fair", "hold"] = "fair",
          gaps: Literal["auto", "fair", "hold"] = "auto",
-         line_curvature: Literal["fair", "hold"] = "fair") -> tuple[QuadMesh, FairingReport]:
+         line_curvature: Literal["fair", "hold", "auto"] = "auto") -> tuple[QuadMesh, FairingReport]:
     """The thesis's structure-line fairing (eq. 32–34); threshold and weight may be per-iteration lists;
     with a ``reference`` surface (face or mesh) the vertices are pulled to it and slide along it.
 
@@ -385,9 +385,10 @@ def fair(mesh: QuadMesh, fixed: np.ndarray | None = None, reference: QuadMesh | 
         fair (a vertex between two found vertices of a line is faired too) or hold (only what is found moves; the
         thesis); auto (default): fair with the alternating detection, hold with the thesis's.
     line_curvature : str
-        fair (default, the thesis: every curvature change along the lines is faired, the design's too) or hold
-        (bias correction: a second solve gives back the smooth part of what the first removed, so rounded edges
-        and corners of a curved design drift less; two solves per round).
+        auto (default: where the design's lines change curvature markedly — rounded edges and corners — a second
+        solve holds their faired line terms, so the design drifts less; elsewhere one solve, as fair), fair (the
+        thesis: every curvature change along the lines is faired, the design's too) or hold (bias correction
+        everywhere: a second solve gives back the smooth part of what the first removed; two solves per round).
     """
     return _fair(mesh, iterations=iterations, threshold=threshold, threshold_decay=threshold_decay,
                  weight=weight, weight_decay=weight_decay, weight_scale=weight_scale, anchor=anchor,

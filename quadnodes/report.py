@@ -101,8 +101,9 @@ def _ex(name: str, surface: str, rows: int, cols: int, laplace: int, taubin_: in
 #: How the "new method" rows run fair: the thesis's method, edge lengths frozen one by one (eq. 32) and only the
 #: found vertices moved, since the page checks the thesis's claims about it; fair's defaults ``line_spacing="fair"``
 #: and ``gaps="fair"`` are measured against it in ``docs/fairing.md`` (``benchmarks/studies/bench_real_meshes.py
-#: --spacing`` and ``--gaps``).
-THESIS_FAIR: Mapping[str, Any] = MappingProxyType({"line_spacing": "hold", "gaps": "hold"})
+#: --spacing`` and ``--gaps``), and so is the default ``line_curvature="auto"`` (``--curvature``) against the
+#: thesis's single solve pinned here.
+THESIS_FAIR: Mapping[str, Any] = MappingProxyType({"line_spacing": "hold", "gaps": "hold", "line_curvature": "fair"})
 
 #: The thesis's examples with its parameters (chapter 5) and the noise of examples/make_thesis_graphs.py.
 THESIS_EXAMPLES: Mapping[str, ThesisExample] = MappingProxyType({

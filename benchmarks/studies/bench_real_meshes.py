@@ -13,18 +13,21 @@ best of its settings on that mesh and noise is shown (the setting beside it):
 
 - ``fair``: ``quadnodes.fair`` with its defaults (``detection="alternating"``, ``gaps="fair"``,
   ``extraordinary="fair"``, ``line_spacing="fair"``), iterations 1, 3, 5;
+- ``fair (curvature fair)``: fair with its defaults and ``line_curvature="fair"`` (the thesis's single solve, the
+  default before ``"auto"``), iterations 1, 3, 5;
 - ``fair (curvature hold)``: fair with its defaults and ``line_curvature="hold"`` (bias correction by twicing),
   iterations 1, 3, 5;
 - ``fair (before)``: fair's defaults before issue 16 item 6: ``line_spacing="hold", threshold=0.1,
-  extraordinary="lines", gaps="hold"``, iterations 1, 3, 5;
-- ``fair (thesis)``: ``extraordinary="hold", detection="thesis", line_spacing="hold"`` — the thesis's method,
+  extraordinary="lines", gaps="hold", line_curvature="fair"``, iterations 1, 3, 5;
+- ``fair (thesis)``: ``extraordinary="hold", detection="thesis", line_spacing="hold", line_curvature="fair"`` — the
+  thesis's method,
   iterations 1, 3, 5;
 - ``laplacian``: ``quadnodes.laplacian`` (λ = 0.5, corners held), iterations 1, 2, 4, 8;
 - ``taubin``: ``quadnodes.taubin`` (corners held), iterations 1, 2, 5, 10, 20;
 - ``trimesh taubin``: ``trimesh.smoothing.filter_taubin`` on the triangulated mesh, iterations
   2, 5, 10, 20, 50 (single steps), corners put back afterwards.
 
-The last columns say whether fair (its defaults; then with ``line_curvature="hold"``) is the best
+The last columns say whether fair (its defaults; then with ``line_curvature="fair"``; with ``"hold"``) is the best
 (``zigzag`` on an open mesh) or within 20 % of the best peer.
 
 ``--studies`` prints instead the measurements behind the defaults (``docs/fairing.md``): detection on the
@@ -32,13 +35,17 @@ clean meshes and on E1–E4 (``quadnodes.report``'s noise and parameters, seed 7
 scale ``EXTRAORDINARY_SCALE`` on ``tests/meshes.extraordinary_mesh(3)``, and the line-end term
 (``extraordinary="hold"|"lines"|"fair"``, its scale ``quadnodes.line_ends.RING_SCALE``) on ``polygon_quads``,
 ``rounded_box`` and ``extraordinary_mesh(3)``. ``--gaps`` prints E1–E4 with ``gaps="hold"`` against
-``"fair"`` as ``--spacing`` does for ``line_spacing``. ``--curvature`` prints E1–E4 with ``line_curvature="fair"`` (the thesis, the default) against ``"hold"``.
+``"fair"`` as ``--spacing`` does for ``line_spacing``. ``--curvature`` prints E1–E4 with ``line_curvature="fair"`` (the thesis) against ``"hold"`` and ``"auto"`` (the
+default); ``--paired`` the real meshes with ``"auto"`` against ``"fair"`` seed by seed (6 seeds).
 ``--spacing`` prints the study behind
 ``line_spacing="fair"``: E1–E4 as in ``quadnodes compare`` (seeds 7 and 1–5, noise on the corners-held and on the
 interior-only variant), the thesis's parameters and the default weight, ``line_spacing="hold"`` against ``"fair"``.
 
+The studies (``--studies``, ``--spacing``, ``--gaps``) run fair with ``line_curvature="fair"``, the single solve
+they were measured with before ``"auto"`` became the default.
+
 Run:  python benchmarks/studies/bench_real_meshes.py [--seeds 3] [--markdown] [--meshes NAME ...]
-      [--noises zigzag normal jitter] [--studies | --spacing | --gaps | --curvature]
+      [--noises zigzag normal jitter] [--studies | --spacing | --gaps | --curvature | --paired]
 """
 
 from __future__ import annotations
@@ -60,6 +67,13 @@ MESHES = ["compas/quadmesh.obj", "compas/tubemesh.obj", "compas/hypar.obj", "qua
 NOISE = {"zigzag": {"tangential": 0.25}, "normal": {"normal": 0.2}, "jitter": {"jitter": 0.2}}
 
 
+def _fair_single(mesh, **settings):
+    """fair as the studies behind its other defaults measured it (``--studies``, ``--spacing``, ``--gaps``): one
+    solve per iteration, ``line_curvature="fair"``, unless the study sets ``line_curvature`` itself."""
+    settings.setdefault("line_curvature", "fair")
+    return fair(mesh, **settings)
+
+
 def _trimesh_taubin(mesh, iterations):
     import trimesh
     from trimesh.smoothing import filter_taubin
@@ -76,13 +90,16 @@ def _trimesh_taubin(mesh, iterations):
 
 METHODS = {
     "fair": [(f"{k} it", lambda m, k=k: fair(m, iterations=k)[0]) for k in (1, 3, 5)],
+    "fair (curvature fair)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_curvature="fair")[0])
+                              for k in (1, 3, 5)],
     "fair (curvature hold)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_curvature="hold")[0])
                               for k in (1, 3, 5)],
     "fair (before)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, line_spacing="hold", threshold=0.1,
-                                                       extraordinary="lines", gaps="hold")[0])
+                                                       extraordinary="lines", gaps="hold", line_curvature="fair")[0])
                       for k in (1, 3, 5)],
     "fair (thesis)": [(f"{k} it", lambda m, k=k: fair(m, iterations=k, extraordinary="hold", detection="thesis",
-                                                       line_spacing="hold", threshold=0.1)[0]) for k in (1, 3, 5)],
+                                                       line_spacing="hold", threshold=0.1, line_curvature="fair")[0])
+                      for k in (1, 3, 5)],
     "laplacian": [(f"{k} it", lambda m, k=k: laplacian(m, iterations=k, fix="corners")[0]) for k in (1, 2, 4, 8)],
     "taubin": [(f"{k} it", lambda m, k=k: taubin(m, iterations=k, fix="corners")[0]) for k in (1, 2, 5, 10, 20)],
     "trimesh taubin": [(f"{k} it", lambda m, k=k: _trimesh_taubin(m, k)) for k in (2, 5, 10, 20, 50)],
@@ -103,7 +120,7 @@ def studies() -> None:
         h = m.mean_edge_length
         cells = []
         for det in ("thesis", "alternating"):
-            out, _ = fair(m, iterations=3, detection=det, gaps="hold")
+            out, _ = _fair_single(m, iterations=3, detection=det, gaps="hold")
             cells.append(f"{det} {detect(m, detection=det).n_free} / "
                          f"{np.linalg.norm(out.vertices - m.vertices, axis=1).max() / h:.3f}")
         alt = float(_walk_alternation(m.vertices, m.topology.window_walk).max())
@@ -116,8 +133,8 @@ def studies() -> None:
         noisy, _ = perturb(clean, tangential=ex.noise[0], normal=ex.noise[1], seed=7, fix="corners")
         cells = []
         for det in ("thesis", "alternating"):
-            out, _ = fair(noisy, **ex.fair, detection=det, gaps="hold")
-            _, crep = fair(clean, **ex.fair, detection=det, gaps="hold")
+            out, _ = _fair_single(noisy, **ex.fair, detection=det, gaps="hold")
+            _, crep = _fair_single(clean, **ex.fair, detection=det, gaps="hold")
             cells.append(f"{det} {sum(r.n_free for r in crep.iterations)} / "
                          f"{np.linalg.norm(out.vertices - clean.vertices, axis=1).mean() / h:.3f}")
         print(f"  {name} " + " | ".join(cells))
@@ -138,7 +155,7 @@ def studies() -> None:
                 old = F.EXTRAORDINARY_SCALE
                 F.EXTRAORDINARY_SCALE = 1.0 if s is None else s
                 try:
-                    out, _ = fair(noisy, iterations=5, extraordinary="hold" if s is None else "lines",
+                    out, _ = _fair_single(noisy, iterations=5, extraordinary="hold" if s is None else "lines",
                                   gaps="hold")
                 finally:
                     F.EXTRAORDINARY_SCALE = old
@@ -180,7 +197,7 @@ def line_end_study() -> None:
                     noisy, _ = perturb(m, seed=seed, fix=fix, **amp)
                     LE.RING_SCALE = old if s is None else s
                     try:
-                        out, _ = fair(noisy, fix=fix, extraordinary=mode)
+                        out, _ = _fair_single(noisy, fix=fix, extraordinary=mode)
                     finally:
                         LE.RING_SCALE = old
                     errs.append(np.linalg.norm(out.vertices - m.vertices, axis=1).mean() / h)
@@ -189,7 +206,7 @@ def line_end_study() -> None:
         print(f"  {mode:5s} {'' if s is None else s!s:4s} " + " | ".join(cells), flush=True)
 
 
-def spacing_study(setting: str = "line_spacing", modes: tuple[str, str] = ("hold", "fair")) -> None:
+def spacing_study(setting: str = "line_spacing", modes: tuple[str, ...] = ("hold", "fair")) -> None:
     """E1–E4 with ``setting`` at ``modes[0]`` (the thesis) and ``modes[1]``: the numbers of ``quadnodes compare``
     (``line_spacing``: ``--spacing``; ``gaps``: ``--gaps``; ``line_curvature``, thesis ``"fair"`` -> ``"hold"``:
     ``--curvature``)."""
@@ -198,26 +215,55 @@ def spacing_study(setting: str = "line_spacing", modes: tuple[str, str] = ("hold
     keys = [("vertex_distance_mean_h", "to clean vertex"), ("surface_distance_mean_h", "to clean surface"),
             ("zigzag_max", "zigzag max"), ("boundary_displacement_max_h", "boundary moved max"),
             ("relief_change_pct", "relief %")]
-    print(f"E1-E4, mean over seeds 7, 1-5 (worst seed in brackets); {setting}: {modes[0]} -> {modes[1]}")
+    print(f"E1-E4, mean over seeds 7, 1-5 (worst seed in brackets); {setting}: {modes[0]} -> {' / '.join(modes[1:])}")
     for name in ("E1", "E2", "E3", "E4"):
         ex = THESIS_EXAMPLES[name]
         for fix in ("corners", "boundary"):
             for label, params in (("thesis weights", dict(ex.fair)), ("default weight", {**ex.fair, "weight": 0.3})):
-                vals: dict[str, list] = {modes[0]: [], modes[1]: []}
+                vals: dict[str, list] = {m: [] for m in modes}
                 for seed in (7, 1, 2, 3, 4, 5):
                     _, clean, fine, noisy, _, _ = _noisy_example(name, seed, fix)
                     frame = _boundary_frame(clean)
                     for mode in vals:
                         # (the line_spacing study as documented: found vertices only)
                         pin = {"gaps": "hold"} if setting == "line_spacing" else {}
-                        out, _ = fair(noisy, **params, **{setting: mode}, **pin)
+                        out, _ = _fair_single(noisy, **params, **{setting: mode}, **pin)
                         row = measure(noisy, out, clean, fine, boundary_frame=frame)
                         vals[mode].append([row[k] for k, _ in keys])
-                h, f = (np.array(vals[m]) for m in modes)
-                worse = (f - h).max(axis=0)  # the worst seed's change (larger = worse; relief: signed)
-                cells = [f"{lab} {h[:, j].mean():.3g} -> {f[:, j].mean():.3g} ({worse[j]:+.2g})"
+                h = np.array(vals[modes[0]])
+                fs = [np.array(vals[m]) for m in modes[1:]]
+                worse = [(f - h).max(axis=0) for f in fs]  # the worst seed's change (larger = worse; relief: signed)
+                cells = [f"{lab} {h[:, j].mean():.3g} -> " + " / ".join(f"{f[:, j].mean():.3g}" for f in fs)
+                         + " (" + " / ".join(f"{wf[j]:+.2g}" for wf in worse) + ")"
                          for j, (_, lab) in enumerate(keys)]
                 print(f"  {name} noise on {fix:8s} {label:15s} " + " | ".join(cells), flush=True)
+
+
+def curvature_pairs(meshes: list[str], noises: list[str], seeds: int = 6) -> None:
+    """``--paired``: fair's default ``line_curvature="auto"`` against ``"fair"`` on the same noisy meshes, seed by
+    seed (seeds 0..``seeds``-1, 1 and 3 iterations): the mean change, its standard deviation over the seeds (the
+    seed-to-seed noise of the difference) and on how many seeds auto was worse; the windows held."""
+    print(f"auto - fair, mean vertex error / h over seeds 0-{seeds - 1}; sd: over the seeds")
+    for name in meshes:
+        clean = load(DATA / name)
+        h = clean.mean_edge_length
+        for kind in noises:
+            noisy = [perturb(clean, seed=s, fix="corners", **NOISE[kind])[0] for s in range(seeds)]
+            for its in (1, 3):
+                errs, held = [], []
+                for m in noisy:
+                    e = []
+                    for mode in ("fair", "auto"):
+                        out, rep = fair(m, iterations=its, line_curvature=mode)
+                        e.append(np.linalg.norm(out.vertices - clean.vertices, axis=1).mean() / h)
+                    errs.append(e)
+                    held.append(sum(r.n_curvature_held for r in rep.iterations))
+                e = np.array(errs)
+                d = e[:, 1] - e[:, 0]
+                print(f"  {name:22s} {kind:7s} {its} it: fair {e[:, 0].mean():.4f} (sd {e[:, 0].std(ddof=1):.4f}) "
+                      f"auto {e[:, 1].mean():.4f}: {d.mean():+.5f} ({100 * d.mean() / e[:, 0].mean():+.1f} %, "
+                      f"sd {d.std(ddof=1):.5f}, worse on {int((d > 0).sum())}/{seeds}), windows held "
+                      f"{min(held)}-{max(held)}", flush=True)
 
 
 def main() -> None:
@@ -227,7 +273,10 @@ def main() -> None:
     ap.add_argument("--studies", action="store_true", help="the measurements behind the defaults instead")
     ap.add_argument("--spacing", action="store_true", help="the study behind line_spacing='fair' instead")
     ap.add_argument("--gaps", action="store_true", help="the E1-E4 study behind gaps='fair' instead")
-    ap.add_argument("--curvature", action="store_true", help="the E1-E4 study of line_curvature='hold' instead")
+    ap.add_argument("--curvature", action="store_true",
+                    help="the E1-E4 study of line_curvature 'fair' / 'hold' / 'auto' instead")
+    ap.add_argument("--paired", action="store_true",
+                    help="line_curvature 'auto' against 'fair', seed by seed (6 seeds), instead")
     ap.add_argument("--meshes", nargs="+", default=MESHES, choices=MESHES, metavar="NAME",
                     help="only these meshes of tests/data (default: all)")
     ap.add_argument("--noises", nargs="+", default=list(NOISE), choices=list(NOISE), help="only these noises")
@@ -236,13 +285,17 @@ def main() -> None:
         studies()
         line_end_study()
         return
+    if args.paired:
+        curvature_pairs(args.meshes, args.noises)
+        return
     if args.curvature:
-        spacing_study("line_curvature", ("fair", "hold"))
+        spacing_study("line_curvature", ("fair", "hold", "auto"))
         return
     if args.spacing or args.gaps:
         spacing_study("gaps" if args.gaps else "line_spacing")
         return
-    head = ["mesh", "noise", "noisy"] + list(METHODS) + ["fair vs best peer", "curvature hold vs best peer"]
+    head = ["mesh", "noise", "noisy"] + list(METHODS) + ["fair vs best peer", "curvature fair vs best peer",
+                                                        "curvature hold vs best peer"]
     rows = []
     for name in args.meshes:
         clean = load(DATA / name)
@@ -261,7 +314,7 @@ def main() -> None:
                 best[method] = min(scores)
             peers = min(v[0] for k, v in best.items() if not k.startswith("fair"))
             verdicts = []
-            for variant in ("fair", "fair (curvature hold)"):
+            for variant in ("fair", "fair (curvature fair)", "fair (curvature hold)"):
                 f = best[variant][0]
                 if kind == "zigzag" and not closed:
                     verdicts.append("best" if f <= peers else f"NOT best (+{100 * (f / peers - 1):.0f} %)")
