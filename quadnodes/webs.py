@@ -21,7 +21,9 @@ cylinder it runs in the space of the contact forces (the *contact method*,
 farthest outside round by round, each Newton step one dense solve of the active
 constraints' size with ``P⁻¹`` on the contact vertices); where many touch it
 gives way to the primal method (warm-started by ADMM: each step one sparse
-positive definite solve on the coordinates the active constraints leave free).
+positive definite solve on the coordinates the active constraints leave free,
+by a factorization or, while few constraints switch, by conjugate gradients
+preconditioned by the last one).
 ADMM alone (``Q + ρI`` factorized once per ρ; the z-step is
 the exact projection onto each cylinder) or accelerated projected gradient
 (FISTA, step ``1/L`` from a Gershgorin bound). All stop on the KKT residual
@@ -285,7 +287,9 @@ def fair_web(
         (the default) converged in every measured case (small to large
         cylinders, 100² and 300² grids): with few vertices touching by the
         contact method (300², bench cylinders: about 11 s of CPU), with many by 2-3 primal
-        steps, each one sparse factorization of a 3n system; the two
+        steps after an ADMM warm start, the first a sparse factorization of the free
+        coordinates (up to 3n), the later ones mostly conjugate gradients preconditioned
+        by it; the two
         first-order methods are cheap per step but need very many steps on
         large networks (E2's matrix has condition number ~ n⁴) and are for
         small ones.
@@ -633,7 +637,7 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
         A = (Z.T @ (P3 + H) @ Z).tocsc() + delta * sp.identity(vi.size, format="csc")
         A.eliminate_zeros()
         rhs = Z.T @ (b.ravel() - P3 @ held.ravel() + delta * (x - held).ravel())
-        y = steps.solve(A, rhs, 3 * vi + di, vi, float((slab | disk).mean()))
+        y = steps.solve(A, rhs, 3 * vi + di, vi, float((slab | disk).mean()), Z.T @ (x - held).ravel())
         x = held + (Z @ y).reshape(k, 3)  # the next active set is read from this point, not its projection
         z = project_to_cylinders(x, cen, ax, r, h)
         step, z_last = float(np.abs(z - z_last).max()), z
@@ -650,7 +654,8 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
 #: Conjugate-gradient iterations a primal Newton step may take, preconditioned by an earlier step's factorization,
 #: before it factorizes its own system instead.
 _REUSE_CG = 30
-#: ... and gives up after this many when the error estimate has not fallen a thousandfold.
+#: ... and gives up after this many when the error estimate has neither fallen a thousandfold nor come within
+#: 100 × the accuracy asked for.
 _REUSE_CHECK = 10
 #: ... and is not tried when more unknowns than this switched (a held coordinate freed or a free one held) since
 #: that factorization: each one is a rank-one change, about one CG iteration more (300², small cylinders: 40
@@ -671,7 +676,8 @@ class _StepSolver:
     CG stops when the preconditioned residual, which estimates the error of every coordinate, is below
     ``accuracy`` (a length; the caller passes a thousandth of the tolerance, so the Newton step is exact
     to that), and gives up — factorizing the step's own system — after :data:`_REUSE_CG` iterations, or
-    after :data:`_REUSE_CHECK` when that estimate has not fallen a thousandfold.
+    after :data:`_REUSE_CHECK` when that estimate has neither fallen a thousandfold nor come within 100 ×
+    ``accuracy``. CG starts from the current iterate's coordinates, which late steps change little.
     """
 
     def __init__(self, nd: np.ndarray | None, accuracy: float) -> None:
@@ -682,19 +688,21 @@ class _StepSolver:
         self.cg_iterations = 0
 
     def solve(self, A: sp.csc_matrix, rhs: np.ndarray, keys: np.ndarray, group: np.ndarray,
-              coupled: float) -> np.ndarray:
-        """``A⁻¹ rhs`` for a Newton system whose unknowns have the (sorted) ``keys``; ``group``: their vertices."""
+              coupled: float, guess: np.ndarray) -> np.ndarray:
+        """``A⁻¹ rhs`` for a Newton system whose unknowns have the (sorted) ``keys``; ``group``: their vertices;
+        ``guess``: where CG starts (the current iterate's coordinates: late steps move little)."""
         if self.factor is not None:
-            y = self._pcg(A, rhs, keys)
+            y = self._pcg(A, rhs, keys, guess)
             if y is not None:
                 return y
+            self.factor = None  # never two factorizations held at once
         order = _order(self.nd, A.shape[0], group, coupled)
         self.factor = factorize(A, kind="spd", what="fair_web (Newton step)", order=order)
         self.keys = keys
         self.factorizations += 1
         return self.factor.solve(rhs)
 
-    def _pcg(self, A: sp.csc_matrix, rhs: np.ndarray, keys: np.ndarray) -> np.ndarray | None:
+    def _pcg(self, A: sp.csc_matrix, rhs: np.ndarray, keys: np.ndarray, guess: np.ndarray) -> np.ndarray | None:
         m0 = self.keys.size
         pos = np.minimum(np.searchsorted(self.keys, keys), m0 - 1)
         common = self.keys[pos] == keys
@@ -711,12 +719,12 @@ class _StepSolver:
             return out
 
         Ar = A.tocsr()
-        y = np.zeros_like(rhs)
-        res = rhs.copy()
+        y = guess.copy()
+        res = rhs - Ar @ y
         z = precondition(res)
         first = float(np.abs(z).max())
         if first < self.accuracy:
-            return z
+            return y + z
         p, rz = z.copy(), float(res @ z)
         for i in range(1, _REUSE_CG + 1):
             q = Ar @ p
@@ -731,7 +739,7 @@ class _StepSolver:
             err = float(np.abs(z).max())
             if err < self.accuracy:
                 return y
-            if i == _REUSE_CHECK and err > 1e-3 * first:
+            if i == _REUSE_CHECK and err > max(1e-3 * first, 100 * self.accuracy):
                 return None  # too slow: the system has changed too much since the factorization
             rz_new = float(res @ z)
             p = z + (rz_new / rz) * p

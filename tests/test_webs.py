@@ -413,7 +413,7 @@ def test_primal_steps_reuse_a_factorization(monkeypatch, cylinders):
     assert rep.n_on_cylinder > 0.4 * rep.n_free
     assert rep.converged and 1 <= rep.factorizations < rep.iterations
     with monkeypatch.context() as mp:
-        mp.setattr(webs, "_REUSE_CG", 0)  # every step factorizes its own system (the method before reuse)
+        mp.setattr(webs, "_REUSE_SWITCHES", -1)  # every step factorizes its own system (the method before reuse)
         ref, rep_ref = fair_web(m, **kw)
     assert rep_ref.converged and rep_ref.factorizations == rep_ref.iterations
     np.testing.assert_allclose(out.vertices, ref.vertices, atol=1e-8 * h)
@@ -444,18 +444,18 @@ def test_step_solver_falls_back_to_a_factorization():
     keys = np.arange(k)
     s = webs._StepSolver(None, 1e-10)
     rhs = rng.standard_normal(k)
-    np.testing.assert_allclose(s.solve(A, rhs, keys, keys, 1.0), np.linalg.solve(A.toarray(), rhs), rtol=1e-9)
+    np.testing.assert_allclose(s.solve(A, rhs, keys, keys, 1.0, np.zeros(k)), np.linalg.solve(A.toarray(), rhs), rtol=1e-9)
     assert s.factorizations == 1
     near = (A + sp.diags(1e-3 * rng.random(k))).tocsc()
-    y = s.solve(near, rhs, keys, keys, 1.0)
+    y = s.solve(near, rhs, keys, keys, 1.0, np.zeros(k))
     assert s.factorizations == 1 and s.cg_iterations >= 1
     exact = np.linalg.solve(near.toarray(), rhs)
     assert np.abs(y - exact).max() <= 1e-8 * np.abs(exact).max()
     far = (A + sp.diags(rng.random(k) * 4.0)).tocsc()  # a new system: no longer like the factorized one
-    y = s.solve(far, rhs, keys, keys, 1.0)
+    y = s.solve(far, rhs, keys, keys, 1.0, np.zeros(k))
     assert s.factorizations == 2
     np.testing.assert_allclose(y, np.linalg.solve(far.toarray(), rhs), rtol=1e-9)
     # unknowns the factorized system lacks (a slab that switched) are preconditioned by their diagonal
     sub = far[:-2][:, :-2].tocsc()
-    y = s.solve(sub, rhs[:-2], keys[2:], keys[2:], 1.0)
+    y = s.solve(sub, rhs[:-2], keys[2:], keys[2:], 1.0, np.zeros(k - 2))
     assert np.abs(y - np.linalg.solve(sub.toarray(), rhs[:-2])).max() <= 1e-9  # 10 × the accuracy asked for
