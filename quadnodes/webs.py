@@ -21,7 +21,9 @@ cylinder it runs in the space of the contact forces (the *contact method*,
 farthest outside round by round, each Newton step one dense solve of the active
 constraints' size with ``P⁻¹`` on the contact vertices); where many touch it
 gives way to the primal method (warm-started by ADMM: each step one sparse
-positive definite solve on the coordinates the active constraints leave free).
+positive definite solve on the coordinates the active constraints leave free,
+by a factorization or, while few constraints switch, by conjugate gradients
+preconditioned by the last one).
 ADMM alone (``Q + ρI`` factorized once per ρ; the z-step is
 the exact projection onto each cylinder) or accelerated projected gradient
 (FISTA, step ``1/L`` from a Gershgorin bound). All stop on the KKT residual
@@ -207,7 +209,9 @@ class WebReport:
     vertex of the solver's last iterate; ``warm_start_iterations``: the ADMM iterations before the Newton
     steps (``iterations``) of ``solver="newton"``; ``contact_vertices`` / ``contact_rounds``: the working set
     and rounds of the contact method (0 when the primal Newton method solved it; its ``iterations`` are then
-    the dense Newton steps in the space of the contact forces, summed over the rounds).
+    the dense Newton steps in the space of the contact forces, summed over the rounds); ``factorizations``:
+    the sparse factorizations the primal Newton steps made (the other steps solved by conjugate gradients
+    preconditioned by the last one; 0 on the other paths).
     """
 
     energy_kind: str
@@ -233,6 +237,7 @@ class WebReport:
     warm_start_iterations: int = 0
     contact_vertices: int = 0
     contact_rounds: int = 0
+    factorizations: int = 0
 
     def to_dict(self) -> dict:
         """Plain-Python form (JSON-ready)."""
@@ -282,7 +287,9 @@ def fair_web(
         (the default) converged in every measured case (small to large
         cylinders, 100² and 300² grids): with few vertices touching by the
         contact method (300², bench cylinders: about 11 s of CPU), with many by 2-3 primal
-        steps, each one sparse factorization of a 3n system; the two
+        steps after an ADMM warm start, the first a sparse factorization of the free
+        coordinates (up to 3n), the later ones mostly conjugate gradients preconditioned
+        by it; the two
         first-order methods are cheap per step but need very many steps on
         large networks (E2's matrix has condition number ~ n⁴) and are for
         small ones.
@@ -362,7 +369,7 @@ def fair_web(
             "tolerance cylinders"
         )
     x_unc, lu_unc = None, None
-    contacts, rounds = 0, 0
+    contacts, rounds, factorizations = 0, 0, 0
     iterations = 0
     converged = True
     # one nested-dissection order of the free vertices serves every factorization below (P, P + ρI, and the
@@ -394,8 +401,8 @@ def fair_web(
                 if found is not None:
                     x_it, iterations, converged, kkt, contacts, rounds = found
                 else:
-                    x_it, iterations, converged, kkt, warm = _constrained(solver, P, b, start, cen, ax, r_f, h_f,
-                                                                          tol * hlen, max_iterations, rho, nd)
+                    x_it, iterations, converged, kkt, warm, factorizations = _constrained(
+                        solver, P, b, start, cen, ax, r_f, h_f, tol * hlen, max_iterations, rho, nd)
             # never a point outside a cylinder: the exact projection last (a no-op on the solvers' iterates,
             # which are projections already; reported)
             x_free = project_to_cylinders(x_it, cen, ax, r_f, h_f)
@@ -423,22 +430,23 @@ def fair_web(
     rep = WebReport(energy, tau, c, solver if ran else "direct", fix, int(hold.sum()),
                     int(free.size), iterations, bool(converged), e_in, e_unc, total(x), we["E1"], we["E2"],
                     has_cyl, on, outside, time.perf_counter() - t0, kkt / hlen, moved,
-                    warm, contacts, rounds)
+                    warm, contacts, rounds, factorizations)
     return out, rep
 
 
 def _constrained(solver: str, P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
                  ax: np.ndarray, r: np.ndarray, h: np.ndarray, tol: float, max_it: int, rho: float | None,
-                 nd: np.ndarray | None) -> tuple[np.ndarray, int, bool, float, int]:
-    """Run one constrained solver: (point, iterations, converged, KKT residual, warm-start iterations).
+                 nd: np.ndarray | None) -> tuple[np.ndarray, int, bool, float, int, int]:
+    """Run one constrained solver: (point, iterations, converged, KKT residual, warm-start iterations,
+    Newton factorizations).
 
     ``nd``: a nested-dissection order of the free vertices (None: minimum degree everywhere).
     """
     if solver == "newton":
         return _newton(P, b, start, cen, ax, r, h, tol, max_it, nd)
     if solver == "admm":
-        return (*_admm(P, b, start, cen, ax, r, h, tol, max_it, rho, nd), 0)
-    return (*_fista(P, b, start, cen, ax, r, h, tol, max_it), 0)
+        return (*_admm(P, b, start, cen, ax, r, h, tol, max_it, rho, nd), 0, 0)
+    return (*_fista(P, b, start, cen, ax, r, h, tol, max_it), 0, 0)
 
 
 def _order(nd: np.ndarray | None, size: int, group: np.ndarray | None = None, coupled: float = 1.0
@@ -575,7 +583,7 @@ def _frames(ax: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, ax: np.ndarray, r: np.ndarray,
             h: np.ndarray, tol: float, max_it: int, nd: np.ndarray | None = None
-            ) -> tuple[np.ndarray, int, bool, float, int]:
+            ) -> tuple[np.ndarray, int, bool, float, int, int]:
     """Semismooth Newton (primal-dual active set) on the KKT conditions, warm-started by ADMM.
 
     The KKT conditions are ``F(x) = x − Π(x − γ(Px − b)) = 0`` (γ = 1 / max diag P).
@@ -587,11 +595,14 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
     across). The rest is one sparse symmetric positive definite solve for all
     free coordinates (the x, y, z of a vertex couple through its frame), so the
     smooth, badly conditioned modes of E2 are solved exactly — which first-order
-    methods cannot do. Up to 200 ADMM iterations first give the active set a
-    good start. Converged: the KKT residual and the last step (which bounds the
-    distance to the minimizer once the convergence is superlinear) are below
-    ``tol``. Returns the projected result, Newton steps, converged, KKT
-    residual, and the ADMM warm-start iterations.
+    methods cannot do. A factorization is reused by the next steps while it
+    preconditions their systems well (:class:`_StepSolver`: the late steps,
+    which switch few constraints, cost a few solves instead of a factorization).
+    Up to 200 ADMM iterations first give the active set a good start.
+    Converged: the KKT residual and the last step (which bounds the distance to
+    the minimizer once the convergence is superlinear) are below ``tol``.
+    Returns the projected result, Newton steps, converged, KKT residual, the
+    ADMM warm-start iterations and the sparse factorizations.
     """
     k = P.shape[0]
     Pr = P.tocsr()
@@ -599,7 +610,7 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
     gamma = 1.0 / dmax
     x, warm, done, kkt = _admm(P, b, start, cen, ax, r, h, tol, _WARM, None, nd, progress=False)
     if done:
-        return x, 0, True, kkt, warm
+        return x, 0, True, kkt, warm, 0
     P3 = sp.kron(Pr, sp.identity(3), format="csr")
     delta = 1e-12 * dmax  # a proximal term δ|x − x_k|²: keeps the step definite where the energy is flat
     best, best_kkt = x, kkt
@@ -607,6 +618,7 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
     blk = 3 * np.arange(k)
     ii = (blk[:, None, None] + np.arange(3)[None, :, None] + np.zeros(3, dtype=np.int64)).ravel()
     jj = (blk[:, None, None] + np.zeros(3, dtype=np.int64)[:, None] + np.arange(3)[None, None, :]).ravel()
+    steps = _StepSolver(nd, 1e-3 * tol)
     for it in range(1, max_it + 1):
         g = Pr @ x - b
         a, slab, disk, er, ec, mu = _active_set(x - gamma * g - cen, g, ax, r, h)
@@ -625,8 +637,7 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
         A = (Z.T @ (P3 + H) @ Z).tocsc() + delta * sp.identity(vi.size, format="csc")
         A.eliminate_zeros()
         rhs = Z.T @ (b.ravel() - P3 @ held.ravel() + delta * (x - held).ravel())
-        order = _order(nd, vi.size, vi, float((slab | disk).mean()))
-        y = factorize(A, kind="spd", what="fair_web (Newton step)", order=order).solve(rhs)
+        y = steps.solve(A, rhs, 3 * vi + di, vi, float((slab | disk).mean()), Z.T @ (x - held).ravel())
         x = held + (Z @ y).reshape(k, 3)  # the next active set is read from this point, not its projection
         z = project_to_cylinders(x, cen, ax, r, h)
         step, z_last = float(np.abs(z - z_last).max()), z
@@ -636,8 +647,105 @@ def _newton(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray,
         report_progress(min(it / 30, 0.99), f"Newton step {it}: KKT residual {kkt:.2e}, "
                                             f"{int(slab.sum())} slabs and {int(disk.sum())} disks active")
         if kkt < tol and step < tol:  # Newton converges superlinearly: its last step bounds the distance
-            return z, it, True, kkt, warm
-    return best, max_it, False, best_kkt, warm
+            return z, it, True, kkt, warm, steps.factorizations
+    return best, max_it, False, best_kkt, warm, steps.factorizations
+
+
+#: Conjugate-gradient iterations a primal Newton step may take, preconditioned by an earlier step's factorization,
+#: before it factorizes its own system instead.
+_REUSE_CG = 40
+#: ... and gives up after this many when the error estimate has neither fallen tenfold nor come within 100 × the
+#: accuracy asked for (300², mixed cylinders: from 1.5e-6 to 2.7e-8 in 10 iterations, to the accuracy in 26 —
+#: 6 s of CPU, against 13–17 s for the factorization).
+_REUSE_CHECK = 10
+#: ... and is not tried when more unknowns than this switched (a held coordinate freed or a free one held) since
+#: that factorization: each one is a rank-one change, about one CG iteration more (300², small cylinders: with
+#: 46 switched slabs CG was still above the accuracy after 40 iterations, 7 s; mixed: 12 switched, 26 iterations).
+_REUSE_SWITCHES = 16
+
+
+class _StepSolver:
+    """The sparse solves of the primal Newton steps: a factorization is reused while it preconditions well.
+
+    Late Newton steps change the system little (a few slabs switch, the active disks' frames turn by the
+    last step's angle), so conjugate gradients preconditioned by the last factorization solve them in a
+    few iterations — each one a solve with that factorization — instead of a new factorization (at 300² a
+    2n system: about 8 s of CPU with SuperLU). The unknowns are matched by their key ``3 × vertex +
+    direction`` (normal, radial, circumferential; x, y, z for a vertex without an active constraint); an
+    unknown the factorized system lacks is preconditioned by its diagonal, and more than
+    :data:`_REUSE_SWITCHES` of them (or of its unknowns the new system lacks) make it factorize at once.
+    CG stops when the preconditioned residual, which estimates the error of every coordinate, is below
+    ``accuracy`` (a length; the caller passes a thousandth of the tolerance, so the Newton step is exact
+    to that), and gives up — factorizing the step's own system — after :data:`_REUSE_CG` iterations, or
+    after :data:`_REUSE_CHECK` when that estimate has neither fallen tenfold nor come within 100 ×
+    ``accuracy``. CG starts from the current iterate's coordinates, which late steps change little.
+    """
+
+    def __init__(self, nd: np.ndarray | None, accuracy: float) -> None:
+        self.nd, self.accuracy = nd, accuracy
+        self.factor: Any = None
+        self.keys = np.zeros(0, dtype=np.int64)
+        self.factorizations = 0
+        self.cg_iterations = 0
+
+    def solve(self, A: sp.csc_matrix, rhs: np.ndarray, keys: np.ndarray, group: np.ndarray,
+              coupled: float, guess: np.ndarray) -> np.ndarray:
+        """``A⁻¹ rhs`` for a Newton system whose unknowns have the (sorted) ``keys``; ``group``: their vertices;
+        ``guess``: where CG starts (the current iterate's coordinates: late steps move little)."""
+        if self.factor is not None:
+            y = self._pcg(A, rhs, keys, guess)
+            if y is not None:
+                return y
+            self.factor = None  # never two factorizations held at once
+        order = _order(self.nd, A.shape[0], group, coupled)
+        self.factor = factorize(A, kind="spd", what="fair_web (Newton step)", order=order)
+        self.keys = keys
+        self.factorizations += 1
+        return self.factor.solve(rhs)
+
+    def _pcg(self, A: sp.csc_matrix, rhs: np.ndarray, keys: np.ndarray, guess: np.ndarray) -> np.ndarray | None:
+        m0 = self.keys.size
+        pos = np.minimum(np.searchsorted(self.keys, keys), m0 - 1)
+        common = self.keys[pos] == keys
+        if m0 + keys.size - 2 * int(common.sum()) > _REUSE_SWITCHES:
+            return None  # CG needs about one iteration more per switched unknown: a factorization is cheaper
+        at = pos[common]
+        diag = A.diagonal()
+
+        def precondition(res: np.ndarray) -> np.ndarray:
+            t = np.zeros(m0)
+            t[at] = res[common]
+            out = res / diag
+            out[common] = self.factor.solve(t)[at]
+            return out
+
+        Ar = A.tocsr()
+        y = guess.copy()
+        res = rhs - Ar @ y
+        z = precondition(res)
+        first = float(np.abs(z).max())
+        if first < self.accuracy:
+            return y + z
+        p, rz = z.copy(), float(res @ z)
+        for i in range(1, _REUSE_CG + 1):
+            q = Ar @ p
+            pq = float(p @ q)
+            if not pq > 0:
+                return None
+            alpha = rz / pq
+            y += alpha * p
+            res -= alpha * q
+            z = precondition(res)
+            self.cg_iterations += 1
+            err = float(np.abs(z).max())
+            if err < self.accuracy:
+                return y
+            if i == _REUSE_CHECK and err > max(0.1 * first, 100 * self.accuracy):
+                return None  # too slow: the system has changed too much since the factorization
+            rz_new = float(res @ z)
+            p = z + (rz_new / rz) * p
+            rz = rz_new
+        return None
 
 
 def _fista(P: sp.csc_matrix, b: np.ndarray, start: np.ndarray, cen: np.ndarray, ax: np.ndarray, r: np.ndarray,

@@ -386,3 +386,76 @@ def vertex_normals_of(m):
     from quadnodes.discrete_curvature import vertex_normals
 
     return vertex_normals(m.vertices, m.faces)
+
+
+@pytest.mark.parametrize("cylinders", ["small", "mixed"])
+def test_primal_steps_reuse_a_factorization(monkeypatch, cylinders):
+    """Where most vertices touch (the primal path), the Newton steps that reuse a factorization as the
+    preconditioner of conjugate gradients reach the minimizer the steps with a factorization each reach:
+    the same point (to 1e-8 h, tolerance 1e-9 h), both with a KKT residual — recomputed here with this
+    file's own projection — below the tolerance, and with fewer factorizations than steps."""
+    import quadnodes.webs as webs
+
+    n = 24
+    y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n + 1), indexing="ij")
+    m, _ = perturb(grid(n, n + 1, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y)),
+                   tangential=0.2, normal=0.05, seed=6)
+    h = m.mean_edge_length
+    if cylinders == "small":
+        r, hc = np.full(m.n_vertices, 0.1 * h), np.full(m.n_vertices, 0.05 * h)
+    else:  # the benchmark's mixed cylinders: 0.1, 1 or 10 × 0.5 h / 0.2 h per vertex
+        rng = np.random.default_rng(1)
+        r = 0.5 * h * rng.choice([0.1, 1.0, 10.0], m.n_vertices)
+        hc = 0.2 * h * rng.choice([0.1, 1.0, 10.0], m.n_vertices)
+    kw = dict(energy="E2", fix="corners", cylinder_radius=r, cylinder_height=hc, tolerance=1e-9)
+    out, rep = fair_web(m, **kw)
+    assert rep.contact_vertices == 0 and rep.warm_start_iterations > 0  # the default took the primal path
+    assert rep.n_on_cylinder > 0.4 * rep.n_free
+    assert rep.converged and 1 <= rep.factorizations < rep.iterations
+    with monkeypatch.context() as mp:
+        mp.setattr(webs, "_REUSE_SWITCHES", -1)  # every step factorizes its own system (the method before reuse)
+        ref, rep_ref = fair_web(m, **kw)
+    assert rep_ref.converged and rep_ref.factorizations == rep_ref.iterations
+    np.testing.assert_allclose(out.vertices, ref.vertices, atol=1e-8 * h)
+    hold = fixed_vertices(m, "corners")
+    Q = dense_energy_matrix(m, "E2", 0.0, 0.0)
+    f = np.flatnonzero(~hold)
+    P = Q[np.ix_(f, f)]
+    b = -Q[np.ix_(f, np.flatnonzero(hold))] @ m.vertices[hold]
+    c, ax, xf = m.vertices[f], vertex_normals_of(m)[f], out.vertices[f]
+    for v, report in ((xf, rep), (ref.vertices[f], rep_ref)):
+        step = own_projection(v - (P @ v - b) / P.diagonal().max(), c, ax, r[f], hc[f])
+        assert np.abs(v - step).max() <= 1.01e-9 * h and report.kkt_residual <= 1e-9
+        assert np.abs(own_projection(v, c, ax, r[f], hc[f]) - v).max() <= 1e-12 * h
+    assert rep.energy == pytest.approx(rep_ref.energy, rel=1e-10)
+
+
+def test_step_solver_falls_back_to_a_factorization():
+    """``_StepSolver``: a system far from the factorized one (CG would not converge within its cap) is
+    factorized anew; a nearby one is solved by preconditioned CG to the asked accuracy."""
+    import scipy.sparse as sp
+
+    import quadnodes.webs as webs
+
+    rng = np.random.default_rng(0)
+    k = 60
+    L = sp.diags([-np.ones(k - 1), 2.0 * np.ones(k), -np.ones(k - 1)], [-1, 0, 1], format="csc")
+    A = (L @ L + 1e-6 * sp.identity(k)).tocsc()
+    keys = np.arange(k)
+    s = webs._StepSolver(None, 1e-10)
+    rhs = rng.standard_normal(k)
+    np.testing.assert_allclose(s.solve(A, rhs, keys, keys, 1.0, np.zeros(k)), np.linalg.solve(A.toarray(), rhs), rtol=1e-9)
+    assert s.factorizations == 1
+    near = (A + sp.diags(1e-3 * rng.random(k))).tocsc()
+    y = s.solve(near, rhs, keys, keys, 1.0, np.zeros(k))
+    assert s.factorizations == 1 and s.cg_iterations >= 1
+    exact = np.linalg.solve(near.toarray(), rhs)
+    assert np.abs(y - exact).max() <= 1e-8 * np.abs(exact).max()
+    far = (A + sp.diags(rng.random(k) * 4.0)).tocsc()  # a new system: no longer like the factorized one
+    y = s.solve(far, rhs, keys, keys, 1.0, np.zeros(k))
+    assert s.factorizations == 2
+    np.testing.assert_allclose(y, np.linalg.solve(far.toarray(), rhs), rtol=1e-9)
+    # unknowns the factorized system lacks (a slab that switched) are preconditioned by their diagonal
+    sub = far[:-2][:, :-2].tocsc()
+    y = s.solve(sub, rhs[:-2], keys[2:], keys[2:], 1.0, np.zeros(k - 2))
+    assert np.abs(y - np.linalg.solve(sub.toarray(), rhs[:-2])).max() <= 1e-9  # 10 × the accuracy asked for

@@ -127,6 +127,8 @@ def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
             note += f", contact method: {rep.contact_vertices} vertices, {rep.contact_rounds} rounds"
         elif solver == "newton":
             note += f", after {rep.warm_start_iterations} ADMM"
+            if getattr(rep, "factorizations", None) is not None:  # (a library before them does not report them)
+                note += f", {rep.factorizations} factorizations"
         if web.get("distance"):  # outside the clock: the distance to a tightly converged reference
             ref, _ = qn.fair_web(m, **settings, solver="newton", tolerance=1e-9, max_iterations=200)
             note += f", {np.abs(out.vertices - ref.vertices).max() / h:.1e} h from the 1e-9 h Newton reference"
