@@ -238,7 +238,8 @@ def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "erro
 
 
 @node("perturb", outputs=("mesh", "report"),
-      ranges={"tangential": Range(min=0), "normal": Range(min=0), "jitter": Range(min=0)})
+      ranges={"tangential": Range(min=0), "normal": Range(min=0), "jitter": Range(min=0),
+              "seed": Range(min=0)})
 def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray | None = None, *,
             tangential: float = 0.0, normal: float = 0.0, jitter: float = 0.0, seed: int = 0,
             fix: FixMode = "corners") -> tuple[QuadMesh, NoiseReport]:

@@ -176,3 +176,12 @@ def test_render_png_node_colours_by_curvature(tmp_path):
     bm = bad.add("grid", id="m", rows=3, cols=3)
     with pytest.raises(GraphError, match="color_by"):
         bad.add("render_png", bm.mesh, id="png", path="x.png", color_by="Gauss")
+
+
+def test_perturb_node_refuses_a_negative_seed_at_load_time():
+    from quadnodes.graph import Graph
+
+    g = Graph()
+    m = g.add("grid", id="g", rows=4, cols=4)
+    with pytest.raises(GraphError, match=r"node 'noisy' \(perturb@1\): setting 'seed': -1 is out of range \(must be >= 0\)"):
+        g.add("perturb", m.mesh, id="noisy", tangential=0.2, seed=-1)
