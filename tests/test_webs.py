@@ -386,3 +386,13 @@ def vertex_normals_of(m):
     from quadnodes.discrete_curvature import vertex_normals
 
     return vertex_normals(m.vertices, m.faces)
+
+
+def test_a_vertex_in_no_face_stays_and_is_no_unanchored_part():
+    # it was refused: "some part of the structure-line network has no fixed vertex"
+    noisy, _ = perturb(grid(8, 8), tangential=0.2, seed=1)
+    stray = noisy.__class__(np.vstack([noisy.vertices, [[50.0, 50.0, 50.0]]]), noisy.faces)
+    a, ra = fair_web(noisy)
+    b, rb = fair_web(stray)
+    assert np.array_equal(b.vertices[-1], [50.0, 50.0, 50.0])
+    assert np.allclose(b.vertices[:-1], a.vertices, atol=1e-9 * noisy.mean_edge_length)
