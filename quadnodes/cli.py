@@ -586,6 +586,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f" {str(exc.filename)!r}" if exc.filename else ""
         print(f"error: cannot use{where}: {exc.strerror or exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # commands with their own words for it (watch, sweep) catch it first
+        print("interrupted (Ctrl-C): no output is left half-written (each file is replaced whole or not at all); "
+              "nodes that finished are cached, so the same command continues from them", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -520,3 +520,35 @@ def test_check_keeps_the_loaders_own_error_next_to_the_others(tmp_path, capsys):
     assert main(["check", str(p)]) == 1
     err = capsys.readouterr().err
     assert "'rows' appears twice" in err and "setting 'iterations': 0 is out of range" in err
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_ctrl_c_during_a_run_is_one_clear_line_and_leaves_no_half_file(tmp_path, capsys, monkeypatch, command):
+    # Ctrl-C printed a 30-line traceback ending in OCCT's or NumPy's internals
+    import quadnodes.io._atomic as atomic
+
+    g = _graph(tmp_path)
+    out = tmp_path / "out"
+    real = atomic.write_atomic
+
+    def interrupted(path, write):
+        def half(tmp):
+            with open(tmp, "w") as fh:
+                fh.write("v 0 0 0\n")
+            raise KeyboardInterrupt
+
+        return real(path, half)
+
+    monkeypatch.setattr(atomic, "write_atomic", interrupted)
+    if command == "check":  # interrupted while loading the graph (the parser)
+        import quadnodes.graph.diagnostics as diagnostics
+
+        def stop(*args, **kwargs):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(diagnostics, "file_problems", stop)
+    assert main([command, str(g)] + (["--out", str(out)] if command == "run" else [])) == 130
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith("interrupted (Ctrl-C)"), err
+    assert "Traceback" not in err
+    assert not (out / "faired.obj").exists() and not [p for p in tmp_path.rglob("*") if ".tmp" in p.name]
