@@ -552,3 +552,31 @@ def test_ctrl_c_during_a_run_is_one_clear_line_and_leaves_no_half_file(tmp_path,
     assert err.splitlines()[-1].startswith("interrupted (Ctrl-C)"), err
     assert "Traceback" not in err
     assert not (out / "faired.obj").exists() and not [p for p in tmp_path.rglob("*") if ".tmp" in p.name]
+
+
+@pytest.mark.parametrize("name", ["", "sub/", ".toml", "sub/.toml"])
+def test_new_without_a_file_name_is_refused(tmp_path, capsys, monkeypatch, name):
+    # `quadnodes new ""` wrote a hidden file '.toml' and told the user to run it
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sub").mkdir()
+    assert main(["new", name]) == 1
+    assert capsys.readouterr().err == (f"error: new: {name!r} has no file name; give one such as my_design "
+                                       "(writes my_design.toml)\n")
+    assert not list(tmp_path.rglob("*.toml"))
+
+
+def test_new_into_a_missing_folder_names_the_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["new", "sub/dir/y"]) == 1
+    assert capsys.readouterr().err == "error: cannot write 'sub/dir/y.toml': the folder 'sub/dir' does not exist\n"
+
+
+def test_every_argument_of_every_command_has_help(capsys):
+    # check's graph, nodes' op, new's name and --force showed no help at all
+    from quadnodes.cli import build_parser
+
+    ap = build_parser()
+    sub = next(a for a in ap._actions if a.__class__.__name__ == "_SubParsersAction")
+    for name, parser in sub.choices.items():
+        for action in parser._actions:
+            assert action.help, f"quadnodes {name}: argument {action.dest!r} has no help"
