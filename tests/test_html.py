@@ -453,3 +453,16 @@ def test_large_meshes_are_sent_compactly(tmp_path):
     assert layout["scene"]["xaxis"]["title"]["text"] == "x (mm)"
     full = figure(grid(5, 5), detail="full")
     assert len(full.data) == 3 and figure(grid(5, 5), detail="compact").data[1].mode == "lines"
+
+
+def test_a_vertex_in_no_face_does_not_move_the_camera(meshes):
+    # an OBJ's unreferenced vertex, never drawn, set the scene's ranges: the mesh shrank into a corner
+    from quadnodes.mesh import QuadMesh
+
+    _, noisy, _ = meshes
+    far = noisy.vertices.max(axis=0) + 20 * (noisy.vertices.max(axis=0) - noisy.vertices.min(axis=0))
+    stray = QuadMesh(np.vstack([noisy.vertices, far]), noisy.faces)
+    a, b = figure(noisy).layout.scene, figure(stray).layout.scene
+    for axis in ("xaxis", "yaxis", "zaxis"):
+        assert a[axis].range == b[axis].range
+    assert a.aspectratio == b.aspectratio
