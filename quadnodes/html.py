@@ -505,6 +505,10 @@ def figure(
     names = _titles(titles, k)
     if reference is not None:
         _validate.quad_mesh(reference, "reference")
+    # one scene: every mesh in the first one's unit
+    ms = [m if m.unit == ms[0].unit else m.with_unit(ms[0].unit) for m in ms]
+    if reference is not None and reference.unit != ms[0].unit:
+        reference = reference.with_unit(ms[0].unit)
     vmin_ = _validate.positive_number(vmin, "vmin")
     vmax_ = _validate.positive_number(vmax, "vmax")
     if vmin_ >= vmax_:

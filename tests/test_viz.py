@@ -211,3 +211,12 @@ def test_a_vertex_in_no_face_does_not_move_the_camera(tmp_path, meshes):
     a = viz.render_png(noisy, tmp_path / "a.png", size_px=300)
     b = viz.render_png(stray, tmp_path / "b.png", size_px=300)
     np.testing.assert_array_equal(imread(a), imread(b))
+
+
+def test_meshes_in_other_units_are_drawn_in_the_first_one_s_unit(tmp_path, meshes):
+    # a mesh or reference in metres beside one in millimetres was drawn a thousand times too small
+    clean, noisy, _ = meshes
+    a = viz.render_png([noisy, noisy], tmp_path / "a.png", size_px=300, reference=clean)
+    b = viz.render_png([noisy, noisy.with_unit("m")], tmp_path / "b.png", size_px=300,
+                       reference=clean.with_unit("cm"))
+    np.testing.assert_allclose(imread(a), imread(b), atol=1 / 255)
