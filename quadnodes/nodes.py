@@ -954,3 +954,11 @@ def fourier(mesh: QuadMesh, fixed: np.ndarray | None = None, *, keep: int = 3,
 
 
 __all__: list[str] = []  # import for the side effect of registering the nodes
+
+# The file suffixes of the writers fixed to one format, checked with the other output-path rules
+# (quadnodes.graph.paths): `path = "panels.stl"` on export_step would write STEP text under an STL name.
+for _writer, _suffixes in ((export_step, (".step", ".stp")), (export_obj, (".obj",)), (export_csv, (".csv",)),
+                           (export_json, (".json",)), (export_report, (".json",)), (render_png, (".png",)),
+                           (render_html, (".html", ".htm")), (export_3dm, (".3dm",)), (export_dxf, (".dxf",))):
+    _writer.file_suffixes = {"path": _suffixes}  # type: ignore[attr-defined]
+del _writer, _suffixes
