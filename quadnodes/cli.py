@@ -586,6 +586,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         for line in lines if isinstance(exc, GraphError) else lines[:1]:
             print(f"error: {line}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the reader of our output went away (quadnodes nodes | head): nothing to say
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit's flush
+        except (OSError, ValueError):
+            pass
+        return 141  # 128 + SIGPIPE, as a shell reports a command stopped by a closed pipe
     except OSError as exc:  # a file system refusal outside a writer (e.g. the cache folder)
         where = f" {str(exc.filename)!r}" if exc.filename else ""
         print(f"error: cannot use{where}: {exc.strerror or exc}", file=sys.stderr)

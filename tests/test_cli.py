@@ -580,3 +580,20 @@ def test_every_argument_of_every_command_has_help(capsys):
     for name, parser in sub.choices.items():
         for action in parser._actions:
             assert action.help, f"quadnodes {name}: argument {action.dest!r} has no help"
+
+
+def test_output_into_a_closed_pipe_ends_quietly(capsys, monkeypatch):
+    # `quadnodes nodes | head` printed "error: cannot use: Broken pipe"
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def fileno(self):
+            raise OSError("no file")
+
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(["nodes"]) == 141
+    assert capsys.readouterr().err == ""
