@@ -326,6 +326,10 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
         if len(box) != 6:
             raise InputError(f"box: expected 6 numbers [xmin, ymin, zmin, xmax, ymax, zmax], got {len(box)}")
         lo, hi = np.asarray(box[:3]), np.asarray(box[3:])
+        for axis, a, b in zip("xyz", box[:3], box[3:]):
+            if a > b:  # an empty box would select nothing, silently
+                raise InputError(f"box: {axis} goes from {a:g} down to {b:g} ([xmin, ymin, zmin, xmax, ymax, "
+                                 "zmax]: the smaller values first)")
         mask |= ((mesh.vertices >= lo) & (mesh.vertices <= hi)).all(axis=1)
     if zigzag != "none":
         if report is None:
