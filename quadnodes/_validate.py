@@ -217,7 +217,7 @@ def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
     """Check the combinatorics and geometry that single arrays cannot show.
 
     Zero-length edges and near-duplicate vertices, faces without area, edges shared by more than two faces, and neighbouring faces
-    with inconsistent orientation (an edge walked the same way by both faces).
+    with inconsistent orientation (an edge walked the same way by both faces); a face listed twice is named as such.
     Counting uses SciPy's linear-time COO→CSR conversion; the offending faces are
     looked up only when there is an error.
 
@@ -255,6 +255,7 @@ def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
         a = int(np.searchsorted(und.indptr, k, side="right") - 1)
         b = int(und.indices[k])
         hs = np.flatnonzero((lo == a) & (hi == b))
+        _refuse_duplicate_faces(faces, hs // 4)
         raise InputError(
             f"faces: edge ({a}, {b}) is shared by {hs.size} faces {sorted(int(h // 4) for h in hs)}; "
             "at most two faces may share an edge"
@@ -267,12 +268,50 @@ def check_quad_mesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
         a = int(np.searchsorted(directed.indptr, k, side="right") - 1)
         b = int(directed.indices[k])
         hs = np.flatnonzero((start == a) & (end == b))
+        _refuse_duplicate_faces(faces, hs // 4)
         raise InputError(
             f"faces: faces {int(hs[0] // 4)} and {int(hs[1] // 4)} both run "
             f"along edge {a}->{b} in the same direction (inconsistent orientation); "
             "flip one of them"
         )
+    # a panel listed twice, once reversed, passes both counts when it stands alone (a closed two-faced pillow);
+    # its corners are then interior vertices with two edges, which a sound mesh rarely has: look only there
+    suspect = (np.diff(und.indptr) + np.bincount(und.indices, minlength=n)) == 2
+    if suspect.any():  # (a grid's corners: boundary vertices, which one pass over the boundary edges clears)
+        edge = np.flatnonzero(und.data == 1)
+        suspect[np.searchsorted(und.indptr, edge, side="right") - 1] = False
+        suspect[und.indices[edge]] = False
+        if suspect.any():
+            _refuse_duplicate_faces(faces, np.flatnonzero(suspect[faces].any(axis=1)))
     return und
+
+
+def _refuse_duplicate_faces(faces: np.ndarray, candidates: np.ndarray) -> None:
+    """Raise when two of the ``candidates`` (face indices) are the same panel: the same four vertices.
+
+    Raises
+    ------
+    InputError
+        Naming the two faces and the panel's vertices.
+
+    Examples
+    --------
+    >>> _refuse_duplicate_faces(np.array([[0, 1, 2, 3], [1, 4, 5, 2], [2, 1, 0, 3]]), np.array([0, 1, 2]))
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: faces: faces 0 and 2 are the same panel (vertices [0, 1, 2, 3]) listed twice; remove one
+    """
+    candidates = np.unique(candidates)
+    if candidates.size < 2:
+        return
+    key = np.sort(faces[candidates], axis=1)
+    order = np.lexsort(key.T[::-1])
+    same = np.flatnonzero((key[order[1:]] == key[order[:-1]]).all(axis=1))
+    if same.size:
+        i, j = sorted((int(candidates[order[same[0]]]), int(candidates[order[same[0] + 1]])))
+        raise InputError(
+            f"faces: faces {i} and {j} are the same panel (vertices {faces[i].tolist()}) listed twice; remove one"
+        )
 
 
 def vertex_mask(mask: ArrayLike | None, n: int, name: str = "fixed") -> np.ndarray:

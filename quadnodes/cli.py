@@ -377,6 +377,10 @@ def cmd_nodes(args: argparse.Namespace) -> int:
 
 def cmd_new(args: argparse.Namespace) -> int:
     path = Path(args.name if args.name.endswith(".toml") else f"{args.name}.toml")
+    if path.name == ".toml" or args.name.endswith(("/", os.sep)):  # '', 'dir/': only an extension would be left
+        print(f"error: new: {args.name!r} has no file name; give one such as my_design (writes my_design.toml)",
+              file=sys.stderr)
+        return 1
     if path.exists() and not args.force:
         print(f"error: {path} exists (use --force to overwrite)", file=sys.stderr)
         return 1
@@ -537,16 +541,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scatter plot of two sweep.csv columns (PNG + HTML table), Pareto front highlighted")
     p.set_defaults(func=cmd_sweep)
     p = sub.add_parser("check", help="validate a graph file without running it; lists every problem")
-    p.add_argument("graph")
+    p.add_argument("graph", help="graph file (.toml or .json)")
     p.add_argument("--out", help="output folder the paths are checked against (default out/<graph name>/)")
     p.add_argument("--allow-read", action="append", metavar="DIR", help="as for run")
     p.set_defaults(func=cmd_check)
     p = sub.add_parser("nodes", help="list node types, or describe one")
-    p.add_argument("op", nargs="?")
+    p.add_argument("op", nargs="?", help="a node type (e.g. fair): its inputs, settings, defaults and ranges")
     p.set_defaults(func=cmd_nodes)
     p = sub.add_parser("new", help="write a starter graph file")
-    p.add_argument("name")
-    p.add_argument("--force", action="store_true")
+    p.add_argument("name", help="the file to write (e.g. my_design: writes my_design.toml)")
+    p.add_argument("--force", action="store_true", help="overwrite the file if it exists")
     p.set_defaults(func=cmd_new)
     p = sub.add_parser("compare", help="Laplacian vs Taubin vs the new method on the thesis's examples: "
                                        "figures and metrics tables")
@@ -582,10 +586,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         for line in lines if isinstance(exc, GraphError) else lines[:1]:
             print(f"error: {line}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the reader of our output went away (quadnodes nodes | head): nothing to say
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit's flush
+        except (OSError, ValueError):
+            pass
+        return 141  # 128 + SIGPIPE, as a shell reports a command stopped by a closed pipe
     except OSError as exc:  # a file system refusal outside a writer (e.g. the cache folder)
         where = f" {str(exc.filename)!r}" if exc.filename else ""
         print(f"error: cannot use{where}: {exc.strerror or exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # commands with their own words for it (watch, sweep) catch it first
+        print("interrupted (Ctrl-C): no output is left half-written (each file is replaced whole or not at all); "
+              "nodes that finished are cached, so the same command continues from them", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -505,6 +505,10 @@ def figure(
     names = _titles(titles, k)
     if reference is not None:
         _validate.quad_mesh(reference, "reference")
+    # one scene: every mesh in the first one's unit
+    ms = [m if m.unit == ms[0].unit else m.with_unit(ms[0].unit) for m in ms]
+    if reference is not None and reference.unit != ms[0].unit:
+        reference = reference.with_unit(ms[0].unit)
     vmin_ = _validate.positive_number(vmin, "vmin")
     vmax_ = _validate.positive_number(vmax, "vmax")
     if vmin_ >= vmax_:
@@ -541,7 +545,8 @@ def figure(
         fig.add_trace(tr)
         owner.append(-1)
 
-    pts = [m.vertices for m in ms] + ([reference.vertices] if reference is not None else [])
+    pts = [m.vertices[m.topology.valence > 0] for m in ms]  # (a vertex in no face is not drawn)
+    pts += [reference.vertices[reference.topology.valence > 0]] if reference is not None else []
     titles_html = [_title(t, d.summary()) for t, d in zip(names, data)]
     menus = []
     if k > 1:

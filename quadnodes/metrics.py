@@ -105,7 +105,8 @@ def compare(
         ``displacement_max``, ``boundary_displacement_max``, ``bbox_diagonal_change_pct``,
         ``planarity_mean``, ``planarity_max`` (relative diagonal distance),
         ``angle_defect_mean``, ``angle_defect_max`` (radians, absolute), and with a
-        reference ``reference_mean``, ``reference_max``; all lengths in model units.
+        reference ``reference_mean``, ``reference_max``; all lengths in ``original``'s unit
+        (a result or reference mesh in another unit is converted).
 
     Raises
     ------
@@ -124,6 +125,10 @@ def compare(
     _validate.quad_mesh(result, "result")
     if original.faces.shape != result.faces.shape or not np.array_equal(original.faces, result.faces):
         raise InputError("result: must have the same faces as original to compare vertex by vertex")
+    if result.unit != original.unit:  # every number in the original's unit
+        result = result.with_unit(original.unit)
+    if isinstance(reference, QuadMesh) and reference.unit != original.unit:
+        reference = reference.with_unit(original.unit)
     out = zigzag_stats(result, thresholds)
     d = np.linalg.norm(result.vertices - original.vertices, axis=1)
     b = original.topology.boundary_vertices

@@ -238,7 +238,8 @@ def read_mesh(*, path: str, non_quads: Literal["error", "drop", "split"] = "erro
 
 
 @node("perturb", outputs=("mesh", "report"),
-      ranges={"tangential": Range(min=0), "normal": Range(min=0), "jitter": Range(min=0)})
+      ranges={"tangential": Range(min=0), "normal": Range(min=0), "jitter": Range(min=0),
+              "seed": Range(min=0)})
 def perturb(mesh: QuadMesh, region: np.ndarray | None = None, fixed: np.ndarray | None = None, *,
             tangential: float = 0.0, normal: float = 0.0, jitter: float = 0.0, seed: int = 0,
             fix: FixMode = "corners") -> tuple[QuadMesh, NoiseReport]:
@@ -325,6 +326,10 @@ def select_fixed(mesh: QuadMesh, report: ZigzagReport | None = None, *, corners:
         if len(box) != 6:
             raise InputError(f"box: expected 6 numbers [xmin, ymin, zmin, xmax, ymax, zmax], got {len(box)}")
         lo, hi = np.asarray(box[:3]), np.asarray(box[3:])
+        for axis, a, b in zip("xyz", box[:3], box[3:]):
+            if a > b:  # an empty box would select nothing, silently
+                raise InputError(f"box: {axis} goes from {a:g} down to {b:g} ([xmin, ymin, zmin, xmax, ymax, "
+                                 "zmax]: the smaller values first)")
         mask |= ((mesh.vertices >= lo) & (mesh.vertices <= hi)).all(axis=1)
     if zigzag != "none":
         if report is None:
@@ -954,3 +959,11 @@ def fourier(mesh: QuadMesh, fixed: np.ndarray | None = None, *, keep: int = 3,
 
 
 __all__: list[str] = []  # import for the side effect of registering the nodes
+
+# The file suffixes of the writers fixed to one format, checked with the other output-path rules
+# (quadnodes.graph.paths): `path = "panels.stl"` on export_step would write STEP text under an STL name.
+for _writer, _suffixes in ((export_step, (".step", ".stp")), (export_obj, (".obj",)), (export_csv, (".csv",)),
+                           (export_json, (".json",)), (export_report, (".json",)), (render_png, (".png",)),
+                           (render_html, (".html", ".htm")), (export_3dm, (".3dm",)), (export_dxf, (".dxf",))):
+    _writer.file_suffixes = {"path": _suffixes}  # type: ignore[attr-defined]
+del _writer, _suffixes

@@ -128,7 +128,7 @@ def perturb(
     jitter : float
         Standard deviation of isotropic noise, in local edge lengths.
     seed : int
-        Seed of ``numpy.random.default_rng``.
+        Seed of ``numpy.random.default_rng`` (``>= 0``).
     fix : {"none", "corners", "boundary"}
         Vertices left untouched (:func:`quadnodes.topology.fixed_vertices`). The
         default ``"corners"`` agrees with fairing and planarizing, which hold the
@@ -146,7 +146,7 @@ def perturb(
     Raises
     ------
     InputError
-        On negative or non-finite amplitudes, a bad mask, or noise so strong that
+        On negative or non-finite amplitudes, a negative seed, a bad mask, or noise so strong that
         an edge collapses to zero length.
 
     Examples
@@ -164,6 +164,8 @@ def perturb(
     amp_j = _validate.nonnegative_number(jitter, "jitter")
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
         raise InputError(f"seed: expected an integer, got {seed!r}")
+    if seed < 0:  # numpy.random.default_rng would say only "expected non-negative integer"
+        raise InputError(f"seed: expected an integer >= 0, got {int(seed)}")
     n = mesh.n_vertices
     held = fixed_vertices(mesh, fix, fixed)
     moving = ~held

@@ -253,7 +253,8 @@ def as_reference(reference: Any, like: QuadMesh, *, samples: int = 4, name: str 
     ----------
     reference : Reference, QuadMesh or build123d Face
     like : QuadMesh
-        The mesh that will be pulled to it; a face is sampled ``samples`` times
+        The mesh that will be pulled to it; a reference mesh in another unit is
+        converted to ``like.unit``. A face is sampled ``samples`` times
         as finely as ``like`` (its grid shape, or ``√n × √n`` without one), and
         at least 64 × 64.
     samples : int
@@ -267,9 +268,11 @@ def as_reference(reference: Any, like: QuadMesh, *, samples: int = 4, name: str 
         If ``reference`` is none of the above.
     """
     if isinstance(reference, Reference):
+        if reference.mesh.unit != like.unit:  # the same surface in the mesh's unit (a declared unit: exact)
+            return Reference(reference.mesh.with_unit(like.unit), source=reference.source)
         return reference
     if isinstance(reference, QuadMesh):
-        return Reference(reference)
+        return Reference(reference if reference.unit == like.unit else reference.with_unit(like.unit))
     samples = _validate.positive_int(samples, f"{name}_samples")
     try:
         from build123d import Face

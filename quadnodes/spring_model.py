@@ -209,7 +209,7 @@ def spring(
         move = step * (dn + dt) * movable
         length = np.linalg.norm(x[e[:, 1]] - x[e[:, 0]], axis=1)
         local = np.bincount(e.reshape(-1), np.repeat(length, 2), minlength=mesh.n_vertices) / val
-        worst = float((np.linalg.norm(move, axis=1) / local).max())
+        worst = float((np.linalg.norm(move, axis=1) / np.maximum(local, 1e-300)).max())  # (a vertex in no face: 0)
         history.append(worst)
         x += move
         if it % 10 == 0:

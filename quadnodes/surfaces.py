@@ -656,6 +656,7 @@ def from_step(path: str | os.PathLike[str], *, face: int = 0) -> Face:
     faces = shape.faces()
     n = len(faces)
     if n == 0:
+        _check_step_parses(fs)
         raise InputError(f"path: STEP file {fs!r} holds no faces")
     if not 0 <= face < n:
         raise InputError(
@@ -663,6 +664,22 @@ def from_step(path: str | os.PathLike[str], *, face: int = 0) -> Face:
             f"face{'s' if n != 1 else ''} (valid indices 0..{n - 1})"
         )
     return faces[int(face)]
+
+
+def _check_step_parses(fs: str) -> None:
+    """Raise when OCCT's STEP parser fails on ``fs`` (build123d's ``import_step`` ignores its status and
+    gives an empty shape). Called only when the import found no face, so a sound file is parsed once.
+
+    Raises
+    ------
+    InputError
+        Naming the file as unreadable: not STEP, or damaged (cut short).
+    """
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPControl import STEPControl_Reader
+
+    if STEPControl_Reader().ReadFile(fs) != IFSelect_RetDone:
+        raise InputError(f"path: cannot read STEP file {fs!r}: not a STEP file, or a damaged one (cut short?)")
 
 
 def from_file(
@@ -784,6 +801,8 @@ def _faces_occt(fs: str, ext: str) -> tuple[list[Any], None, list[tuple[str, str
             shape = import_step(fs)
         except (OSError, ValueError, RuntimeError) as exc:
             raise InputError(f"path: cannot read STEP file {fs!r} ({exc})") from None
+        if not shape.faces():
+            _check_step_parses(fs)
     else:
         from OCP.IFSelect import IFSelect_RetDone
         from OCP.IGESControl import IGESControl_Reader

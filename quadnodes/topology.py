@@ -775,6 +775,7 @@ def fixed_vertices(mesh: QuadMesh, fix: str = "none", fixed: object = None) -> n
     fixed : (n,) bool or int indices, optional
         More vertices to hold (a boolean mask or a list of indices; an integer
         array of zeros and ones of length ``n`` is refused as ambiguous).
+        A vertex in no face (an OBJ's unreferenced vertex) is always held.
 
     Returns
     -------
@@ -804,6 +805,7 @@ def fixed_vertices(mesh: QuadMesh, fix: str = "none", fixed: object = None) -> n
         mask |= corner_vertices(mesh)
     elif mode == "boundary":
         mask |= mesh.topology.boundary_vertices
+    mask |= mesh.topology.valence == 0  # a vertex in no face: no energy acts on it, so every method holds it
     return mask
 
 

@@ -81,7 +81,10 @@ def parse_length(value: Any, target: str, name: str = "length") -> float:
         m = _LENGTH_RE.match(value)
         if m is None:
             raise InputError(f"{name}: expected a number or a length such as '2 mm', got {value!r}")
-        return to_unit(float(m.group(1)), check_unit(m.group(2), f"{name} (unit of {value!r})"), target)
+        length = to_unit(float(m.group(1)), check_unit(m.group(2), f"{name} (unit of {value!r})"), target)
+        if length != length or length in (float("inf"), float("-inf")):  # '1e400 mm': too large for a float
+            raise InputError(f"{name}: {value!r} is not a finite length in {target}")
+        return length
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(f"{name}: expected a number or a length such as '2 mm', got {value!r}")
     v = float(value)

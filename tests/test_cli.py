@@ -520,3 +520,80 @@ def test_check_keeps_the_loaders_own_error_next_to_the_others(tmp_path, capsys):
     assert main(["check", str(p)]) == 1
     err = capsys.readouterr().err
     assert "'rows' appears twice" in err and "setting 'iterations': 0 is out of range" in err
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_ctrl_c_during_a_run_is_one_clear_line_and_leaves_no_half_file(tmp_path, capsys, monkeypatch, command):
+    # Ctrl-C printed a 30-line traceback ending in OCCT's or NumPy's internals
+    import quadnodes.io._atomic as atomic
+
+    g = _graph(tmp_path)
+    out = tmp_path / "out"
+    real = atomic.write_atomic
+
+    def interrupted(path, write):
+        def half(tmp):
+            with open(tmp, "w") as fh:
+                fh.write("v 0 0 0\n")
+            raise KeyboardInterrupt
+
+        return real(path, half)
+
+    monkeypatch.setattr(atomic, "write_atomic", interrupted)
+    if command == "check":  # interrupted while loading the graph (the parser)
+        import quadnodes.graph.diagnostics as diagnostics
+
+        def stop(*args, **kwargs):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(diagnostics, "file_problems", stop)
+    assert main([command, str(g)] + (["--out", str(out)] if command == "run" else [])) == 130
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith("interrupted (Ctrl-C)"), err
+    assert "Traceback" not in err
+    assert not (out / "faired.obj").exists() and not [p for p in tmp_path.rglob("*") if ".tmp" in p.name]
+
+
+@pytest.mark.parametrize("name", ["", "sub/", ".toml", "sub/.toml"])
+def test_new_without_a_file_name_is_refused(tmp_path, capsys, monkeypatch, name):
+    # `quadnodes new ""` wrote a hidden file '.toml' and told the user to run it
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sub").mkdir()
+    assert main(["new", name]) == 1
+    assert capsys.readouterr().err == (f"error: new: {name!r} has no file name; give one such as my_design "
+                                       "(writes my_design.toml)\n")
+    assert not list(tmp_path.rglob("*.toml"))
+
+
+def test_new_into_a_missing_folder_names_the_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["new", "sub/dir/y"]) == 1
+    assert capsys.readouterr().err == "error: cannot write 'sub/dir/y.toml': the folder 'sub/dir' does not exist\n"
+
+
+def test_every_argument_of_every_command_has_help(capsys):
+    # check's graph, nodes' op, new's name and --force showed no help at all
+    from quadnodes.cli import build_parser
+
+    ap = build_parser()
+    sub = next(a for a in ap._actions if a.__class__.__name__ == "_SubParsersAction")
+    for name, parser in sub.choices.items():
+        for action in parser._actions:
+            assert action.help, f"quadnodes {name}: argument {action.dest!r} has no help"
+
+
+def test_output_into_a_closed_pipe_ends_quietly(capsys, monkeypatch):
+    # `quadnodes nodes | head` printed "error: cannot use: Broken pipe"
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def fileno(self):
+            raise OSError("no file")
+
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(["nodes"]) == 141
+    assert capsys.readouterr().err == ""

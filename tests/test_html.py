@@ -453,3 +453,33 @@ def test_large_meshes_are_sent_compactly(tmp_path):
     assert layout["scene"]["xaxis"]["title"]["text"] == "x (mm)"
     full = figure(grid(5, 5), detail="full")
     assert len(full.data) == 3 and figure(grid(5, 5), detail="compact").data[1].mode == "lines"
+
+
+def test_a_vertex_in_no_face_does_not_move_the_camera(meshes):
+    # an OBJ's unreferenced vertex, never drawn, set the scene's ranges: the mesh shrank into a corner
+    from quadnodes.mesh import QuadMesh
+
+    _, noisy, _ = meshes
+    far = noisy.vertices.max(axis=0) + 20 * (noisy.vertices.max(axis=0) - noisy.vertices.min(axis=0))
+    stray = QuadMesh(np.vstack([noisy.vertices, far]), noisy.faces)
+    a, b = figure(noisy).layout.scene, figure(stray).layout.scene
+    for axis in ("xaxis", "yaxis", "zaxis"):
+        assert a[axis].range == b[axis].range
+    assert a.aspectratio == b.aspectratio
+
+
+def test_meshes_in_other_units_are_shown_in_the_first_one_s_unit(meshes):
+    # a mesh or reference in metres beside one in millimetres was drawn a thousand times too small
+    clean, noisy, _ = meshes
+    a = figure([noisy, noisy], reference=clean).layout.scene
+    b = figure([noisy, noisy.with_unit("m")], reference=clean.with_unit("cm")).layout.scene
+    for axis in ("xaxis", "yaxis", "zaxis"):
+        np.testing.assert_allclose(a[axis].range, b[axis].range, rtol=1e-9)
+    fig = figure([noisy, noisy.with_unit("m")], reference=clean.with_unit("cm"))
+    panels = [t for t in fig.data if t.name.endswith(": panels")]
+    assert len(panels) == 2
+    for c in "xyz":
+        np.testing.assert_allclose(panels[1][c], panels[0][c], rtol=1e-9, atol=1e-9)
+    ref = next(t for t in fig.data if t.name == "reference")
+    want = next(t for t in figure(noisy, reference=clean).data if t.name == "reference")
+    np.testing.assert_allclose(np.asarray(ref.x, float), np.asarray(want.x, float), rtol=1e-9)

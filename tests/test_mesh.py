@@ -109,3 +109,20 @@ def test_unit_is_carried_and_converted():
     assert metres.topology is m.topology or metres.faces is m.faces
     with pytest.raises(InputError, match="unit: expected one of"):
         QuadMesh(m.vertices, m.faces, unit="furlong")
+
+
+def test_a_duplicate_face_is_named_as_one_not_as_an_orientation_problem():
+    # an OBJ listing a panel twice was told "inconsistent orientation; flip one of them", which leaves a
+    # two-faced pillow; and a panel repeated inside a mesh was told only "edge shared by 3 faces"
+    g = grid(3, 3)
+    f = g.faces.tolist()
+    for dup in ([1, 2, 5, 4], [2, 5, 4, 1]):  # the same panel, from the same or another corner
+        with pytest.raises(InputError, match=r"^faces: faces 1 and 4 are the same panel \(vertices \[1, 2, 5, 4\]"
+                                             r"\) listed twice; remove one$"):
+            QuadMesh(g.vertices, f + [dup])
+    with pytest.raises(InputError, match=r"^faces: faces 3 and 4 are the same panel \(vertices \[4, 5, 8, 7\]\) "
+                                         r"listed twice; remove one$"):
+        QuadMesh(g.vertices, f + [[7, 8, 5, 4]])  # reversed: the edges are shared by three faces
+    with pytest.raises(InputError, match=r"^faces: faces 0 and 1 are the same panel \(vertices \[0, 1, 2, 3\]\) "
+                                         r"listed twice; remove one$"):
+        QuadMesh(_square(), [[0, 1, 2, 3], [3, 2, 1, 0]])  # a lone panel and its reverse: a closed pillow

@@ -42,3 +42,16 @@ def test_zigzag_counts():
 def test_compare_needs_same_faces():
     with pytest.raises(InputError, match="same faces"):
         compare(grid(3, 3), grid(3, 4))
+
+
+def test_meshes_in_other_units_are_compared_in_the_original_s_unit():
+    # a reference or result in metres was read as millimetres: reference_mean 392 mm instead of 0
+    clean = grid(6, 6, spacing=100.0)
+    noisy, _ = perturb(clean, tangential=0.2, normal=0.2, seed=1)
+    out, _ = laplacian(noisy, iterations=2)
+    want = compare(noisy, out, reference=clean)
+    for got in (compare(noisy, out, reference=clean.with_unit("m")), compare(noisy, out.with_unit("m"), reference=clean),
+                compare(noisy, out.with_unit("cm"), reference=clean.with_unit("ft"))):
+        assert set(got) == set(want)
+        for k in want:
+            assert got[k] == pytest.approx(want[k], rel=1e-9, abs=1e-9), k

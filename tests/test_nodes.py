@@ -176,3 +176,26 @@ def test_render_png_node_colours_by_curvature(tmp_path):
     bm = bad.add("grid", id="m", rows=3, cols=3)
     with pytest.raises(GraphError, match="color_by"):
         bad.add("render_png", bm.mesh, id="png", path="x.png", color_by="Gauss")
+
+
+def test_perturb_node_refuses_a_negative_seed_at_load_time():
+    from quadnodes.graph import Graph
+
+    g = Graph()
+    m = g.add("grid", id="g", rows=4, cols=4)
+    with pytest.raises(GraphError, match=r"node 'noisy' \(perturb@1\): setting 'seed': -1 is out of range \(must be >= 0\)"):
+        g.add("perturb", m.mesh, id="noisy", tangential=0.2, seed=-1)
+
+
+def test_select_fixed_refuses_a_box_whose_min_exceeds_its_max():
+    # [xmax, ymax, zmax, xmin, ymin, zmin] selected nothing, silently: the vertices meant to stay moved
+    g = Graph()
+    m = g.add("grid", id="g", rows=4, cols=4)
+    g.add("select_fixed", m.mesh, id="s", box=[3, 3, 1, 0, 0, -1])
+    with pytest.raises(NodeError, match=r"node 's' \(select_fixed@1\): box: x goes from 3 down to 0 "
+                                        r"\(\[xmin, ymin, zmin, xmax, ymax, zmax\]: the smaller values first\)"):
+        g.run()
+    g2 = Graph()
+    m2 = g2.add("grid", id="g", rows=4, cols=4)
+    s2 = g2.add("select_fixed", m2.mesh, id="s", box=[0, 0, 0, 1, 3, 0])  # a flat box (zmin = zmax) is fine
+    assert int(g2.run()[s2.fixed].sum()) == 8

@@ -79,3 +79,10 @@ def test_fixed_indices_and_an_ambiguous_mask():
     assert out.vertices[12].tolist() == m.vertices[12].tolist() and rep.n_fixed == 1
     with pytest.raises(InputError, match="looks like a 0/1 mask"):
         perturb(m, jitter=0.2, fixed=m.topology.boundary_vertices.astype(int))
+
+
+def test_a_negative_seed_is_refused_by_name():
+    # numpy's default_rng raised "ValueError: expected non-negative integer", naming no setting
+    with pytest.raises(InputError, match=r"^seed: expected an integer >= 0, got -7$"):
+        perturb(grid(4, 4), tangential=0.2, seed=-7)
+    assert perturb(grid(4, 4), tangential=0.2, seed=np.int64(2**40))[1].seed == 2**40

@@ -54,3 +54,13 @@ def test_any_mesh_keeps_the_held_vertices(m):
     out, rep = schneider_kobbelt(m, ring=0, max_iterations=5)
     b = m.topology.boundary_vertices
     assert np.array_equal(out.vertices[b], m.vertices[b]) and np.isfinite(out.vertices).all()
+
+
+def test_a_vertex_in_no_face_stays_and_is_no_unanchored_part():
+    # it was refused: "the Laplace–Beltrami system is singular; some part of the mesh holds no fixed vertex"
+    noisy, _ = perturb(grid(8, 8), normal=0.2, seed=1)
+    stray = noisy.__class__(np.vstack([noisy.vertices, [[50.0, 50.0, 50.0]]]), noisy.faces)
+    a, ra = schneider_kobbelt(noisy)
+    b, rb = schneider_kobbelt(stray)
+    assert rb.iterations == ra.iterations and np.array_equal(b.vertices[-1], [50.0, 50.0, 50.0])
+    assert np.allclose(b.vertices[:-1], a.vertices, atol=1e-9 * noisy.mean_edge_length)

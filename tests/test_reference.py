@@ -138,3 +138,19 @@ def test_compiled_closest_points_equal_the_numpy_path(seed, spread):
         q, d = Reference(ref_mesh).closest(pts)
     np.testing.assert_array_equal(q, numpy_q)
     np.testing.assert_array_equal(d, numpy_d)
+
+
+def test_a_reference_mesh_in_another_unit_is_converted_to_the_mesh_s_unit():
+    # a reference mesh in metres was read as millimetres: fair pulled the vertices 570 mm towards a
+    # surface a thousandth of its size, with no word
+    clean = grid(6, 6, spacing=100.0)
+    noisy, _ = perturb(clean, tangential=0.2, normal=0.2, seed=1)
+    for ref in (clean.with_unit("m"), Reference(clean.with_unit("m")), Reference(clean.with_unit("in"))):
+        r = as_reference(ref, noisy)
+        assert r.mesh.unit == "mm"
+        np.testing.assert_allclose(r.mesh.vertices, clean.vertices, atol=1e-9)
+    want, _ = fair(noisy, reference=clean, iterations=2)
+    got, _ = fair(noisy, reference=clean.with_unit("m"), iterations=2)
+    np.testing.assert_allclose(got.vertices, want.vertices, atol=1e-6)
+    same = Reference(clean)
+    assert as_reference(same, noisy) is same  # nothing to convert: the same object

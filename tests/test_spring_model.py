@@ -81,3 +81,14 @@ def test_errors():
         spring(m, normals=np.ones((3, 3)))
     with pytest.raises(InputError, match="fix"):
         spring(m, fix="Boundary")
+
+
+def test_a_vertex_in_no_face_stays_and_does_not_stop_convergence():
+    # it made the largest move 0/0 = nan: 500 iterations, converged=False, max_displacement nan
+    noisy, _ = perturb(grid(6, 6), tangential=0.2, seed=1)
+    stray = noisy.__class__(np.vstack([noisy.vertices, [[50.0, 50.0, 50.0]]]), noisy.faces)
+    a, ra = spring(noisy)
+    b, rb = spring(stray)
+    assert rb.converged and rb.iterations == ra.iterations and np.isfinite(rb.history).all()
+    assert np.array_equal(b.vertices[-1], [50.0, 50.0, 50.0])
+    assert np.allclose(b.vertices[:-1], a.vertices, atol=1e-12)

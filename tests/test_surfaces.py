@@ -289,6 +289,26 @@ def test_step_face_index(tmp_path):
         surfaces.from_step(tmp_path / "missing.step")
 
 
+@pytest.mark.parametrize("reader", [surfaces.from_step, surfaces.from_file])
+def test_a_damaged_step_file_is_called_unreadable_not_empty(tmp_path, reader):
+    # build123d's import_step ignores the parser's status: a STEP file cut short, an empty file or another
+    # format renamed .step gave "holds no faces" (no surface), which sends the designer looking for a
+    # missing surface rather than a broken export
+    good = tmp_path / "wavy.step"
+    build123d.export_step(surfaces.wavy(), good)
+    text = good.read_text()
+    cases = {"cut.step": text[: len(text) // 2], "empty.step": "", "renamed.step": "v 0 0 0\nf 1 2 3 4\n"}
+    for name, content in cases.items():
+        (tmp_path / name).write_text(content)
+        with pytest.raises(InputError, match=rf"^path: cannot read STEP file '.*{name}': not a STEP file, "
+                                             r"or a damaged one \(cut short\?\)$"):
+            reader(tmp_path / name)
+    edge = tmp_path / "edge.step"  # a readable file that holds no face is still told so
+    build123d.export_step(build123d.Edge.make_line((0, 0, 0), (1, 0, 0)), edge)
+    with pytest.raises(InputError, match="holds no (faces|surface)"):
+        reader(edge)
+
+
 # ---------------------------------------------------------------------------
 # trims, degeneracies, orientation, spacing
 # ---------------------------------------------------------------------------

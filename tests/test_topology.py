@@ -339,3 +339,15 @@ def test_grid_shape_accepts_closed_grids_and_labels_the_seam():
     assert m.with_vertices(m.vertices * 2).grid_wrap == (False, True)
     with pytest.raises(InputError, match="not a cell"):
         QuadMesh(cylinder(3, 4).vertices, grid_faces(3, 4, wrap_cols=True), grid_shape=(4, 3))
+
+
+def test_fixed_vertices_holds_a_vertex_in_no_face():
+    # an OBJ with an unreferenced vertex (or read with non_quads="drop") keeps it; no energy acts on it, so
+    # every method must hold it rather than divide by its zero edge length or find it "unanchored"
+    from quadnodes.topology import fixed_vertices
+
+    g = grid(3, 3)
+    m = QuadMesh(np.vstack([g.vertices, [[9.0, 9.0, 9.0]]]), g.faces)
+    for fix, want in [("none", [9]), ("corners", [0, 2, 6, 8, 9]), ("boundary", [0, 1, 2, 3, 5, 6, 7, 8, 9])]:
+        assert np.flatnonzero(fixed_vertices(m, fix)).tolist() == want
+    assert np.flatnonzero(fixed_vertices(g, "none")).tolist() == []

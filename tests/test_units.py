@@ -26,3 +26,11 @@ def test_parse_length_text(text, target, expected):
 def test_parse_length_refuses_with_the_name(bad):
     with pytest.raises(InputError, match="planar_tolerance"):
         parse_length(bad, "mm", "planar_tolerance")
+
+
+@pytest.mark.parametrize("text", ["1e400 mm", "1e308 ft", "-1e400 m"])
+def test_a_length_too_large_for_a_float_is_refused(text):
+    # '1e400 mm' became inf and passed as a planar_tolerance (every panel 'planar'); 'inf mm' was refused
+    with pytest.raises(InputError, match=rf"^planar_tolerance: {text!r} is not a finite length in mm$"):
+        parse_length(text, "mm", "planar_tolerance")
+    assert parse_length("1e300 mm", "mm") == 1e300

@@ -201,3 +201,22 @@ def test_color_by_curvature_and_arrays(tmp_path):
     with pytest.raises(InputError, match=r"color_by: expected a curvature name, 81 vertex values or 64 panel"):
         render_png(m, tmp_path / "e.png", color_by=np.ones(5))
     assert not (tmp_path / "e.png").exists()
+
+
+def test_a_vertex_in_no_face_does_not_move_the_camera(tmp_path, meshes):
+    # an OBJ's unreferenced vertex, never drawn, set the view's limits: the mesh shrank into a corner
+    _, noisy, _ = meshes
+    far = noisy.vertices.max(axis=0) + 20 * (noisy.vertices.max(axis=0) - noisy.vertices.min(axis=0))
+    stray = qn.QuadMesh(np.vstack([noisy.vertices, far]), noisy.faces)
+    a = viz.render_png(noisy, tmp_path / "a.png", size_px=300)
+    b = viz.render_png(stray, tmp_path / "b.png", size_px=300)
+    np.testing.assert_array_equal(imread(a), imread(b))
+
+
+def test_meshes_in_other_units_are_drawn_in_the_first_one_s_unit(tmp_path, meshes):
+    # a mesh or reference in metres beside one in millimetres was drawn a thousand times too small
+    clean, noisy, _ = meshes
+    a = viz.render_png([noisy, noisy], tmp_path / "a.png", size_px=300, reference=clean)
+    b = viz.render_png([noisy, noisy.with_unit("m")], tmp_path / "b.png", size_px=300,
+                       reference=clean.with_unit("cm"))
+    np.testing.assert_allclose(imread(a), imread(b), atol=1 / 255)

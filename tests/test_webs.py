@@ -459,3 +459,13 @@ def test_step_solver_falls_back_to_a_factorization():
     sub = far[:-2][:, :-2].tocsc()
     y = s.solve(sub, rhs[:-2], keys[2:], keys[2:], 1.0, np.zeros(k - 2))
     assert np.abs(y - np.linalg.solve(sub.toarray(), rhs[:-2])).max() <= 1e-9  # 10 × the accuracy asked for
+
+
+def test_a_vertex_in_no_face_stays_and_is_no_unanchored_part():
+    # it was refused: "some part of the structure-line network has no fixed vertex"
+    noisy, _ = perturb(grid(8, 8), tangential=0.2, seed=1)
+    stray = noisy.__class__(np.vstack([noisy.vertices, [[50.0, 50.0, 50.0]]]), noisy.faces)
+    a, ra = fair_web(noisy)
+    b, rb = fair_web(stray)
+    assert np.array_equal(b.vertices[-1], [50.0, 50.0, 50.0])
+    assert np.allclose(b.vertices[:-1], a.vertices, atol=1e-9 * noisy.mean_edge_length)

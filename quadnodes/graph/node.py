@@ -29,6 +29,7 @@ Examples
 from __future__ import annotations
 
 import inspect
+import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -69,7 +70,7 @@ class Range:
     """The allowed values of a numeric setting (each number of a list setting), declared with ``@node(ranges=...)``.
 
     ``min``/``max`` are bounds (None: unbounded); ``min_open``/``max_open`` make
-    them strict. NaN is never in range. The same object feeds the load-time check,
+    them strict. NaN and ±inf are never in range. The same object feeds the load-time check,
     ``quadnodes nodes`` and editors' sliders (:func:`describe`).
 
     Examples
@@ -95,7 +96,7 @@ class Range:
         return " and ".join(parts) or "any number"
 
     def _out(self, v: float) -> bool:
-        if v != v:  # NaN
+        if v != v or v in (math.inf, -math.inf):  # NaN, or infinite: no bound admits them
             return True
         if self.min is not None and (v <= self.min if self.min_open else v < self.min):
             return True
@@ -119,6 +120,24 @@ class Range:
         """``{"min", "max", "min_open", "max_open", "text"}`` (JSON-ready, for editors' sliders)."""
         return {"min": self.min, "max": self.max, "min_open": self.min_open, "max_open": self.max_open,
                 "text": str(self)}
+
+
+def _non_finite(value: Any, where: str = "") -> str | None:
+    """A message when ``value`` (a float, or floats nested in lists) is NaN or infinite, else None.
+
+    Examples
+    --------
+    >>> _non_finite([1.0, float("inf")]), _non_finite("2 mm"), _non_finite(0.5)
+    ('[1]: inf is not a finite number', None, None)
+    """
+    if isinstance(value, float):
+        return None if math.isfinite(value) else f"{where + ': ' if where else ''}{value!r} is not a finite number"
+    if isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            msg = _non_finite(v, f"{where}[{i}]")
+            if msg:
+                return msg
+    return None
 
 
 @dataclass(frozen=True)
@@ -248,6 +267,12 @@ class NodeType:
             sep = "" if problem.startswith("[") else ": "
             err = graph_error(f"{label(node_id, self.op)}: setting {name!r}{sep}{problem}", node_id=node_id)
             err.out_of_range = True  # type: ignore[attr-defined]  (a sweep keeps such a variant as an error row)
+            raise err
+        problem = _non_finite(coerced)  # settings without a range too: no setting means anything by inf or nan
+        if problem:
+            sep = "" if problem.startswith("[") else ": "
+            err = graph_error(f"{label(node_id, self.op)}: setting {name!r}{sep}{problem}", node_id=node_id)
+            err.out_of_range = True  # type: ignore[attr-defined]
             raise err
         return coerced
 

@@ -8,6 +8,8 @@ before anything runs:
   run's output folder (``quadnodes run --out``; for :func:`quadnodes.graph.run`,
   its ``out`` argument, else the graph's folder, else the working directory);
 - no two writer settings name the same file;
+- a writer fixed to one format (``export_step``, ``render_png``, …) writes only
+  under that format's suffixes (declared as ``func.file_suffixes``);
 - every path in a ``reads`` setting of a graph loaded from a file resolves inside
   the graph file's folder, unless the user allows another folder
   (``quadnodes run --allow-read DIR``, ``run(..., allow_read=[DIR])``).
@@ -66,6 +68,19 @@ def _file_settings(graph: Graph, kind: str) -> Iterator[tuple[str, str, str, lis
             yield spec.id, spec.op, s, [t for t in texts if isinstance(t, str)]
 
 
+def _suffix_problem(graph: Graph, node_id: str, op: str, setting: str, text: str) -> str | None:
+    """Why ``text`` does not end in a suffix the node declares for ``setting`` (``func.file_suffixes``,
+    e.g. ``{"path": (".step", ".stp")}``), else None: a writer fixed to one format would otherwise put it
+    under another format's name (STEP text in ``panels.stl``)."""
+    nt = graph.registry.get(op, node_id=node_id)
+    suffixes = getattr(nt.func, "file_suffixes", {}).get(setting)
+    if not suffixes or Path(text).suffix.lower() in suffixes:
+        return None
+    kinds = " or ".join(suffixes)
+    return (f"{label(node_id, op)}: setting {setting!r}: {text!r} does not end in {kinds}, the kind of file "
+            f"{nt.name} writes; name it e.g. {Path(text).stem + suffixes[0]!r}")
+
+
 def output_path_errors(graph: Graph) -> list[GraphError]:
     """Every writer path that is absolute, leads out with ``..``, or is named by two settings.
 
@@ -95,6 +110,10 @@ def output_path_errors(graph: Graph) -> list[GraphError]:
                 errors.append(graph_error(
                     f"{where}: {text!r} leads out of the output folder; give a path inside it, "
                     f"such as {Path(text).name!r}", node_id=node_id))
+                continue
+            wrong = _suffix_problem(graph, node_id, op, s, text)
+            if wrong:
+                errors.append(graph_error(wrong, node_id=node_id))
                 continue
             key = os.path.normcase(norm)
             if key in seen and seen[key][0] != node_id:
@@ -155,7 +174,10 @@ def check_paths(
         where = f"{label(node_id, op)}: setting {s!r}"
         for text in texts:
             real = os.path.realpath(os.path.join(out_real, text))
-            if not _inside(real, out_real) or real == out_real:
+            wrong = _suffix_problem(graph, node_id, op, s, text)
+            if wrong:
+                errors.append(wrong)
+            elif not _inside(real, out_real) or real == out_real:
                 errors.append(f"{where}: {text!r} resolves to {real!r}, outside the output folder {out_real!r}"
                               + (" (through a symbolic link)" if not os.path.isabs(text) else ""))
             elif real in seen:

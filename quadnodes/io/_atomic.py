@@ -134,8 +134,15 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> 
         remove_stale_temporaries(folder)
     try:
         fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, suffix=_TMP_SUFFIX, dir=folder)
-    except OSError as exc:
-        raise ExportError(f"cannot write {str(target)!r}: {exc}") from exc
+    except OSError as exc:  # said of the folder: the temporary file's name means nothing to the user
+        where = str(folder)
+        if not folder.exists():
+            why = f"the folder {where!r} does not exist"
+        elif not folder.is_dir():
+            why = f"{where!r} is not a folder"
+        else:
+            why = f"cannot create a file in the folder {where!r} ({exc.strerror or exc})"
+        raise ExportError(f"cannot write {str(target)!r}: {why}") from exc
     os.close(fd)
     try:
         os.chmod(tmp, _file_mode())

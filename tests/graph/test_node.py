@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -249,3 +250,34 @@ def test_a_default_outside_its_range_or_a_range_of_no_setting_is_refused():
         @node("b", registry=reg, ranges={"m": Range(min=1)})
         def b(*, n: int = 1) -> int:
             return n
+
+
+def test_a_non_finite_number_is_refused_in_every_float_setting_ranged_or_not():
+    # `quadnodes check` passed weight = inf and azim = inf; the run then failed in the node, after the
+    # nodes before it had run (minutes on a big graph). No setting means anything by inf or nan.
+    from quadnodes.graph.node import Range
+
+    reg = Registry()
+
+    @node("look", registry=reg, ranges={"weight": Range(min=0, min_open=True)})
+    def look(x: float, *, weight: float = 0.3, azim: float = -60.0, lams: list[float] | None = None,
+             tol: float | str = 1e-3, rounds: int = 1) -> float:
+        """Look."""
+        return x
+
+    nt = reg.get("look")
+    with pytest.raises(GraphError, match=r"^node 'l' \(look@1\): setting 'weight': inf is out of range \(must be > 0\)$"):
+        nt.coerce_setting("weight", float("inf"), node_id="l")
+    with pytest.raises(GraphError, match=r"^node 'l' \(look@1\): setting 'azim': inf is not a finite number$"):
+        nt.coerce_setting("azim", float("inf"), node_id="l")
+    with pytest.raises(GraphError, match=r"setting 'azim': nan is not a finite number"):
+        nt.coerce_setting("azim", float("nan"), node_id="l")
+    with pytest.raises(GraphError, match=r"setting 'lams'\[1\]: -inf is not a finite number"):
+        nt.coerce_setting("lams", [0.5, -math.inf], node_id="l")
+    with pytest.raises(GraphError, match=r"setting 'tol': inf is not a finite number"):
+        nt.coerce_setting("tol", math.inf, node_id="l")
+    with pytest.raises(GraphError, match=r"setting 'rounds': expected int, got float inf"):
+        nt.coerce_setting("rounds", math.inf, node_id="l")
+    assert nt.coerce_setting("azim", -1e300, node_id="l") == -1e300
+    assert nt.coerce_setting("tol", "2 mm", node_id="l") == "2 mm"
+    assert nt.coerce_setting("lams", [0.1, 0.2], node_id="l") == [0.1, 0.2]

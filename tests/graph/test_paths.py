@@ -76,3 +76,36 @@ def test_a_run_reports_only_files_it_wrote(wreg, tmp_path):
     g.add("save", n, id="lazy", path="old.txt", skip=True)   # runs, but leaves its file alone
     r = g.run(out=out)
     assert r.record("w").files == (out / "new.txt",) and r.record("lazy").files == ()
+
+
+def test_a_writer_path_with_another_format_s_extension_is_refused(tmp_path):
+    # export_step with path = "panels.stl" wrote a STEP file named .stl, and `quadnodes check` said ok
+    import quadnodes.nodes  # noqa: F401  (the built-in writers declare their file suffixes)
+
+    g = Graph()
+    m = g.add("grid", id="m", rows=3, cols=3)
+    g.add("export_step", m.mesh, id="step", path="panels.stl")
+    g.add("export_obj", m.mesh, id="obj", path="sub/panels.OBJ")  # any case
+    g.add("render_png", m.mesh, id="png", path="view.jpg")
+    g.add("render_html", m.mesh, id="html", path="view.htm")
+    g.add("export_csv", m.mesh, id="csv", path="schedule")
+    want = [
+        "node 'step' (export_step@1): setting 'path': 'panels.stl' does not end in .step or .stp, the kind of "
+        "file export_step writes; name it e.g. 'panels.step'",
+        "node 'png' (render_png@1): setting 'path': 'view.jpg' does not end in .png, the kind of file "
+        "render_png writes; name it e.g. 'view.png'",
+        "node 'csv' (export_csv@1): setting 'path': 'schedule' does not end in .csv, the kind of file "
+        "export_csv writes; name it e.g. 'schedule.csv'",
+    ]
+    assert [str(e) for e in output_path_errors(g)] == want
+    with pytest.raises(GraphError) as err:  # the Python API's run checks the same
+        check_paths(g, out=tmp_path)
+    assert str(err.value).splitlines() == want
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_writer_without_declared_suffixes_takes_any_name(wreg, tmp_path):
+    g = Graph(registry=wreg)
+    g.add("save", g.add("num", id="n").out, id="s", path="x.anything")
+    assert output_path_errors(g) == []
+    check_paths(g, out=tmp_path)

@@ -159,3 +159,26 @@ def test_directory_in_the_way_raises_export_error(tmp_path):
     with pytest.raises(ExportError):
         write_text_atomic(tmp_path / "d", "x")
     assert os.listdir(tmp_path) == ["d"]
+
+
+def test_a_folder_refusal_names_the_folder_not_the_temporary_file(tmp_path, monkeypatch):
+    # the message was "cannot write 'sub/a.txt': [Errno 2] No such file or directory: '.../sub/.qn-bztvgrt2.tmp'",
+    # naming a file the user never asked for
+    with pytest.raises(ExportError, match=r"^cannot write '.*a\.txt': the folder '.*nope' does not exist$"):
+        write_text_atomic(tmp_path / "nope" / "a.txt", "x")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ExportError, match=r"^cannot write '.*a\.txt': '.*file' is not a folder$"):
+        write_text_atomic(tmp_path / "file" / "a.txt", "x")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real_open = os.open
+
+    def no_create(path, flags, *args, **kwargs):
+        if os.path.dirname(os.fspath(path)) == str(ro) and flags & os.O_CREAT:
+            raise PermissionError(13, "Permission denied", os.fspath(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", no_create)
+    with pytest.raises(ExportError, match=r"^cannot write '.*a\.txt': cannot create a file in the folder '.*ro' "
+                                         r"\(Permission denied\)$"):
+        write_text_atomic(ro / "a.txt", "x")
