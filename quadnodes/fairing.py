@@ -173,7 +173,8 @@ CURVATURE_NOISE_SHARE = 0.08
 CURVATURE_MIN_SHARE = 0.005
 
 
-def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray, inner: np.ndarray) -> np.ndarray:
+def curvature_windows(faired: np.ndarray, noisy: np.ndarray | None, windows: np.ndarray, inner: np.ndarray, *,
+                      noisy_norms: np.ndarray | None = None) -> np.ndarray:
     """The windows whose line term ``line_curvature="auto"`` holds: the design's curvature changes.
 
     One solve suppresses the noise's line terms (high frequencies, by about ``ω/λ``)
@@ -195,8 +196,10 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     faired : (r, 3) float64
         The rows' line terms at ``x₁`` (``A x₁ + b``); the first ``w`` rows are ``windows``,
         any later rows (the line-end term's) are never held.
-    noisy : (r, 3) float64
+    noisy : (r, 3) float64, or None with ``noisy_norms``
         The same rows at the input (the anchor).
+    noisy_norms : (w,) float64, optional
+        Their norms for the ``w`` windows, when known (fair has their squares from its detection pass).
     windows : (w, 4) int
         The windows of the first ``w`` rows, consecutive windows of a line next to each other.
     inner : (r,) bool
@@ -223,12 +226,16 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     >>> curvature_windows(f1, np.full((8, 3), 0.3), win, np.ones(8, bool)).any()
     np.False_
     """
-    faired, noisy, windows, inner = (np.asarray(a) for a in (faired, noisy, windows, inner))
+    faired, windows, inner = (np.asarray(a) for a in (faired, windows, inner))
     if faired.ndim != 2 or faired.shape[1:] != (3,):
         raise InputError(f"faired: expected shape (r, 3), got {faired.shape}")
     r = faired.shape[0]
-    if noisy.shape != faired.shape:
-        raise InputError(f"noisy: expected the shape of faired {faired.shape}, got {noisy.shape}")
+    if noisy_norms is None:
+        noisy = np.asarray(noisy)
+        if noisy.shape != faired.shape:
+            raise InputError(f"noisy: expected the shape of faired {faired.shape}, got {noisy.shape}")
+    elif np.shape(noisy_norms) != (len(windows),):
+        raise InputError(f"noisy_norms: expected shape ({len(windows)},), got {np.shape(noisy_norms)}")
     if windows.ndim != 2 or windows.shape[1:] != (4,) or windows.shape[0] > r:
         raise InputError(f"windows: expected shape (w, 4) with w <= {r}, got {windows.shape}")
     if inner.shape != (r,) or inner.dtype != bool:
@@ -239,9 +246,12 @@ def curvature_windows(faired: np.ndarray, noisy: np.ndarray, windows: np.ndarray
     held = np.zeros(len(faired), dtype=bool)
     if w < 2 or not inside.any():
         return held
-    s0 = np.sqrt(np.einsum("ij,ij->i", noisy[:w], noisy[:w]))
-    level = max(CURVATURE_CHANGE, CURVATURE_CONTRAST * float(np.median(s1[inside])),
-                CURVATURE_NOISE_SHARE * float(np.median(s0[inside])))
+    s0 = np.sqrt(np.einsum("ij,ij->i", noisy[:w], noisy[:w])) if noisy_norms is None else np.asarray(noisy_norms)
+    every = bool(inside.all())  # (no copies for the medians then)
+    level = max(CURVATURE_CHANGE, CURVATURE_CONTRAST * float(np.median(s1 if every else s1[inside])))
+    # the input's median matters only where its share is above the other levels: a count tells
+    if np.count_nonzero(s0[inside] > level / CURVATURE_NOISE_SHARE) * 2 >= np.count_nonzero(inside):
+        level = max(level, CURVATURE_NOISE_SHARE * float(np.median(s0 if every else s0[inside])))
     above = inside & (s1 > level)
     i = np.flatnonzero(above[:-1] & above[1:])
     i = i[(windows[i + 1, :3] == windows[i, 1:]).all(axis=1)]  # window i+1 continues window i's line
@@ -1332,7 +1342,12 @@ def _fair(
             # a window's four flags as one 32-bit word: all free when every byte is 1
             inner[:len(system._windows)] = (np.ascontiguousarray(free[system._windows]).view(np.uint32).reshape(-1)
                                             == np.frombuffer(b"\x01" * 4, np.uint32)[0])
-            rows = curvature_windows(f1, system.A @ target + system.b, system._windows, inner)
+            if ref is None and anchor == "current" and not (xw.size or ends.size):
+                # the input's window terms are the detection pass's energies (A a + b with a = x)
+                e0 = w_energy if system.active.all() else w_energy[system.active]
+                rows = curvature_windows(f1, None, system._windows, inner, noisy_norms=np.sqrt(e0))
+            else:
+                rows = curvature_windows(f1, system.A @ target + system.b, system._windows, inner)
             n_held = int(np.count_nonzero(rows))
             if n_held:
                 first = system.iterations
