@@ -287,7 +287,12 @@ def _load_kernels() -> None:
 
     V = np.zeros((5, 3))
     V[:, 0] = np.arange(5.0)
-    _compiled_window_geometry(V, np.arange(5, dtype=np.int64), np.array([0, 1], dtype=np.int64), True, True)
+    ext, start = np.arange(5, dtype=np.int64), np.array([0, 1], dtype=np.int64)
+    ro = [a.copy() for a in (V, ext, start)]
+    for a in ro:
+        a.flags.writeable = False  # (a mesh's vertices and its topology's walk are read-only: Numba types them apart)
+    for args in ((V, ext, start), tuple(ro), (V, ro[1], ro[2])):  # the input mesh's, and a faired iterate's
+        _compiled_window_geometry(*args, True, True)
     window_coefficients(V[:, 0], V[:, 1], V[:, 2], np.empty((5, 4)), 0, 5)
 
 
