@@ -89,8 +89,10 @@ def test_the_page_edits_the_quickstart_live(served):
     key1 = b.wait_for(f"(() => {{ const k = {VIEW_KEY}; return k && k !== {json.dumps(key0)} ? k : null; }})()",
                       timeout=120)
     assert key1 != key0
-    b.wait_for("document.querySelector('.node[data-node=\"fair\"] [data-status]').dataset.status === 'ran'")
-    assert b.evaluate("document.querySelector('.node[data-node=\"noisy\"] [data-status]').dataset.status") == "cached"
+    # fair re-ran, the nodes before it came from the cache (both shown at once: under load a status may
+    # arrive a moment after another)
+    b.wait_for("(() => { const s = n => document.querySelector(`.node[data-node=\"${n}\"] [data-status]`).dataset.status;"
+               " return s('fair') === 'ran' && s('noisy') === 'cached'; })()")
 
     # an invalid edit: refused, the message on the node, the file unchanged
     before = graph.read_bytes()
