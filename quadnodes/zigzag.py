@@ -293,7 +293,8 @@ def _load_kernels() -> None:
         a.flags.writeable = False  # (a mesh's vertices and its topology's walk are read-only: Numba types them apart)
     for args in ((V, ext, start), tuple(ro), (V, ro[1], ro[2])):  # the input mesh's, and a faired iterate's
         _compiled_window_geometry(*args, True, True)
-    window_coefficients(V[:, 0], V[:, 1], V[:, 2], np.empty((5, 4)), 0, 5)
+    for cols in ((V[:, 0], V[:, 1], V[:, 2]), tuple(np.ascontiguousarray(V.T))):  # strided and contiguous columns
+        window_coefficients(*cols, np.empty((5, 4)), 0, 5)
 
 
 _compiled.also_load(_load_kernels)

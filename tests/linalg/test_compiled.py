@@ -18,7 +18,7 @@ def test_warm_up_loads_in_the_background_and_fair_uses_the_kernels_at_any_size_t
         compiled.warm_up(); compiled.warm_up()  # once per process
         assert compiled.wait() and compiled.ready()
         from quadnodes._window_kernels import window_geometry  # other modules' kernels (also_load) came too
-        assert len(window_geometry.signatures) == 1
+        assert len(window_geometry.signatures) == 3  # (read-only and writable arrays are typed apart)
         m = grid(60, 60)
         m = m.with_vertices(m.vertices + np.random.default_rng(1).normal(scale=0.1, size=m.vertices.shape))
         free = m.topology.window_middle.copy()
@@ -27,6 +27,21 @@ def test_warm_up_loads_in_the_background_and_fair_uses_the_kernels_at_any_size_t
         assert isinstance(s._cg[0], SymmetricDiagonalBlocks)
         d = FairingSystem(m.vertices, m.topology.windows, free, 0.3, solver="direct").solve(m.vertices[free])
         assert abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+        # fair compiles nothing more once the load is done: every signature it uses was loaded (Numba types
+        # read-only and writable arrays, strided and contiguous ones apart; a new one costs ~10 ms in the call)
+        import quadnodes._window_kernels as wk
+        from quadnodes import fair
+        from quadnodes.linalg import _kernels
+        from quadnodes.mesh import cylinder
+        from quadnodes.noise import perturb
+        kernels = [wk.window_geometry, wk.window_coefficients, _kernels.symmetric_diagonal_product,
+                   _kernels.cg_update, _kernels.cg_direction, _kernels.row_dots, _kernels.open_grid_family]
+        counts = [len(k.signatures) for k in kernels]
+        noisy = perturb(m, jitter=0.2, seed=2)[0]
+        for spacing in ("fair", "hold"):
+            fair(noisy, iterations=2, threshold=0.0, line_spacing=spacing)
+        fair(perturb(cylinder(12, 30), jitter=0.2, seed=2)[0], iterations=2)
+        assert [len(k.signatures) for k in kernels] == counts, ([len(k.signatures) for k in kernels], counts)
         print("ok")
         """
     )
@@ -63,7 +78,8 @@ def test_other_modules_kernels_load_with_these_and_a_failing_one_leaves_the_nump
         assert compiled.wait() and calls == [False]  # called before "ready"
         from quadnodes._reference_kernels import closest_on_candidates
         from quadnodes._window_kernels import window_coefficients, window_geometry
-        assert all(len(k.signatures) == 1 for k in (closest_on_candidates, window_coefficients, window_geometry))
+        # every signature fair and planarize use: read-only and writable arrays, strided and contiguous columns
+        assert [len(k.signatures) for k in (closest_on_candidates, window_coefficients, window_geometry)] == [1, 2, 3]
         assert quadnodes.reference._compiled_kernel(1) is closest_on_candidates
         print("ok")
         """
