@@ -44,7 +44,6 @@ CHUNK = 16384
 COMPILED_MIN_POINTS = 250_000
 
 
-
 class Reference:
     """A surface to find closest points on, from a quad mesh (see the module text).
 
