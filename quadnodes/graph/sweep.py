@@ -67,11 +67,14 @@ from .fingerprint import code_fingerprint, file_digest
 from .graph import Graph
 from .run import NodeCall, plan
 
-__all__ = ["parse_vary", "variants", "run_sweep", "pareto_front", "SweepResult", "SweepRow"]
+__all__ = ["MAX_VARIANTS", "parse_vary", "variants", "run_sweep", "pareto_front", "SweepResult", "SweepRow"]
 
 _RANGE_RE = re.compile(r"\s*([-+]?[0-9.eE+-]+)\s*:\s*([-+]?[0-9.eE+-]+)\s*(?::\s*([^:]*?)\s*)?\Z")
 _SAFE_RE = re.compile(r"[^A-Za-z0-9._=+-]")
 _MAX_LIST = 16  # lists in reports longer than this are not spread over columns
+#: A sweep of more variants is refused before anything is built: each variant is a run of the whole graph
+#: (10,000 of the quickstart's take hours), and a mistyped range (``0:1000000000``) must not fill the memory.
+MAX_VARIANTS = 10_000
 builtins_zip = zip  # the functions below take a keyword named zip
 
 
@@ -114,6 +117,7 @@ def _range(key: str, text: str) -> list[Any]:
                              f"for other numbers give a count, e.g. {a}:{b}:5") from None
         if hi < lo:
             raise GraphError(f"--vary {key}: range {text!r}: the end {hi} is below the start {lo}")
+        _check_count(key, text, hi - lo + 1)
         return list(range(lo, hi + 1))
     try:
         lo_f, hi_f = float(a), float(b)
@@ -125,7 +129,14 @@ def _range(key: str, text: str) -> list[Any]:
         raise GraphError(f"--vary {key}: range {text!r}: count {count!r} is not an integer; {usage}") from None
     if n < 2 or not (math.isfinite(lo_f) and math.isfinite(hi_f)):
         raise GraphError(f"--vary {key}: range {text!r}: needs a count of at least 2 and finite ends")
+    _check_count(key, text, n)
     return [float(f"{x:.12g}") for x in np.linspace(lo_f, hi_f, n)]
+
+
+def _check_count(key: str, text: str, n: int) -> None:
+    if n > MAX_VARIANTS:
+        raise GraphError(f"--vary {key}: range {text!r} has {n:,} values; a sweep runs at most {MAX_VARIANTS:,} "
+                         "variants (each one a run of the graph): give fewer values, or split the sweep")
 
 
 def parse_vary(item: str) -> tuple[str, list[Any]]:
@@ -241,6 +252,11 @@ def variants(vary: Mapping[str, Any], *, zip: bool = False) -> list[dict[str, An
             raise GraphError(f"--zip: the lists differ in length: {sizes}")
         combos = list(builtins_zip(*lists))
     else:
+        total = math.prod(len(v) for v in lists)
+        if total > MAX_VARIANTS:
+            sizes = " × ".join(f"{len(v)} ({k})" for k, v in builtins_zip(keys, lists))
+            raise GraphError(f"--vary: {sizes} = {total:,} variants; a sweep runs at most {MAX_VARIANTS:,} (each one "
+                             "a run of the graph): give fewer values, pair the lists with --zip, or split the sweep")
         combos = list(itertools.product(*lists))
     return [dict(builtins_zip(keys, c)) for c in combos]
 

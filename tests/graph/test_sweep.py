@@ -152,6 +152,18 @@ def test_variants_product_zip_and_lengths():
         variants({})
 
 
+def test_a_sweep_too_large_to_run_is_refused_before_anything_is_built():
+    # a mistyped range would have built a list of 10¹² seeds (the memory filled) or started 10⁶ runs
+    with pytest.raises(GraphError, match=r"noisy.seed: range '0:1000000000000' has 1,000,000,000,001 values"):
+        parse_vary("noisy.seed=0:1000000000000")
+    with pytest.raises(GraphError, match=r"fair.weight: range .* has 1,000,000 values; a sweep runs at most 10,000"):
+        parse_vary("fair.weight=1:1000000:1000000")
+    with pytest.raises(GraphError, match=r"200 \(a.x\) × 200 \(b.y\) = 40,000 variants"):
+        variants({"a.x": "1:200", "b.y": "1:200"})
+    assert len(variants({"a.x": "1:100", "b.y": "1:100"})) == 10_000  # the limit itself runs
+    assert len(variants({"a.x": "1:10000", "b.y": "1:10000"}, zip=True)) == 10_000
+
+
 def test_pareto_front_is_the_non_dominated_set():
     rng = np.random.default_rng(3)
     x, y = rng.random(60), rng.random(60)
