@@ -294,19 +294,10 @@ def test_out_onto_a_file_is_one_clear_line(tmp_path, capsys):
     assert err.startswith("error: --out") and "a file is in the way" in err and err.count("\n") == 1
 
 
-def test_out_onto_a_read_only_folder_is_one_clear_line(tmp_path, capsys, monkeypatch):
-    # root ignores permission bits: inject the refusal where the OS gives it (creating a file in the folder)
+def test_out_onto_a_read_only_folder_is_one_clear_line(tmp_path, capsys, read_only_folder):
+    # (root ignores permission bits: the fixture injects the refusal where the OS gives it, creating a file)
     g = _graph(tmp_path)
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    real_open = os.open
-
-    def no_create(path, flags, *args, **kwargs):
-        if os.path.dirname(os.path.abspath(os.fspath(path))) == str(ro) and flags & os.O_CREAT:
-            raise PermissionError(13, "Permission denied", os.fspath(path))
-        return real_open(path, flags, *args, **kwargs)
-
-    monkeypatch.setattr(os, "open", no_create)
+    ro = read_only_folder
     assert main(["run", str(g), "--no-cache", "--out", str(ro)]) == 1
     err = capsys.readouterr().err
     assert err == f"error: --out {str(ro)!r}: cannot write into the folder: Permission denied\n"

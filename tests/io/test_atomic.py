@@ -103,19 +103,9 @@ def test_unwritable_folder_raises_export_error(tmp_path, monkeypatch):
     assert os.listdir(tmp_path) == []
 
 
-def test_read_only_folder_raises_export_error(tmp_path, monkeypatch):
-    # root ignores permission bits, so the refusal of a read-only folder is injected where the OS gives it:
-    # creating the temporary file (os.open inside mkstemp) fails with EACCES
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    real_open = os.open
-
-    def no_create(path, flags, *args, **kwargs):
-        if os.path.dirname(os.fspath(path)) == str(ro) and flags & os.O_CREAT:
-            raise PermissionError(13, "Permission denied", os.fspath(path))
-        return real_open(path, flags, *args, **kwargs)
-
-    monkeypatch.setattr(os, "open", no_create)
+def test_read_only_folder_raises_export_error(read_only_folder):
+    # (root ignores permission bits: the fixture injects the refusal where the OS gives it, creating the file)
+    ro = read_only_folder
     with pytest.raises(ExportError, match="Permission denied"):
         write_text_atomic(ro / "a.txt", "x")
     assert os.listdir(ro) == []
@@ -161,7 +151,7 @@ def test_directory_in_the_way_raises_export_error(tmp_path):
     assert os.listdir(tmp_path) == ["d"]
 
 
-def test_a_folder_refusal_names_the_folder_not_the_temporary_file(tmp_path, monkeypatch):
+def test_a_folder_refusal_names_the_folder_not_the_temporary_file(tmp_path, read_only_folder):
     # the message was "cannot write 'sub/a.txt': [Errno 2] No such file or directory: '.../sub/.qn-bztvgrt2.tmp'",
     # naming a file the user never asked for
     with pytest.raises(ExportError, match=r"^cannot write '.*a\.txt': the folder '.*nope' does not exist$"):
@@ -169,16 +159,7 @@ def test_a_folder_refusal_names_the_folder_not_the_temporary_file(tmp_path, monk
     (tmp_path / "file").write_text("")
     with pytest.raises(ExportError, match=r"^cannot write '.*a\.txt': '.*file' is not a folder$"):
         write_text_atomic(tmp_path / "file" / "a.txt", "x")
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    real_open = os.open
-
-    def no_create(path, flags, *args, **kwargs):
-        if os.path.dirname(os.fspath(path)) == str(ro) and flags & os.O_CREAT:
-            raise PermissionError(13, "Permission denied", os.fspath(path))
-        return real_open(path, flags, *args, **kwargs)
-
-    monkeypatch.setattr(os, "open", no_create)
+    ro = read_only_folder
     with pytest.raises(ExportError, match=r"^cannot write '.*a\.txt': cannot create a file in the folder '.*ro' "
                                          r"\(Permission denied\)$"):
         write_text_atomic(ro / "a.txt", "x")

@@ -278,18 +278,9 @@ def test_unwritable_paths_raise_export_error(tmp_path):
     only_file(tmp_path, "adir")
 
 
-def test_read_only_directory_raises_export_error(tmp_path, monkeypatch):
-    # root ignores permission bits: inject the refusal where the OS gives it (creating a file in the folder)
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    real_open = os.open
-
-    def no_create(path, flags, *args, **kwargs):
-        if os.path.dirname(os.fspath(path)) == str(ro) and flags & os.O_CREAT:
-            raise PermissionError(13, "Permission denied", os.fspath(path))
-        return real_open(path, flags, *args, **kwargs)
-
-    monkeypatch.setattr(os, "open", no_create)
+def test_read_only_directory_raises_export_error(read_only_folder):
+    # (root ignores permission bits: the fixture injects the refusal where the OS gives it, creating a file)
+    ro = read_only_folder
     with pytest.raises(ExportError, match="Permission denied"):
         save_step(grid(2, 2), ro / "p.step")
     assert os.listdir(ro) == []
