@@ -404,10 +404,17 @@ def window_coefficients_all(m):
     return window_coefficients(m.vertices, m.topology.windows)
 
 
+@pytest.mark.parametrize("loaded", [False, True])
 @pytest.mark.parametrize("weight", [0.3, 10.0])
 @pytest.mark.parametrize("fix", ["corners", "boundary", "random"])
 @pytest.mark.parametrize("threads", [1, 2])
-def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, threads):
+def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, threads, loaded):
+    """Plain CG on SciPy's kernel (a fresh process) and, with the compiled kernels loaded, symmetric
+    Gauss–Seidel (Eisenstat's CG): within 1e-8 of the mesh's size of the direct solve."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: loaded)
     m, _ = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
     m = m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
     free = m.topology.window_middle.copy()
@@ -423,12 +430,16 @@ def test_grid_diagonal_path_equals_the_direct_solve(monkeypatch, weight, fix, th
     x = s.solve(m.vertices[free])
     blocks = s._cg[0]
     assert isinstance(blocks, DiagonalBlocks) and len(blocks.ranges) == threads
+    assert isinstance(s._cg[1], SymmetricGaussSeidel) == loaded
     assert s.residual <= 1e-9
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
     assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
 
 
-def test_grid_diagonal_path_only_when_it_pays():
+def test_grid_diagonal_path_only_when_it_pays(monkeypatch):
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+
     m, _ = perturb(grid(40, 50), tangential=0.25, seed=3)
     free = m.topology.window_middle.copy()
     w = 0.3 / m.mean_edge_length**2
@@ -436,9 +447,18 @@ def test_grid_diagonal_path_only_when_it_pays():
     s = _grid_system(m, few, w)
     s.solve(m.vertices[few])
     assert isinstance(s._cg[0], RowBlocks) and not isinstance(s._cg[0], DiagonalBlocks)
-    s = _grid_system(m, free, 0.003 / m.mean_edge_length**2)  # small weight: block-Jacobi CG
+    small = 0.003 / m.mean_edge_length**2
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # a fresh process, a small grid
+    s = _grid_system(m, free, small)  # small weight: block-Jacobi CG
     s.solve(m.vertices[free])
     assert s._cg[1] is not None and not isinstance(s._cg[0], DiagonalBlocks)
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)  # kernels at hand: Gauss–Seidel at any weight
+    g = _grid_system(m, free, small)
+    xg = g.solve(m.vertices[free])
+    assert isinstance(g._cg[0], DiagonalBlocks) and isinstance(g._cg[1], SymmetricGaussSeidel)
+    assert g.iterations < s.iterations
+    d = FairingSystem(m.vertices, m.topology.windows, free, small, solver="direct").solve(m.vertices[free])
+    assert np.abs(xg - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     c = perturb(cylinder(30, 40), tangential=0.2, seed=5)[0]  # not a complete open grid
     assert c.topology.grid_shape is None
 
@@ -633,6 +653,7 @@ def test_cg_on_closed_and_irregular_meshes_equals_the_direct_solve(monkeypatch, 
 def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, threads, noise):
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.cg import LinePreconditioner, SymmetricDiagonalBlocks
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
 
     m = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)[0] if noise == "zigzag" else \
         grid(40, 50, spacing=25.0)
@@ -657,16 +678,16 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)  # loaded already: compiled at any size
     loaded = _grid_system(m, free, w)
     loaded._cg_setup()
-    assert isinstance(loaded._cg[0], SymmetricDiagonalBlocks)
-    assert isinstance(loaded._cg[1], LinePreconditioner) == (noise == "broadband")
+    # an open grid with the kernels at hand: "auto" takes symmetric Gauss–Seidel at any noise
+    assert isinstance(loaded._cg[0], SymmetricDiagonalBlocks) and isinstance(loaded._cg[1], SymmetricGaussSeidel)
     assert np.abs(loaded.solve(m.vertices[free]) - x).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 100)
-    auto = _grid_system(m, free, w)  # "auto" takes the line solves where the matrix has stiff spots
+    auto = _grid_system(m, free, w)
     auto._cg_setup()
-    assert isinstance(auto._cg[0], SymmetricDiagonalBlocks)
-    assert isinstance(auto._cg[1], LinePreconditioner) == (noise == "broadband")
+    assert isinstance(auto._cg[0], SymmetricDiagonalBlocks) and isinstance(auto._cg[1], SymmetricGaussSeidel)
     xa = auto.solve(m.vertices[free])
     assert np.abs(xa - x).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    assert auto.residual <= 1e-9 and auto.iterations < plain.iterations
     assert isinstance(s._cg[1], LinePreconditioner) and len(s._cg[0].ranges) == threads
     assert s.residual <= 1e-9 and s.iterations < plain.iterations
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
@@ -1110,3 +1131,23 @@ def test_curvature_windows_needs_two_consecutive_windows_above_every_level():
         curvature_windows(f1, noisy, win, np.ones(10))
     with pytest.raises(InputError, match="faired"):
         curvature_windows(f1[:, :2], noisy, win, np.ones(10, bool))
+
+
+def test_gauss_seidel_on_request_needs_a_grid_and_the_kernels(monkeypatch):
+    """``preconditioner="gauss-seidel"`` loads the kernels and runs on a grid at any size; a mesh that is
+    no grid (no diagonal storage) is refused, naming the setting."""
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+
+    m, _ = perturb(grid(20, 30, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
+    free = m.topology.window_middle & ~m.topology.boundary_vertices
+    w = 0.3 / m.mean_edge_length**2
+    s = _grid_system(m, free, w, preconditioner="gauss-seidel")
+    x = s.solve(m.vertices[free])
+    assert isinstance(s._cg[1], SymmetricGaussSeidel) and s.residual <= 1e-9
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    e = extraordinary_mesh(3)
+    other = FairingSystem(e.vertices, e.topology.windows, e.topology.window_middle, w, solver="cg",
+                          preconditioner="gauss-seidel")
+    with pytest.raises(InputError, match="gauss-seidel.*grid"):
+        other.solve(e.vertices[e.topology.window_middle])

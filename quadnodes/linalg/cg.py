@@ -354,9 +354,11 @@ def block_cg(
         Stop when every column's residual is at most ``rtol`` times its right-hand side.
     maxiter : int
         Cap on steps.
-    precond : BlockJacobi or LinePreconditioner, optional
+    precond : BlockJacobi, LinePreconditioner or SymmetricGaussSeidel, optional
         ``apply(R, Z, lo, hi, columns)`` writing ``Z = P⁻¹ R`` on rows ``lo:hi``
-        (a preconditioner with ``whole = True`` is applied to all rows at once).
+        (a preconditioner with ``whole = True`` is applied to all rows at once);
+        :class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel` runs
+        :func:`~quadnodes.linalg.gauss_seidel.gauss_seidel_cg` instead.
 
     Returns
     -------
@@ -373,6 +375,10 @@ def block_cg(
     >>> bool(np.abs(M @ x - b).max() < 1e-9), res <= 1e-12
     (True, True)
     """
+    if getattr(precond, "eisenstat", False):  # symmetric Gauss–Seidel: the sweeps are the whole step
+        from .gauss_seidel import gauss_seidel_cg
+
+        return gauss_seidel_cg(blocks, B, X0, rtol=rtol, maxiter=maxiter, sweeps=precond)  # type: ignore[arg-type]
     if len(blocks.ranges) > 1 and (precond is None or getattr(precond, "blas_free", False)):
         # threaded passes that call no BLAS (SciPy's sparse and diagonal kernels, NumPy's array loops,
         # the compiled kernels): nothing to pin (the pin's first library scan costs about 20 ms)

@@ -50,6 +50,16 @@ def _load() -> None:
                           np.empty((8, 3)), 0, 8)
         k.open_grid_family(np.ones((2, 4)), np.zeros(2, dtype=np.int64), np.ones(8), 2, 4, 0, 1.0,
                            np.zeros((13, 8)), 0, 2)
+        # the Gauss–Seidel sweeps and their CG step, on a small open grid (both sweeps' fast and row paths)
+        from .cg import SymmetricDiagonalBlocks
+        from .gauss_seidel import gauss_seidel_cg
+
+        g = 5
+        grid_offsets = np.array([0, 1, 2, 3, g, 2 * g, 3 * g, -1, -2, -3, -g, -2 * g, -3 * g])
+        grid_data = np.full((13, 10 * g), -0.01)
+        grid_data[0] = 1.0
+        gauss_seidel_cg(SymmetricDiagonalBlocks(grid_offsets, grid_data, threads=1), np.ones((10 * g, 3)),
+                        np.zeros((10 * g, 3)), rtol=1e-6, maxiter=5)
         for load in list(_ALSO):  # before "ready": a caller that sees it pays no load time for these either
             load()
         _STATE["ready"] = True
