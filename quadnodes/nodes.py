@@ -9,6 +9,7 @@ Lengths are in the model's unit (millimetres for the built-in surfaces).
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -40,7 +41,45 @@ from .zigzag import ZigzagReport
 from .zigzag import detect as _detect
 from .topology import corner_vertices as _corner_vertices
 
-Face = Any  # a build123d Face; build123d is imported lazily by quadnodes.surfaces
+
+
+class _FaceType(type):
+    """The metaclass of :class:`Face`: answers ``isinstance``/``issubclass`` for build123d shapes without
+    importing build123d (a build123d object exists only once build123d has been imported)."""
+
+    def __instancecheck__(cls, obj: Any) -> bool:
+        shape = _build123d_shape()
+        return shape is not None and isinstance(obj, shape)
+
+    def __subclasscheck__(cls, sub: Any) -> bool:
+        if isinstance(sub, type) and cls in sub.__mro__:
+            return True
+        shape = _build123d_shape()
+        return shape is not None and isinstance(sub, type) and issubclass(sub, shape)
+
+
+def _build123d_shape() -> type | None:
+    mod = sys.modules.get("build123d")
+    return getattr(mod, "Shape", None)
+
+
+class Face(metaclass=_FaceType):
+    """The type of a face port: a build123d ``Face`` (or a build123d shape holding one face).
+
+    A stand-in, so that ``import quadnodes.nodes`` does not import build123d and the graph checker can still
+    tell a face from a :class:`~quadnodes.mesh.QuadMesh` (a face wired into a mesh input is refused before
+    anything runs). Any build123d shape is an instance; annotate your own nodes' face ports with it.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import QuadMesh, grid
+    >>> from quadnodes.surfaces import saddle
+    >>> isinstance(saddle(), Face), isinstance(grid(2, 2), Face), issubclass(QuadMesh, Face)
+    (True, False, False)
+    """
+
+    stands_in = True  # quadnodes.graph._types.maybe_compatible: feeds an input annotated build123d.Face too
+
 FixMode = Literal["none", "corners", "boundary"]
 
 # --- sources ---------------------------------------------------------------------
@@ -159,17 +198,20 @@ def torus_patch(*, major: float = 6000.0, minor: float = 2000.0,
 
 @node("read_step_surface", outputs=("face",), reads=("path",),
       ranges={"face": Range(min=0)})
-def read_step_surface(*, path: str, face: int = 0) -> Face:
-    """Read one face (by index) of a STEP file, e.g. a surface drawn in Rhino.
+def read_step_surface(*, path: str, face: int | str | None = None, allow_trimmed: bool = False) -> Face:
+    """One face of a STEP file, e.g. a surface drawn in Rhino, by index or name; a file with several faces
+    needs face= (read_surface reads IGES and .3dm too, by the same rule).
 
     Parameters
     ----------
     path : str
         The STEP file, relative to the graph file's folder.
-    face : int
-        Index of the face to use (0: the first).
+    face : int or str
+        Which face: its index (0: the first) or its STEP label; needed when the file has several.
+    allow_trimmed : bool
+        Accept a trimmed face (its untrimmed underlying surface is sampled).
     """
-    return _surfaces.from_step(path, face=face)
+    return _surfaces.from_step(path, face=face, allow_trimmed=allow_trimmed)
 
 
 @node("sample", outputs=("mesh",),
@@ -513,7 +555,7 @@ def planarity(mesh: QuadMesh) -> tuple[np.ndarray, np.ndarray, dict]:
 
 @node("compare", outputs=("metrics",),
       ranges={"thresholds": Range(min=0, min_open=True)})
-def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | None = None, *,
+def compare(original: QuadMesh, result: QuadMesh, reference: QuadMesh | Face | None = None, *,
             thresholds: list[float] | None = None) -> dict:
     """Zigzag, displacement, boundary, bounding-box, planarity (and distance to a reference) numbers.
 
@@ -712,7 +754,7 @@ def render_html(mesh: QuadMesh, mesh2: QuadMesh | None = None, mesh3: QuadMesh |
 from .io.dxf import DxfReport  # noqa: E402  (kept beside the nodes that use it)
 
 
-@node("read_surface", outputs=("face",), reads=("path",))
+@node("read_surface", outputs=("face",), reads=("path",), ranges={"face": Range(min=0)})
 def read_surface(*, path: str, face: int | str | None = None, allow_trimmed: bool = False) -> Face:
     """The designer's surface from STEP, IGES or Rhino .3dm (NURBS converted exactly, in mm), by index or name;
     a file with several faces needs face=, a trimmed face is refused unless allow_trimmed.
@@ -958,7 +1000,7 @@ def fourier(mesh: QuadMesh, fixed: np.ndarray | None = None, *, keep: int = 3,
     return _fourier(mesh, keep=keep, fix=fix, fixed=fixed)
 
 
-__all__: list[str] = []  # import for the side effect of registering the nodes
+__all__ = ["Face"]  # import for the side effect of registering the nodes; Face types your own nodes' face ports
 
 # The file suffixes of the writers fixed to one format, checked with the other output-path rules
 # (quadnodes.graph.paths): `path = "panels.stl"` on export_step would write STEP text under an STL name.

@@ -12,9 +12,10 @@ Three ways to get a surface, all returning a build123d ``Face``:
 - :func:`from_points`: a B-spline face *interpolating* a ``(rows, cols, 3)``
   grid of points (``points[i, j]`` lies at ``(u_i, v_j)``: the first index runs
   along ``u``), and :func:`grid_parameters` for those ``(u_i, v_j)``.
-- :func:`from_step`: one face of a STEP file, picked by index; :func:`from_file`:
-  one face of a STEP, IGES or Rhino .3dm file (NURBS converted exactly), by index
-  or name, refusing trimmed and ambiguous input with a message.
+- :func:`from_file`: one face of a STEP, IGES or Rhino .3dm file (NURBS converted
+  exactly), by index or name, refusing trimmed and ambiguous input with a message;
+  :func:`from_step`: the same for a STEP file whatever its suffix (``face`` means the
+  same in both: default the only face, an error listing them when there are several).
 
 :func:`sample` turns any untrimmed face into a :class:`~quadnodes.mesh.QuadMesh`
 on an ``nu × nv`` grid of ``(u, v)`` parameters, uniform or user-given. It
@@ -609,19 +610,29 @@ def from_points(
     return _bspline_face(poles, np.asarray(su.t), np.asarray(sv.t), ku, kv)
 
 
-def from_step(path: str | os.PathLike[str], *, face: int = 0) -> Face:
-    """One face of a STEP file.
+def from_step(
+    path: str | os.PathLike[str],
+    *,
+    face: int | str | None = None,
+    allow_trimmed: bool = False,
+) -> Face:
+    """One face of a STEP file (whatever its file name ends with), by the rule of :func:`from_file`.
 
     The file is read with build123d's ``import_step`` (which gives a compound,
     shell, solid, ...); its faces are numbered in OCCT's exploration order, the
-    same order as ``shape.faces()``.
+    same order as ``shape.faces()``. :func:`from_file` reads STEP too (by the
+    ``.step``/``.stp`` suffix), and IGES and Rhino .3dm; ``face`` means the same in both.
 
     Parameters
     ----------
     path : str or os.PathLike
         The STEP file.
-    face : int
-        Index of the face, ``0 <= face < number of faces``.
+    face : int or str, optional
+        Which face: an index ``0 <= face < number of faces``, or a STEP label. Default: the
+        only face, and an error listing the faces when the file holds several.
+    allow_trimmed : bool
+        Accept a trimmed face (a hole, a cut edge); its whole underlying surface is returned.
+        Default: refuse it, saying what was found.
 
     Returns
     -------
@@ -630,8 +641,9 @@ def from_step(path: str | os.PathLike[str], *, face: int = 0) -> Face:
     Raises
     ------
     InputError
-        If the file does not exist, holds no face, or ``face`` is out of range
-        (the message names the file and its number of faces).
+        If the file does not exist or is unreadable; holds no face; holds several and ``face``
+        is not given; ``face`` is out of range or names none of them; or the face is trimmed
+        (without ``allow_trimmed``). Messages name the file and list the faces found.
 
     Examples
     --------
@@ -639,31 +651,23 @@ def from_step(path: str | os.PathLike[str], *, face: int = 0) -> Face:
     >>> from build123d import export_step
     >>> tmp = pathlib.Path(tempfile.mkdtemp()) / "saddle.step"
     >>> _ = export_step(saddle(), tmp)
-    >>> from_step(tmp, face=0).geom_type.name
+    >>> from_step(tmp).geom_type.name
     'BSPLINE'
     """
-    from build123d import import_step
-
-    if isinstance(face, (bool, np.bool_)) or not isinstance(face, (int, np.integer)):
-        raise InputError(f"face: expected an integer index, got {face!r}")
+    _check_face_choice(face)
     fs = os.fspath(path)
     if not os.path.isfile(fs):
         raise InputError(f"path: STEP file {fs!r} does not exist")
-    try:
-        shape = import_step(fs)
-    except (OSError, ValueError, RuntimeError) as exc:
-        raise InputError(f"path: cannot read STEP file {fs!r} ({exc})") from None
-    faces = shape.faces()
-    n = len(faces)
-    if n == 0:
-        _check_step_parses(fs)
+    faces, trimmed, found = _faces_occt(fs, ".step")
+    if not faces:
         raise InputError(f"path: STEP file {fs!r} holds no faces")
-    if not 0 <= face < n:
-        raise InputError(
-            f"face: index {face} is out of range, STEP file {fs!r} has {n} "
-            f"face{'s' if n != 1 else ''} (valid indices 0..{n - 1})"
-        )
-    return faces[int(face)]
+    return _pick_face(fs, faces, trimmed, found, face, allow_trimmed)
+
+
+def _check_face_choice(face: Any) -> None:
+    """Raise unless ``face`` is None, an integer index or a name (the one rule of ``face=``)."""
+    if face is not None and (isinstance(face, (bool, np.bool_)) or not isinstance(face, (int, np.integer, str))):
+        raise InputError(f"face: expected an index or a name, got {face!r}")
 
 
 def _check_step_parses(fs: str) -> None:
@@ -728,8 +732,7 @@ def from_file(
     >>> from_file(tmp).geom_type.name
     'BSPLINE'
     """
-    if face is not None and (isinstance(face, (bool, np.bool_)) or not isinstance(face, (int, np.integer, str))):
-        raise InputError(f"face: expected an index or a name, got {face!r}")
+    _check_face_choice(face)
     fs = os.fspath(path)
     if not os.path.isfile(fs):
         raise InputError(f"path: file {fs!r} does not exist")
@@ -740,11 +743,24 @@ def from_file(
         faces, trimmed, found = _faces_occt(fs, ext)
     else:
         raise InputError(f"path: {fs!r} is not a surface file quadnodes reads (.step, .stp, .iges, .igs, .3dm)")
+    if not faces:
+        raise InputError(f"path: {fs!r} holds no surface")
+    return _pick_face(fs, faces, trimmed, found, face, allow_trimmed)
+
+
+def _pick_face(fs: str, faces: list[Any], trimmed: list[bool] | None, found: list[tuple[str, str]],
+               face: int | str | None, allow_trimmed: bool) -> Face:
+    """The face ``face`` picks from a file's ``faces`` (the only one when None), trim-checked.
+
+    Raises
+    ------
+    InputError
+        Several faces and no ``face``; an index out of range; a name found nowhere or twice; a trimmed face
+        (without ``allow_trimmed``). Messages name the file ``fs`` and list the faces found.
+    """
     names = [n for n, _ in found]
     listing = ", ".join(f"{i}: {n or '(unnamed)'} ({what})" for i, (n, what) in enumerate(found[:8]))
     listing += ", ..." if len(found) > 8 else ""
-    if not faces:
-        raise InputError(f"path: {fs!r} holds no surface")
     if face is None:
         if len(faces) > 1:
             raise InputError(

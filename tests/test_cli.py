@@ -513,6 +513,24 @@ def test_check_keeps_the_loaders_own_error_next_to_the_others(tmp_path, capsys):
     assert "'rows' appears twice" in err and "setting 'iterations': 0 is out of range" in err
 
 
+def test_check_refuses_a_surface_wired_into_a_mesh_input_and_the_reverse(tmp_path, capsys):
+    # face ports were typed Any: `check` said ok, and `run` failed inside fair/sample
+    p = tmp_path / "wired.toml"
+    p.write_text('format = "quadnodes-graph"\nversion = 1\n\n[nodes.surface]\nop = "saddle@1"\n\n'
+                 '[nodes.plane]\nop = "grid@1"\n\n[nodes.fair]\nop = "fair@1"\ninputs = { mesh = "surface.face" }\n\n'
+                 '[nodes.clean]\nop = "sample@1"\ninputs = { face = "plane.mesh" }\n')
+    assert main(["check", str(p)]) == 1
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err.splitlines() == [
+        f"error: {p} line 10: node 'fair' (fair@1): input 'mesh' expects QuadMesh, but 'surface.face' gives Face",
+        f"error: {p} line 14: node 'clean' (sample@1): input 'face' expects Face, but 'plane.mesh' gives QuadMesh",
+        f"{p}: 2 problems",
+    ]
+    assert main(["run", str(p), "--out", str(tmp_path / "o")]) == 1
+    cap = capsys.readouterr()
+    assert "input 'mesh' expects QuadMesh, but 'surface.face' gives Face" in cap.err and "[1/" not in cap.out
+
+
 @pytest.mark.parametrize("command", ["run", "check"])
 def test_ctrl_c_during_a_run_is_one_clear_line_and_leaves_no_half_file(tmp_path, capsys, monkeypatch, command):
     # Ctrl-C printed a 30-line traceback ending in OCCT's or NumPy's internals

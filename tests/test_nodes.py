@@ -199,3 +199,72 @@ def test_select_fixed_refuses_a_box_whose_min_exceeds_its_max():
     m2 = g2.add("grid", id="g", rows=4, cols=4)
     s2 = g2.add("select_fixed", m2.mesh, id="s", box=[0, 0, 0, 1, 3, 0])  # a flat box (zmin = zmax) is fine
     assert int(g2.run()[s2.fixed].sum()) == 8
+
+
+# --------------------------------------------------------------- face= means one thing in every reader (followups)
+# read_step_surface took face 0 of a STEP file holding several faces without a word, where read_surface (and
+# surfaces.from_file) refuse and list the faces.
+
+
+def _two_face_step(path):
+    """A STEP file holding a flat floor (2000 x 1000 at the origin) and a saddle roof (beside it, higher up)."""
+    import build123d
+
+    from quadnodes import surfaces
+
+    floor = build123d.Face.make_rect(2000.0, 1000.0)
+    floor.label = "floor"
+    roof = surfaces.saddle(3000.0, 3000.0, 500.0).moved(build123d.Location((5000.0, 0.0, 800.0)))
+    roof.label = "roof"
+    assert build123d.export_step(build123d.Compound(children=[floor, roof]), path)
+    return floor, roof
+
+
+@pytest.mark.parametrize("op", ["read_step_surface", "read_surface"])
+def test_a_file_with_several_faces_needs_face_and_gives_the_one_picked(tmp_path, op):
+    from quadnodes import surfaces
+
+    floor, roof = _two_face_step(tmp_path / "two.step")
+    g = Graph(base_dir=tmp_path)
+    g.add(op, id="reader", path="two.step")
+    with pytest.raises(NodeError, match=rf"^node 'reader' \({op}@1\): face: '[^']*two\.step' holds 2 faces "
+                                        r"\(0: floor \(a plane face\), 1: roof \(a bspline face\)\); "
+                                        r"pass face= an index or a name"):
+        g.run()
+    for pick, want in ((1, roof), ("roof", roof), (0, floor), ("floor", floor)):
+        g = Graph(base_dir=tmp_path)
+        face = g.add(op, id="reader", path="two.step", face=pick)
+        mesh = g.add("sample", face.face, id="mesh", nu=5, nv=4)
+        res = g.run()
+        got = res[face]
+        assert got.area == pytest.approx(want.area, rel=1e-6), pick
+        assert tuple(got.center()) == pytest.approx(tuple(want.center()), abs=1e-6), pick
+        np.testing.assert_allclose(res[mesh].vertices, surfaces.sample(want, 5, 4).vertices, atol=1e-6)
+    g = Graph(base_dir=tmp_path)
+    g.add(op, id="reader", path="two.step", face=2)
+    with pytest.raises(NodeError, match=r"face: index 2 is out of range, '[^']*two\.step' has 2 faces"):
+        g.run()
+    with pytest.raises(GraphError, match=rf"node 'r' \({op}@1\): setting 'face': -1 is out of range \(must be >= 0\)"):
+        Graph(base_dir=tmp_path).add(op, id="r", path="two.step", face=-1)
+    with pytest.raises(GraphError, match=rf"node 'r' \({op}@1\): setting 'face': expected int \| str \| None"):
+        Graph(base_dir=tmp_path).add(op, id="r", path="two.step", face=1.5)
+
+
+def test_read_step_surface_of_a_file_with_one_face_is_unchanged(tmp_path):
+    import build123d
+
+    from quadnodes import surfaces
+
+    face = surfaces.wavy(2000.0, 3000.0, 200.0)
+    assert build123d.export_step(face, tmp_path / "wavy.step")
+    (tmp_path / "g.toml").write_text(
+        'format = "quadnodes-graph"\nversion = 1\n\n'
+        '[nodes.surface]\nop = "read_step_surface@1"\nparams = { path = "wavy.step" }\n\n'
+        '[nodes.mesh]\nop = "sample@1"\ninputs = { face = "surface.face" }\nparams = { nu = 6, nv = 7 }\n\n'
+        '[nodes.first]\nop = "read_step_surface@1"\nparams = { path = "wavy.step", face = 0 }\n'
+    )
+    from quadnodes.graph import load
+
+    res = load(tmp_path / "g.toml").run()
+    np.testing.assert_allclose(res["mesh.mesh"].vertices, surfaces.sample(face, 6, 7).vertices, atol=1e-6)
+    assert res["first.face"].area == pytest.approx(face.area, rel=1e-9)

@@ -287,6 +287,27 @@ def test_step_face_index(tmp_path):
         surfaces.from_step(path, face=-1)
     with pytest.raises(InputError, match="does not exist"):
         surfaces.from_step(tmp_path / "missing.step")
+    # no face= on a file with several: refused, listing them (face 0 was taken without a word), as from_file
+    for reader in (surfaces.from_step, surfaces.from_file):
+        with pytest.raises(InputError, match=r"^face: '[^']*box\.step' holds 6 faces \(0: \(unnamed\) \(a plane "
+                                             r"face\), 1: .*\); pass face= an index or a name$"):
+            reader(path)
+    with pytest.raises(InputError, match="face: expected an index or a name, got 1.5"):
+        surfaces.from_step(path, face=1.5)
+
+
+def test_from_step_picks_a_face_by_its_label_whatever_the_suffix(tmp_path):
+    from quadnodes.io import save_step
+    from quadnodes.mesh import grid
+
+    mesh = grid(3, 3, spacing=100.0, height=[[0, 0, 0], [0, 0, 0], [0, 0, 50]])
+    p = save_step(mesh, tmp_path / "a.step", mode="assembly")
+    q = p.rename(tmp_path / "a.txt")  # from_step reads STEP whatever the name; from_file goes by the suffix
+    face = surfaces.from_step(q, face="P_1_1")
+    assert tuple(face.center()) == pytest.approx((150.0, 150.0, 12.5))
+    assert surfaces.from_step(q, face=3).area == pytest.approx(face.area)
+    with pytest.raises(InputError, match=r"has no face named 'P_2_2' \(found 0: P_0_0 \(a plane face\)"):
+        surfaces.from_step(q, face="P_2_2")
 
 
 @pytest.mark.parametrize("reader", [surfaces.from_step, surfaces.from_file])

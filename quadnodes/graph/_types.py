@@ -360,6 +360,10 @@ def maybe_compatible(out_ann: Any, in_ann: Any) -> bool:
             try:
                 if issubclass(o, i):
                     return True
+                # a stand-in class (``stands_in = True``, e.g. quadnodes.nodes.Face for build123d's lazily
+                # imported shapes) also feeds an input annotated with a class it stands for
+                if getattr(o, "stands_in", False) is True and issubclass(i, o):
+                    return True
             except TypeError:
                 return True
     return False

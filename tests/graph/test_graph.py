@@ -187,3 +187,106 @@ def test_graph_equality_and_copy(reg):
     assert h == g
     h.set("s", factor=5)
     assert h != g
+
+
+# --------------------------------------------------------------- faces and meshes are told apart (followups)
+# quadnodes.nodes annotated face ports with Any (build123d is imported lazily), so the checker let a surface into
+# a mesh input, and the reverse; the error came only when the node ran, from deep inside it.
+
+FACE_INTO_MESH = '''format = "quadnodes-graph"
+version = 1
+
+[nodes.surface]
+op = "saddle@1"
+
+[nodes.plane]
+op = "grid@1"
+
+[nodes.fair]
+op = "fair@1"
+inputs = { mesh = "surface.face" }
+
+[nodes.clean]
+op = "sample@1"
+inputs = { face = "plane.mesh" }
+'''
+
+
+def test_a_face_wired_into_a_mesh_input_is_refused_and_the_reverse(tmp_path):
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import REGISTRY
+    from quadnodes.graph.diagnostics import file_problems
+    from quadnodes.graph.files import loads
+
+    g = Graph(registry=REGISTRY)
+    s = g.add("saddle", id="surface")
+    m = g.add("grid", id="plane")
+    with pytest.raises(GraphError, match=r"^node 'fair' \(fair@1\): input 'mesh' expects QuadMesh, "
+                                         r"but 'surface.face' gives Face$"):
+        g.add("fair", s.face, id="fair")
+    with pytest.raises(GraphError, match=r"^node 'clean' \(sample@1\): input 'face' expects Face, "
+                                         r"but 'plane.mesh' gives QuadMesh$"):
+        g.add("sample", m.mesh, id="clean")
+    with pytest.raises(GraphError, match=r"input 'mesh' expects QuadMesh, but 'surface.face' gives Face"):
+        loads(FACE_INTO_MESH, fmt="toml", registry=REGISTRY)
+    p = tmp_path / "g.toml"
+    p.write_text(FACE_INTO_MESH)
+    assert [str(e) for e in file_problems(p, registry=REGISTRY)] == [  # every one, in file order
+        f"{p} line 10: node 'fair' (fair@1): input 'mesh' expects QuadMesh, but 'surface.face' gives Face",
+        f"{p} line 14: node 'clean' (sample@1): input 'face' expects Face, but 'plane.mesh' gives QuadMesh",
+    ]
+    # what is right stays accepted: a face into a face input and into the references that take a face or a mesh
+    c = g.add("sample", s.face, id="clean", nu=5, nv=5)
+    f = g.add("fair", c.mesh, None, s.face, id="fair")
+    g.add("compare", c.mesh, f.mesh, s.face, id="cmp")
+    g.add("planarize", f.mesh, s.face, id="flat")
+    res = g.run()
+    assert res["cmp.metrics"]["reference_max"] < 1e-3 * 5000  # faired on the clean grid, pulled to the saddle
+
+
+def test_face_constants_and_build123d_annotations_are_checked_by_the_face_type():
+    import build123d
+
+    import quadnodes.nodes  # noqa: F401
+    from quadnodes.graph import REGISTRY, Registry, node
+    from quadnodes.nodes import Face
+    from quadnodes.surfaces import saddle
+
+    g = Graph(registry=REGISTRY)
+    face = saddle(1000.0, 1000.0, 100.0)  # a build123d face given in Python is a face; a mesh is not
+    c = g.add("sample", face, id="clean", nu=4, nv=3)
+    with pytest.raises(GraphError, match=r"node 'bad' \(sample@1\): input 'face' expects Face, got a QuadMesh"):
+        g.add("sample", grid(3, 3), id="bad")
+    with pytest.raises(GraphError, match=r"node 'bad' \(fair@1\): input 'mesh' expects QuadMesh, got a Face"):
+        g.add("fair", face, id="bad")
+    assert g.run()[c].grid_shape == (4, 3)
+    assert isinstance(build123d.Shell([face]), Face) and not isinstance(object(), Face)
+    assert issubclass(build123d.Face, Face) and not issubclass(type(grid(2, 2)), Face)
+    # a node of one's own whose ports say build123d.Face connects with the built-in face ports both ways
+    reg = Registry()
+    for nt in REGISTRY.latest():
+        if nt.name in ("saddle", "sample", "grid"):
+            reg.register(nt)
+
+    def lift_face(face, *, dz: float = 1.0):
+        return face.moved(build123d.Location((0, 0, dz)))
+
+    lift_face.__annotations__.update({"face": build123d.Face, "return": build123d.Face})  # objects, not text
+    node("lift_face", outputs=("face",), registry=reg)(lift_face)
+
+    h = Graph(registry=reg)
+    lifted = h.add("lift_face", h.add("saddle", id="s").face, id="up", dz=10.0)
+    m = h.add("sample", lifted.face, id="m", nu=3, nv=3)
+    with pytest.raises(GraphError, match=r"input 'face' expects Face, but 'g.mesh' gives QuadMesh"):
+        h.add("lift_face", h.add("grid", id="g").mesh)
+    res = h.run()
+    assert res[m].vertices[:, 2].min() == pytest.approx(-1000.0 + 10.0)
+
+
+def test_importing_the_nodes_does_not_import_build123d():
+    import subprocess
+    import sys
+
+    code = "import sys, quadnodes.nodes; print('build123d' in sys.modules, 'OCP' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]
