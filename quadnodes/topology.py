@@ -218,6 +218,8 @@ class Topology:
     @cached_property
     def boundary_vertices(self) -> np.ndarray:
         """Mask of vertices on a boundary edge, ``(n,) bool``."""
+        if self.grid_shape is not None:  # an open vertex grid: its outer ring, by index arithmetic
+            return self._grid_ring() > 0
         mask = np.zeros(self.n_vertices, dtype=bool)
         mask[self.edges[self.boundary_edges].reshape(-1)] = True
         return mask
@@ -229,13 +231,28 @@ class Topology:
         Convex corners (one face), reflex and hole corners (three or more faces)
         and boundary vertices where two boundary arcs touch.
         """
+        if self.grid_shape is not None:  # an open vertex grid: its four corners
+            rows, cols = self.grid_shape
+            mask = np.zeros(self.n_vertices, dtype=bool)
+            mask[[0, cols - 1, (rows - 1) * cols, rows * cols - 1]] = True
+            return mask
         return self.boundary_vertices & ~self.regular_boundary
 
     @cached_property
     def _boundary_count(self) -> np.ndarray:
+        if self.grid_shape is not None:  # every vertex of the ring has two boundary edges
+            return self._grid_ring()
         return np.bincount(
             self.edges[self.boundary_edges].reshape(-1), minlength=self.n_vertices
         )
+
+    def _grid_ring(self) -> np.ndarray:
+        """An open grid's boundary edges per vertex: 2 on the outer ring, 0 inside, ``(n,) int64``."""
+        rows, cols = self.grid_shape  # type: ignore[misc]
+        ring = np.zeros((rows, cols), dtype=np.int64)
+        ring[[0, -1], :] = 2
+        ring[:, [0, -1]] = 2
+        return ring.reshape(-1)
 
     @cached_property
     def regular_interior(self) -> np.ndarray:

@@ -141,6 +141,26 @@ def test_grid_fast_path_equals_tracing(rows, cols, seed, reverse):
     assert not fast.closed.any() and not traced.closed.any()
 
 
+@given(st.integers(2, 9), st.integers(2, 9), st.integers(0, 10_000))
+def test_grid_boundary_and_corners_by_index_arithmetic_equal_the_edge_counts(rows, cols, seed):
+    """A complete vertex grid's boundary ring, boundary-edge counts and corners come from index arithmetic;
+    they equal what the edges give (faces in any order and orientation)."""
+    from quadnodes.topology import Topology
+
+    rng = np.random.default_rng(seed)
+    f = grid(rows, cols).faces[rng.permutation((rows - 1) * (cols - 1))]
+    f = np.take_along_axis(f, (np.arange(4) + rng.integers(0, 4, len(f))[:, None]) % 4, axis=1)
+    topo = Topology.from_faces(f, rows * cols)
+    assert topo.grid_shape == (rows, cols)
+    n = rows * cols
+    ends = topo.edges[topo.boundary_edges].reshape(-1)
+    count = np.bincount(ends, minlength=n)
+    assert np.array_equal(topo._boundary_count, count)
+    assert np.array_equal(topo.boundary_vertices, count > 0)
+    assert np.array_equal(topo.corner_vertices, (count > 0) & ~topo.regular_boundary)
+    assert np.array_equal(corner_vertices(QuadMesh(grid(rows, cols).vertices, f)), topo.corner_vertices)
+
+
 @pytest.mark.parametrize("kind", ["missing cell", "cylinder", "extraordinary", "lhole", "transposed numbering"])
 def test_grid_shape_only_for_complete_grids(kind):
     if kind == "missing cell":

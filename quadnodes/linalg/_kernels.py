@@ -732,10 +732,18 @@ def unit_forward_sweep(U: np.ndarray, offsets: np.ndarray, F: np.ndarray, P: np.
                                 s += U[d, i] * T[q, j]
                         sq[i - a] += s
             _recurrence(S, f1, f2, f3, W, a, b, True, H)
-    for q in range(c):
-        p, t, v = P[q, lo:hi], T[q, lo:hi], W[q, lo:hi]
+            _add_dots(P, T, W, a, b, dots)  # (while the chunk is in cache)
+        hi = a0
+    _add_dots(P, T, W, lo, hi, dots)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _add_dots(P: np.ndarray, T: np.ndarray, W: np.ndarray, a: int, b: int, dots: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``dots[q] += P[q]·(T[q] + W[q])`` over the rows ``a:b``."""
+    for q in range(P.shape[0]):
+        p, t, v = P[q, a:b], T[q, a:b], W[q, a:b]
         acc = 0.0
-        for k in range(hi - lo):
+        for k in range(b - a):
             acc += p[k] * (t[k] + v[k])
         dots[q] += acc
 
@@ -754,3 +762,24 @@ def unit_cg_update(X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, a
             r[i] = v
             acc += v * v
         rr[q] = acc
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def unit_scaled(U: np.ndarray, offsets: np.ndarray, s: np.ndarray, Us: np.ndarray, F: np.ndarray, lo: int,
+                hi: int) -> None:  # pragma: no cover - compiled
+    """Rows ``lo:hi`` of ``D^{-1/2} M D^{-1/2}`` by its upper diagonals (``Us[d, i] = U[d, i] s_i s_{i+o}``,
+    ``Us[0] = 1``, zero past the end) and, with ``F`` of shape ``(4, n)``, ``F[d, i] = Us[d, i − d]``
+    (``d = 1, 2, 3``; zero before the start)."""
+    n = U.shape[1]
+    for i in range(lo, hi):
+        Us[0, i] = 1.0
+    for d in range(1, offsets.size):
+        o = offsets[d]
+        u, v = U[d], Us[d]
+        for i in range(lo, hi):
+            v[i] = u[i] * s[i] * s[i + o] if i + o < n else 0.0
+    if F.shape[0] == 4:
+        for d in range(1, 4):
+            u, f = U[d], F[d]
+            for i in range(lo, hi):
+                f[i] = u[i - d] * s[i - d] * s[i] if i >= d else 0.0

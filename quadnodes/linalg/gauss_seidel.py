@@ -63,24 +63,17 @@ class SymmetricGaussSeidel:
         bad = np.flatnonzero(~(diagonal > 0))
         if bad.size:
             raise np.linalg.LinAlgError(f"Gauss-Seidel: diagonal entry {bad[0]} is {diagonal[bad[0]]!r}, not positive")
+        from ._kernels import unit_scaled
+        from .threads import run_tasks
+
         n = U.shape[1]
         s = 1.0 / np.sqrt(diagonal)
-        Us = np.empty_like(U)
-        Us[0] = 1.0
-        for d in range(1, offsets.size):
-            o = int(offsets[d])
-            Us[d] = 0.0
-            if o < n:
-                Us[d, : n - o] = U[d, : n - o] * s[: n - o] * s[o:]
         g = int(offsets[4]) if offsets.size == 7 else 0
-        if g > 3 and np.array_equal(offsets, [0, 1, 2, 3, g, 2 * g, 3 * g]):
-            F = np.zeros((4, n))
-            for d in (1, 2, 3):
-                F[d, d:] = Us[d, : n - d]
-            self.row = g
-        else:
-            F = np.zeros((0, 0))
-            self.row = 1
+        fast = g > 3 and np.array_equal(offsets, [0, 1, 2, 3, g, 2 * g, 3 * g])
+        Us = np.empty_like(U)
+        F = np.empty((4, n)) if fast else np.zeros((0, 0))
+        self.row = g if fast else 1
+        run_tasks(lambda lo, hi: unit_scaled(U, offsets, s, Us, F, lo, hi), blocks.ranges)  # type: ignore[attr-defined]
         self.upper, self.offsets, self.forward, self.scale = Us, offsets, F, s
         self.blocks = blocks
 
@@ -165,12 +158,12 @@ def gauss_seidel_cg(
         np.subtract(Bp[:, lo:hi], y, out=y)
         return np.einsum("ij,ij->i", y, y)
 
-    def forward_solve(V: np.ndarray, out: np.ndarray) -> np.ndarray:  # out = (I + L)⁻¹ V; its squared norms
-        T.fill(0.0)
+    nothing = padded()  # (never written: zero pages, read as T = 0 by the forward solves)
 
+    def forward_solve(V: np.ndarray, out: np.ndarray) -> np.ndarray:  # out = (I + L)⁻¹ V; its squared norms
         def part(lo: int, hi: int) -> np.ndarray:
             S, _ = scratch[lo, hi]
-            unit_forward_sweep(U, off, F, V, T, out, S, lo, hi, False, np.empty(c))
+            unit_forward_sweep(U, off, F, V, nothing, out, S, lo, hi, False, np.empty(c))
             v = out[:, lo:hi]
             return np.einsum("ij,ij->i", v, v)
 
@@ -199,8 +192,9 @@ def gauss_seidel_cg(
         Y *= s  # D^{-1/2} (B − M X), then CG's preconditioned residual
         rr = forward_solve(Y, Rh)
         tol2 = (inner * np.maximum(bh, 1e-300)) ** 2
-        Xs.fill(0.0)
-        P.fill(0.0)
+        if steps:  # (a later round: the first starts from fresh zeros)
+            Xs.fill(0.0)
+            P.fill(0.0)
         beta = zero
         start = steps
         while steps < maxiter and (rr > tol2).any():
