@@ -55,15 +55,8 @@ def main() -> None:
     print("| grid | noise | line_spacing | ω | " + " | ".join(f"{k}: steps | time (s)" for k in KINDS)
           + " | max difference / extent |")
     print("|---|---|---|---:|" + "---:|---:|" * len(KINDS) + "---:|")
-    for noise in args.noise:
-        m = _common.noisy_grid(n, noise)
-        t = m.topology
-        free = detect(m, 0.0).free
-        _, held = _window_geometry(m.vertices, t.windows, t.window_walk)
-        extent = np.ptp(m.vertices, axis=0).max()
-        for spacing in args.spacing:
-            inverse = held if spacing == "hold" else even_lengths(held)
-            for w in args.weights:
+    for noise, spacing, w, m, free, inverse, extent in cases(args):
+                t = m.topology
                 cells, xs = [], []
                 for pre in KINDS:
                     best, x = np.inf, None
@@ -80,14 +73,10 @@ def main() -> None:
                       flush=True)
 
 
-def accuracy(args: argparse.Namespace) -> None:
-    n = args.size
-    factor = fairing.GAUSS_SEIDEL_RTOL
-    print(f"| grid | noise | line_spacing | ω | plain CG, rtol 1e-9: steps, error | Gauss–Seidel, rtol 1e-9 | "
-          f"Gauss–Seidel, rtol {factor:g} × 1e-9 (fair) |")
-    print("|---|---|---|---:|---:|---:|---:|")
+def cases(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    """(noise, spacing, ω, mesh, free, inverse lengths, extent) of every row, the meshes built once per noise."""
     for noise in args.noise:
-        m = _common.noisy_grid(n, noise)
+        m = _common.noisy_grid(args.size, noise)
         t = m.topology
         free = detect(m, 0.0).free
         _, held = _window_geometry(m.vertices, t.windows, t.window_walk)
@@ -95,6 +84,18 @@ def accuracy(args: argparse.Namespace) -> None:
         for spacing in args.spacing:
             inverse = held if spacing == "hold" else even_lengths(held)
             for w in args.weights:
+                yield noise, spacing, w, m, free, inverse, extent
+
+
+def accuracy(args: argparse.Namespace) -> None:
+    n = args.size
+    factor = fairing.GAUSS_SEIDEL_RTOL
+    print(f"| grid | noise | line_spacing | ω | plain CG, rtol 1e-9: steps, error | Gauss–Seidel, rtol 1e-9 | "
+          f"Gauss–Seidel, rtol {factor:g} × 1e-9 (fair) |")
+    print("|---|---|---|---:|---:|---:|---:|")
+    for noise, spacing, w, m, free, inverse, extent in cases(args):
+                t = m.topology
+
                 def solve(pre: str, rtol: float, gs_factor: float) -> tuple[np.ndarray, int]:
                     fairing.GAUSS_SEIDEL_RTOL = gs_factor
                     s = FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, solver="cg", rtol=rtol,

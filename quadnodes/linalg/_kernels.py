@@ -451,36 +451,18 @@ def open_grid_family(coef: np.ndarray, first: np.ndarray, F: np.ndarray, rows: i
 
 @nb.njit(cache=True, nogil=True, fastmath={"contract"}, boundscheck=False)
 def _chain3(t0: np.ndarray, t1: np.ndarray, t2: np.ndarray, l1: np.ndarray, l2: np.ndarray, l3: np.ndarray,
-            z0: np.ndarray, z1: np.ndarray, z2: np.ndarray, h0: np.ndarray, h1: np.ndarray,
-            h2: np.ndarray) -> None:  # pragma: no cover - compiled
-    """``z[k] = t[k] − l1[k] z[k−1] − l2[k] z[k−2] − l3[k] z[k−3]`` along equal-length slices (any
-    stride), three columns side by side; ``h`` holds each column's ``z[−1], z[−2], z[−3]``."""
+            z0: np.ndarray, z1: np.ndarray, z2: np.ndarray, h0: np.ndarray, h1: np.ndarray, h2: np.ndarray,
+            down: bool) -> None:  # pragma: no cover - compiled
+    """``z[k] = t[k] − l1[k] z[k∓1] − l2[k] z[k∓2] − l3[k] z[k∓3]`` along equal-length slices, from the first
+    entry up (or with ``down`` from the last down), three columns side by side; ``h`` holds each column's
+    three values before the first one computed (``z[−1], z[−2], z[−3]``, or ``z[w], z[w+1], z[w+2]``).
+    (Reversed views instead of ``down`` were about 1.5× slower.)"""
     a0, b0, c0 = h0[0], h0[1], h0[2]
     a1, b1, c1 = h1[0], h1[1], h1[2]
     a2, b2, c2 = h2[0], h2[1], h2[2]
-    for k in range(z0.size):
-        f1, f2, f3 = l1[k], l2[k], l3[k]
-        s0 = t0[k] - f3 * c0 - f2 * b0 - f1 * a0
-        s1 = t1[k] - f3 * c1 - f2 * b1 - f1 * a1
-        s2 = t2[k] - f3 * c2 - f2 * b2 - f1 * a2
-        z0[k] = s0
-        z1[k] = s1
-        z2[k] = s2
-        c0, c1, c2 = b0, b1, b2
-        b0, b1, b2 = a0, a1, a2
-        a0, a1, a2 = s0, s1, s2
-
-
-@nb.njit(cache=True, nogil=True, fastmath={"contract"}, boundscheck=False)
-def _chain3_down(t0: np.ndarray, t1: np.ndarray, t2: np.ndarray, l1: np.ndarray, l2: np.ndarray, l3: np.ndarray,
-                 z0: np.ndarray, z1: np.ndarray, z2: np.ndarray, h0: np.ndarray, h1: np.ndarray,
-                 h2: np.ndarray) -> None:  # pragma: no cover - compiled
-    """:func:`_chain3` from the last entry down: ``z[k] = t[k] − l1[k] z[k+1] − l2[k] z[k+2] − l3[k] z[k+3]``,
-    ``h`` holding ``z[w], z[w+1], z[w+2]`` (reversed views were about 1.5× slower)."""
-    a0, b0, c0 = h0[0], h0[1], h0[2]
-    a1, b1, c1 = h1[0], h1[1], h1[2]
-    a2, b2, c2 = h2[0], h2[1], h2[2]
-    for k in range(z0.size - 1, -1, -1):
+    w = z0.size
+    for j in range(w):
+        k = w - 1 - j if down else j
         f1, f2, f3 = l1[k], l2[k], l3[k]
         s0 = t0[k] - f3 * c0 - f2 * b0 - f1 * a0
         s1 = t1[k] - f3 * c1 - f2 * b1 - f1 * a1
@@ -495,10 +477,12 @@ def _chain3_down(t0: np.ndarray, t1: np.ndarray, t2: np.ndarray, l1: np.ndarray,
 
 @nb.njit(cache=True, nogil=True, fastmath={"contract"}, boundscheck=False)
 def _chain1(t: np.ndarray, l1: np.ndarray, l2: np.ndarray, l3: np.ndarray, z: np.ndarray,
-            h: np.ndarray) -> None:  # pragma: no cover - compiled
+            h: np.ndarray, down: bool) -> None:  # pragma: no cover - compiled
     """:func:`_chain3` for one column."""
     a, b, c = h[0], h[1], h[2]
-    for k in range(z.size):
+    w = z.size
+    for j in range(w):
+        k = w - 1 - j if down else j
         v = t[k] - l3[k] * c - l2[k] * b - l1[k] * a
         z[k] = v
         c, b, a = b, a, v
@@ -515,20 +499,12 @@ def _recurrence(T: np.ndarray, L1: np.ndarray, L2: np.ndarray, L3: np.ndarray, Z
     for q in range(c):
         for j in range(3):
             H[q, j] = Z[q, a - 1 - j] if forward else Z[q, b + j]
-    if forward:
-        if c == 3:
-            _chain3(T[0, :w], T[1, :w], T[2, :w], L1[a:b], L2[a:b], L3[a:b], Z[0, a:b], Z[1, a:b], Z[2, a:b],
-                    H[0], H[1], H[2])
-        else:
-            for q in range(c):
-                _chain1(T[q, :w], L1[a:b], L2[a:b], L3[a:b], Z[q, a:b], H[q])
+    if c == 3:
+        _chain3(T[0, :w], T[1, :w], T[2, :w], L1[a:b], L2[a:b], L3[a:b], Z[0, a:b], Z[1, a:b], Z[2, a:b],
+                H[0], H[1], H[2], not forward)
     else:
-        if c == 3:
-            _chain3_down(T[0, :w], T[1, :w], T[2, :w], L1[a:b], L2[a:b], L3[a:b], Z[0, a:b], Z[1, a:b], Z[2, a:b],
-                         H[0], H[1], H[2])
-        else:
-            for q in range(c):
-                _chain1(T[q, :w][::-1], L1[a:b][::-1], L2[a:b][::-1], L3[a:b][::-1], Z[q, a:b][::-1], H[q])
+        for q in range(c):
+            _chain1(T[q, :w], L1[a:b], L2[a:b], L3[a:b], Z[q, a:b], H[q], not forward)
 
 
 # Conjugate gradients on the symmetrically Gauss–Seidel-preconditioned system in Eisenstat's form
