@@ -42,7 +42,6 @@ from .zigzag import detect as _detect
 from .topology import corner_vertices as _corner_vertices
 
 
-
 class _FaceType(type):
     """The metaclass of :class:`Face`: answers ``isinstance``/``issubclass`` for build123d shapes without
     importing build123d (a build123d object exists only once build123d has been imported)."""
@@ -79,6 +78,7 @@ class Face(metaclass=_FaceType):
     """
 
     stands_in = True  # quadnodes.graph._types.maybe_compatible: feeds an input annotated build123d.Face too
+
 
 FixMode = Literal["none", "corners", "boundary"]
 

@@ -116,7 +116,8 @@ def gauss_seidel_cg(
     x : (k, c) float64
     steps : int
     residual : float
-        The worst column's true relative residual.
+        The worst column's true relative residual (inf after a breakdown: a step whose
+        ``p·Âp`` is not positive, so ``M`` is not positive definite in floating point).
 
     Raises
     ------
@@ -200,6 +201,8 @@ def gauss_seidel_cg(
         while steps < maxiter and (rr > tol2).any():
             run(backward)
             pq = sum(run(forward))
+            if not (pq[rr > tol2] > 0).all():  # a breakdown (M not positive definite in floating point)
+                return np.ascontiguousarray(X[:, :k].T), steps, float(np.inf)
             alpha = np.divide(rr, pq, out=np.zeros(c), where=pq > 0)
             rr_new = sum(run(update))
             beta = np.divide(rr_new, rr, out=np.zeros(c), where=rr > 0)

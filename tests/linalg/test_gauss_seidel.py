@@ -134,3 +134,13 @@ def test_a_diagonal_that_is_not_positive_is_refused():
     M[7, 7] = 0.0
     with pytest.raises(np.linalg.LinAlgError, match="diagonal entry 7"):
         SymmetricGaussSeidel(blocks_of(M, 1))
+
+
+def test_a_matrix_that_is_not_positive_definite_stops_at_once_with_an_infinite_residual():
+    """Positive diagonal, indefinite matrix: CG meets a direction with ``p·Âp ≤ 0`` and says so (the fairing
+    falls back to the direct solver on a residual above rtol) instead of stepping to ``maxiter``."""
+    n = 80
+    M = sp.diags([-3.0, 1.0, -3.0], [-1, 0, 1], shape=(n, n)).toarray()  # diagonally far from dominant
+    assert np.linalg.eigvalsh(M).min() < 0
+    x, steps, res = gauss_seidel_cg(blocks_of(M, 1), np.ones((n, 3)), np.zeros((n, 3)), rtol=1e-9, maxiter=10_000)
+    assert res == np.inf and steps < 100
