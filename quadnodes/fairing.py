@@ -33,7 +33,7 @@ from .linalg import factorize
 from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner,
                         PathLinePreconditioner, SymmetricDiagonalBlocks, block_cg, permuted)
 from .linalg import compiled as kernels
-from .linalg.gauss_seidel import SymmetricGaussSeidel
+from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel
 from .linalg.grid import GridPattern
 from .linalg.heap import reused_heap
 from .linalg.threads import RowBlocks
@@ -830,26 +830,26 @@ class FairingSystem:
             ratio = GRID_BLOCK_JACOBI_RATIO if grid else BLOCK_JACOBI_RATIO
             # the compiled kernels from COMPILED_MIN_UNKNOWNS on (fair() started loading them), or
             # wherever they are loaded already (a server, a second run): then they cost nothing
-            compiled = grid and (k >= COMPILED_MIN_UNKNOWNS or self.preconditioner in ("lines", "gauss-seidel")
-                                 or kernels.ready()) and kernels.wait()
+            wanted = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner in ("lines", "gauss-seidel") or kernels.ready()
+            compiled = grid and wanted and kernels.wait()
+            auto = self.preconditioner == "auto"
             if grid:
                 pattern, coef, free = self._grid
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
             # the largest Gershgorin bound, against ω: how many steps plain CG would need
-            contrast = _gershgorin(data, free) / self.weight if compiled and self.preconditioner == "auto" else 0.0
-            if self.preconditioner == "gauss-seidel" and not compiled:
-                raise InputError("preconditioner='gauss-seidel' needs a mostly free vertex grid (the mesh's faces "
-                                 "the cells of a rows × cols grid) and the compiled kernels (Numba); use 'auto'")
+            contrast = _gershgorin(data, free) / self.weight if compiled and auto else 0.0
             if compiled and (self.preconditioner == "gauss-seidel" or (
-                    self.preconditioner == "auto" and pattern.offsets.size == 13
-                    and contrast > GAUSS_SEIDEL_CONTRAST)):
-                # an open grid: symmetric Gauss–Seidel in Eisenstat's form at any weight and noise
+                    auto and pattern.offsets.size == 13 and contrast > GAUSS_SEIDEL_CONTRAST)):
+                # an open grid: symmetric Gauss–Seidel in Eisenstat's form, the grid's fast sweeps (a closed
+                # grid asked for it: compressed rows; "auto" keeps plain CG there, as fast)
                 blocks = SymmetricDiagonalBlocks(offsets, data)
-                try:
-                    self._cg = (blocks, SymmetricGaussSeidel(blocks), None)
-                    return self._cg
-                except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
-                    raise InputError(f"preconditioner: {exc}") from exc
+                return self._gauss_seidel(blocks, SymmetricGaussSeidel if pattern.offsets.size == 13 else CsrGaussSeidel)
+            if not grid and (self.preconditioner == "gauss-seidel" or (
+                    auto and wanted and _csr_gershgorin(self.matrix) > GAUSS_SEIDEL_CONTRAST * self.weight)):
+                if kernels.wait():  # a mesh that is no grid: the sweeps row by row in its vertices' order
+                    return self._gauss_seidel(RowBlocks(self.matrix), CsrGaussSeidel)
+            if self.preconditioner == "gauss-seidel":
+                raise InputError("preconditioner='gauss-seidel' needs the compiled kernels (Numba); use 'auto'")
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto":
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = permuted(self.matrix, order)
@@ -885,6 +885,14 @@ class FairingSystem:
         return self._cg
 
     _cg: tuple | None = None
+
+    def _gauss_seidel(self, blocks: RowBlocks, kind: type) -> tuple:
+        """``self._cg`` with symmetric Gauss–Seidel of ``kind`` on ``blocks``."""
+        try:
+            self._cg = (blocks, kind(blocks), None)
+        except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
+            raise InputError(f"preconditioner: {exc}") from exc
+        return self._cg
 
     @property
     def n_free(self) -> int:
@@ -929,7 +937,7 @@ class FairingSystem:
                     rhs_cg, a_cg = np.take(rhs, order, axis=0), np.take(a, order, axis=0)
                 shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
                 x0 = a_cg - c
-            rtol = self.rtol * (GAUSS_SEIDEL_RTOL if isinstance(precond, SymmetricGaussSeidel) else 1.0)
+            rtol = self.rtol * (GAUSS_SEIDEL_RTOL if getattr(precond, "eisenstat", False) else 1.0)
             y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS, precond=precond)
             if res <= self.rtol:
                 self.iterations, self.residual = its, res

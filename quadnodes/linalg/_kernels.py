@@ -759,3 +759,76 @@ def unit_scaled(U: np.ndarray, offsets: np.ndarray, s: np.ndarray, Us: np.ndarra
             u, f = U[d], F[d]
             for i in range(lo, hi):
                 f[i] = u[i - d] * s[i - d] * s[i] if i >= d else 0.0
+
+
+# The same sweeps for a matrix in compressed rows (a mesh that is no open grid), row by row on ``(m, c)``
+# vectors (a row's c values side by side: one cache line per neighbour).
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def csr_backward_sweep(up_ptr: np.ndarray, up_idx: np.ndarray, up: np.ndarray, R: np.ndarray, P: np.ndarray,
+                       T: np.ndarray, beta: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover - compiled
+    """:func:`unit_backward_sweep` on ``(m, c)`` vectors with the unit-diagonal matrix's strictly upper part
+    inside each block in CSR (``up_*``; rows past it: none): ``P = R + β P``, then ``T = (I + Lᵀ)⁻¹ P``."""
+    n = up_ptr.size - 1
+    c = P.shape[1]
+    acc = np.empty(c)
+    for i in range(hi - 1, lo - 1, -1):
+        for q in range(c):
+            acc[q] = R[i, q] + beta[q] * P[i, q]
+            P[i, q] = acc[q]
+        if i < n:
+            for e in range(up_ptr[i], up_ptr[i + 1]):
+                j = up_idx[e]
+                a = up[e]
+                for q in range(c):
+                    acc[q] -= a * T[j, q]
+        for q in range(c):
+            T[i, q] = acc[q]
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def csr_forward_sweep(low_ptr: np.ndarray, low_idx: np.ndarray, low: np.ndarray, out_ptr: np.ndarray,
+                      out_idx: np.ndarray, out: np.ndarray, P: np.ndarray, T: np.ndarray, W: np.ndarray, lo: int,
+                      hi: int, dots: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`unit_forward_sweep` on ``(m, c)`` vectors with the strictly lower part inside each block
+    (``low_*``) and the couplings between blocks (``out_*``) in CSR: ``W = (I + L)⁻¹ (P − T + E T)``
+    on the block and ``dots[q] = P·(T + W)`` over it."""
+    n = low_ptr.size - 1
+    c = P.shape[1]
+    acc = np.empty(c)
+    for q in range(c):
+        dots[q] = 0.0
+    for i in range(lo, hi):
+        for q in range(c):
+            acc[q] = P[i, q] - T[i, q]
+        if i < n:
+            for e in range(out_ptr[i], out_ptr[i + 1]):
+                j = out_idx[e]
+                a = out[e]
+                for q in range(c):
+                    acc[q] += a * T[j, q]
+            for e in range(low_ptr[i], low_ptr[i + 1]):
+                j = low_idx[e]
+                a = low[e]
+                for q in range(c):
+                    acc[q] -= a * W[j, q]
+        for q in range(c):
+            W[i, q] = acc[q]
+            dots[q] += P[i, q] * (T[i, q] + acc[q])
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def rows_cg_update(X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, alpha: np.ndarray, lo: int, hi: int,
+                   rr: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`unit_cg_update` on ``(m, c)`` vectors: ``x += α t``, ``r −= α (t + w)``, ``rr[q] = r·r`` over ``lo:hi``."""
+    c = X.shape[1]
+    for q in range(c):
+        rr[q] = 0.0
+    for i in range(lo, hi):
+        for q in range(c):
+            a = alpha[q]
+            X[i, q] += a * T[i, q]
+            v = R[i, q] - a * (T[i, q] + W[i, q])
+            R[i, q] = v
+            rr[q] += v * v

@@ -32,8 +32,9 @@ True
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
-__all__ = ["SymmetricGaussSeidel", "gauss_seidel_cg"]
+__all__ = ["SymmetricGaussSeidel", "CsrGaussSeidel", "gauss_seidel_cg"]
 
 
 class SymmetricGaussSeidel:
@@ -79,6 +80,56 @@ class SymmetricGaussSeidel:
         self.blocks = blocks
 
 
+class CsrGaussSeidel:
+    """The symmetric Gauss–Seidel preconditioner of a :class:`~quadnodes.linalg.threads.RowBlocks` (CSR), made once.
+
+    Holds ``M̃ = D^{-1/2} M D^{-1/2}`` (unit diagonal) in compressed rows; the sweeps go row by
+    row in the matrix's own order (a mesh that is no open grid: its vertices' order). Passed to
+    :func:`~quadnodes.linalg.cg.block_cg` as ``precond``, it makes the solve :func:`gauss_seidel_cg`.
+
+    Parameters
+    ----------
+    blocks : RowBlocks or DiagonalBlocks
+        The operator CG multiplies by (its matrix, in CSR here) and its row ranges.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        When a diagonal entry is not positive (then ``M`` is not positive definite).
+    """
+
+    eisenstat = True  # (block_cg hands the whole solve to gauss_seidel_cg)
+    row = 1
+
+    def __init__(self, blocks: object) -> None:
+        M = blocks.M.tocsr()  # type: ignore[attr-defined]  # (diagonal storage too: a closed grid's seams)
+        diagonal = M.diagonal()
+        bad = np.flatnonzero(~(diagonal > 0))
+        if bad.size:
+            raise np.linalg.LinAlgError(f"Gauss-Seidel: diagonal entry {bad[0]} is {diagonal[bad[0]]!r}, not positive")
+        s = 1.0 / np.sqrt(diagonal)
+        n = M.shape[0]
+        rows = np.repeat(np.arange(n), np.diff(M.indptr))
+        cols = M.indices
+        data = M.data * s[rows] * s[cols]
+        # each row's block (the thread's range holding it): its strictly lower and upper parts inside the
+        # block, and its couplings to other blocks, as three CSR matrices (the sweeps then never branch)
+        starts = np.array([lo for lo, _ in blocks.ranges], dtype=np.int64)  # type: ignore[attr-defined]
+        ends = np.array([hi for _, hi in blocks.ranges], dtype=np.int64)  # type: ignore[attr-defined]
+        block = np.searchsorted(ends, rows, side="right")
+        first, past = starts[block], ends[block]
+        inside = (cols >= first) & (cols < past)
+        parts = []
+        for keep in (inside & (cols < rows), inside & (cols > rows), ~inside):
+            part = sp.csr_matrix((data[keep], cols[keep], np.r_[0, np.cumsum(np.bincount(rows[keep], minlength=n))]),
+                                 shape=M.shape)
+            parts.append((part.indptr.astype(np.int64), part.indices.astype(np.int64), part.data))
+        self.lower, self.upper_part, self.coupling = parts
+        self.matrix = M
+        self.scale = s
+        self.blocks = blocks
+
+
 def gauss_seidel_cg(
     blocks: object,
     B: np.ndarray,
@@ -86,7 +137,7 @@ def gauss_seidel_cg(
     *,
     rtol: float,
     maxiter: int,
-    sweeps: SymmetricGaussSeidel | None = None,
+    sweeps: SymmetricGaussSeidel | CsrGaussSeidel | None = None,
 ) -> tuple[np.ndarray, int, float]:
     """Conjugate gradients preconditioned by one symmetric Gauss–Seidel sweep per thread's block, in Eisenstat's form.
 
@@ -101,16 +152,17 @@ def gauss_seidel_cg(
 
     Parameters
     ----------
-    blocks : SymmetricDiagonalBlocks
-        ``M`` (symmetric positive definite) and its row ranges, one per thread.
+    blocks : SymmetricDiagonalBlocks or RowBlocks
+        ``M`` (symmetric positive definite) and its row ranges, one per thread: diagonal
+        storage (an open grid's fast sweeps) or compressed rows (row by row).
     B : (k, c) float64
     X0 : (k, c) float64
         Starting guesses.
     rtol : float
     maxiter : int
         Cap on steps.
-    sweeps : SymmetricGaussSeidel, optional
-        The scaled matrix, made once for many solves.
+    sweeps : SymmetricGaussSeidel or CsrGaussSeidel, optional
+        The scaled matrix, made once for many solves (default: made here for ``blocks``).
 
     Returns
     -------
@@ -125,13 +177,17 @@ def gauss_seidel_cg(
     numpy.linalg.LinAlgError
         When a diagonal entry of ``M`` is not positive.
     """
-    from ._kernels import unit_backward_sweep, unit_cg_update, unit_forward_sweep
+    from ._kernels import (csr_backward_sweep, csr_forward_sweep, rows_cg_update, unit_backward_sweep,
+                           unit_cg_update, unit_forward_sweep)
 
-    sw = SymmetricGaussSeidel(blocks) if sweeps is None else sweeps
-    U, off, F, scale = sw.upper, sw.offsets, sw.forward, sw.scale
+    if sweeps is None:
+        sweeps = SymmetricGaussSeidel(blocks) if hasattr(blocks, "upper") else CsrGaussSeidel(blocks)
+    sw = sweeps
+    columns = isinstance(sw, SymmetricGaussSeidel)  # (c, m) vectors for the grid's sweeps, (m, c) for CSR rows
+    scale = sw.scale
     k, c = B.shape
-    if k != U.shape[1]:
-        raise ValueError(f"B: expected {U.shape[1]} rows (the matrix's), got {k}")
+    if k != scale.size:
+        raise ValueError(f"B: expected {scale.size} rows (the matrix's), got {k}")
     kp = -(-k // 64) * 64  # (padded as block_cg's vectors: the ranges end on multiples of 64)
     last = blocks.ranges[-1][1]  # type: ignore[attr-defined]
     # scratch per range (by its bounds: an empty range may share its start with the next)
@@ -142,46 +198,65 @@ def gauss_seidel_cg(
         return blocks.run(lambda lo, hi: fn(lo, kp if hi == last else hi))  # type: ignore[attr-defined]
 
     def padded(a: np.ndarray | None = None) -> np.ndarray:
-        out = np.zeros((c, kp))
+        out = np.zeros((c, kp) if columns else (kp, c))
         if a is not None:
-            out[:, :k] = a.T
+            if columns:
+                out[:, :k] = a.T
+            else:
+                out[:k] = a
         return out
+
+    def rows(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
+        return V[:, lo:hi] if columns else V[lo:hi]
+
+    def norms2(V: np.ndarray) -> np.ndarray:
+        return np.einsum("ij,ij->i", V, V) if columns else np.einsum("ij,ij->j", V, V)
 
     Bp, X = padded(B), padded(X0)
     s = np.ones(kp)
     s[:k] = scale
-    bnorm = np.maximum(np.sqrt(np.einsum("ij,ij->i", Bp, Bp)), 1e-300)
+    s = s if columns else s[:, None]
+    bnorm = np.maximum(np.sqrt(norms2(Bp)), 1e-300)
     Y, Rh, P, T, W, Xs = (padded() for _ in range(6))
     zero = np.zeros(c)
+    nothing = padded()  # (never written: zero pages, read as T = 0 by the forward solves)
 
     def residual(lo: int, hi: int) -> np.ndarray:  # Y = B − M X on the range; its squared norms
-        blocks.matvec(X, Y, lo, hi)  # type: ignore[attr-defined]
-        y = Y[:, lo:hi]
-        np.subtract(Bp[:, lo:hi], y, out=y)
-        return np.einsum("ij,ij->i", y, y)
+        if columns:
+            blocks.matvec(X, Y, lo, hi)  # type: ignore[attr-defined]
+        else:
+            Y[lo : min(hi, k)] = sw.matrix[lo : min(hi, k)] @ X[:k]
+        y = rows(Y, lo, hi)
+        np.subtract(rows(Bp, lo, hi), y, out=y)
+        return norms2(y)
 
-    nothing = padded()  # (never written: zero pages, read as T = 0 by the forward solves)
+    def sweep_forward(V: np.ndarray, Tv: np.ndarray, out: np.ndarray, lo: int, hi: int, d: np.ndarray) -> None:
+        if columns:
+            unit_forward_sweep(sw.upper, sw.offsets, sw.forward, V, Tv, out, scratch[lo, hi][0], lo, hi, True, d)
+        else:
+            csr_forward_sweep(*sw.lower, *sw.coupling, V, Tv, out, lo, hi, d)
 
     def forward_solve(V: np.ndarray, out: np.ndarray) -> np.ndarray:  # out = (I + L)⁻¹ V; its squared norms
         def part(lo: int, hi: int) -> np.ndarray:
-            S, _ = scratch[lo, hi]
-            unit_forward_sweep(U, off, F, V, nothing, out, S, lo, hi, False, np.empty(c))
-            v = out[:, lo:hi]
-            return np.einsum("ij,ij->i", v, v)
+            sweep_forward(V, nothing, out, lo, hi, np.empty(c))
+            return norms2(rows(out, lo, hi))
 
         return sum(run(part))
 
     def backward(lo: int, hi: int) -> None:
-        unit_backward_sweep(U, off, Rh, P, T, beta, scratch[lo, hi][0], lo, hi)
+        if columns:
+            unit_backward_sweep(sw.upper, sw.offsets, Rh, P, T, beta, scratch[lo, hi][0], lo, hi)
+        else:
+            csr_backward_sweep(*sw.upper_part, Rh, P, T, beta, lo, hi)
 
     def forward(lo: int, hi: int) -> np.ndarray:
-        S, d = scratch[lo, hi]
-        unit_forward_sweep(U, off, F, P, T, W, S, lo, hi, True, d)
+        d = scratch[lo, hi][1]
+        sweep_forward(P, T, W, lo, hi, d)
         return d.copy()
 
     def update(lo: int, hi: int) -> np.ndarray:
         out = np.empty(c)
-        unit_cg_update(Xs, Rh, T, W, alpha, lo, hi, out)
+        (unit_cg_update if columns else rows_cg_update)(Xs, Rh, T, W, alpha, lo, hi, out)
         return out
 
     bh = np.sqrt(forward_solve(Bp * s, W))  # ‖(I + L)⁻¹ D^{-1/2} B‖: the preconditioned residual's scale
@@ -190,7 +265,7 @@ def gauss_seidel_cg(
     while True:
         true = np.sqrt(sum(run(residual))) / bnorm
         if (true <= rtol).all() or steps >= maxiter or inner < 1e-17:
-            return np.ascontiguousarray(X[:, :k].T), steps, float(true.max())
+            return (np.ascontiguousarray(X[:, :k].T) if columns else X[:k].copy()), steps, float(true.max())
         Y *= s  # D^{-1/2} (B − M X), then CG's preconditioned residual
         rr = forward_solve(Y, Rh)
         tol2 = (inner * np.maximum(bh, 1e-300)) ** 2
@@ -203,7 +278,7 @@ def gauss_seidel_cg(
             run(backward)
             pq = sum(run(forward))
             if not (pq[rr > tol2] > 0).all():  # a breakdown (M not positive definite in floating point)
-                return np.ascontiguousarray(X[:, :k].T), steps, float(np.inf)
+                return (np.ascontiguousarray(X[:, :k].T) if columns else X[:k].copy()), steps, float(np.inf)
             alpha = np.divide(rr, pq, out=np.zeros(c), where=pq > 0)
             rr_new = sum(run(update))
             beta = np.divide(rr_new, rr, out=np.zeros(c), where=rr > 0)

@@ -144,3 +144,26 @@ def test_a_matrix_that_is_not_positive_definite_stops_at_once_with_an_infinite_r
     assert np.linalg.eigvalsh(M).min() < 0
     x, steps, res = gauss_seidel_cg(blocks_of(M, 1), np.ones((n, 3)), np.zeros((n, 3)), rtol=1e-9, maxiter=10_000)
     assert res == np.inf and steps < 100
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+@pytest.mark.parametrize("shuffle", [False, True])
+def test_cg_with_csr_sweeps_equals_the_dense_solve_in_fewer_steps(small_ranges, threads, shuffle):
+    """Compressed rows in any order (a shuffled numbering: a mesh that is no grid) — the sweeps row by row,
+    each thread's block alone, the couplings between blocks as ``E t``."""
+    from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
+    from quadnodes.linalg.threads import RowBlocks
+
+    M = grid_matrix(20, 30, seed=threads)
+    if shuffle:
+        p = np.random.default_rng(threads).permutation(M.shape[0])
+        M = M[p][:, p]
+    blocks = RowBlocks(sp.csr_matrix(M), threads=threads)
+    assert len(blocks.ranges) == threads
+    rng = np.random.default_rng(8)
+    B, X0 = rng.normal(size=(M.shape[0], 3)), rng.normal(size=(M.shape[0], 3))
+    x, steps, res = block_cg(blocks, B, X0, rtol=1e-12, maxiter=3000, precond=CsrGaussSeidel(blocks))
+    exact = np.linalg.solve(M, B)
+    assert res <= 1e-12 and np.abs(x - exact).max() <= 1e-9 * np.abs(exact).max()
+    _, plain, _ = block_cg(blocks, B, X0, rtol=1e-12, maxiter=5000)
+    assert steps < plain / 2
