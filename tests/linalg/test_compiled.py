@@ -35,12 +35,19 @@ def test_warm_up_loads_in_the_background_and_fair_uses_the_kernels_at_any_size_t
         from quadnodes.mesh import cylinder
         from quadnodes.noise import perturb
         kernels = [wk.window_geometry, wk.window_coefficients, _kernels.symmetric_diagonal_product,
-                   _kernels.cg_update, _kernels.cg_direction, _kernels.row_dots, _kernels.open_grid_family]
+                   _kernels.cg_update, _kernels.cg_direction, _kernels.row_dots, _kernels.open_grid_family,
+                   _kernels.unit_backward_sweep, _kernels.unit_forward_sweep, _kernels.unit_cg_update,
+                   _kernels.unit_scaled, _kernels.csr_backward_sweep, _kernels.csr_forward_sweep,
+                   _kernels.rows_cg_update]
         counts = [len(k.signatures) for k in kernels]
         noisy = perturb(m, jitter=0.2, seed=2)[0]
         for spacing in ("fair", "hold"):
             fair(noisy, iterations=2, threshold=0.0, line_spacing=spacing)
         fair(perturb(cylinder(12, 30), jitter=0.2, seed=2)[0], iterations=2)
+        from quadnodes.mesh import QuadMesh  # no grid: Gauss–Seidel row by row
+        p = np.random.default_rng(3).permutation(noisy.n_vertices)
+        _, rep = fair(QuadMesh(noisy.vertices[p], np.argsort(p)[noisy.faces]), iterations=1, threshold=0.0)
+        assert rep.iterations[0].solver == "cg"
         assert [len(k.signatures) for k in kernels] == counts, ([len(k.signatures) for k in kernels], counts)
         print("ok")
         """
