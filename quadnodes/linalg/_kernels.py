@@ -832,3 +832,47 @@ def rows_cg_update(X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, a
             v = R[i, q] - a * (T[i, q] + W[i, q])
             R[i, q] = v
             rr[q] += v * v
+
+
+@nb.njit(cache=True, nogil=True, boundscheck=False)
+def csr_split_counts(indptr: np.ndarray, indices: np.ndarray, lo: int, hi: int,
+                     counts: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Per row of the block ``lo:hi``: its entries strictly below the diagonal inside the block,
+    strictly above it inside the block, and outside the block (``counts[0..2, i]``; the diagonal in none)."""
+    for i in range(lo, hi):
+        a = b = o = 0
+        for e in range(indptr[i], indptr[i + 1]):
+            j = indices[e]
+            if j < lo or j >= hi:
+                o += 1
+            elif j < i:
+                a += 1
+            elif j > i:
+                b += 1
+        counts[0, i], counts[1, i], counts[2, i] = a, b, o
+
+
+@nb.njit(cache=True, nogil=True, boundscheck=False)
+def csr_split_fill(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, s: np.ndarray, lo: int, hi: int,
+                   ptr: np.ndarray, idx0: np.ndarray, val0: np.ndarray, idx1: np.ndarray, val1: np.ndarray,
+                   idx2: np.ndarray, val2: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Rows ``lo:hi`` of the three parts of :func:`csr_split_counts` (lower, upper, outside the block),
+    scaled to a unit diagonal (``data · s_i · s_j``): part ``p``'s row ``i`` starts at ``ptr[p, i]``."""
+    for i in range(lo, hi):
+        f0, f1, f2 = ptr[0, i], ptr[1, i], ptr[2, i]
+        si = s[i]
+        for e in range(indptr[i], indptr[i + 1]):
+            j = indices[e]
+            v = data[e] * si * s[j]
+            if j < lo or j >= hi:
+                idx2[f2] = j
+                val2[f2] = v
+                f2 += 1
+            elif j < i:
+                idx0[f0] = j
+                val0[f0] = v
+                f0 += 1
+            elif j > i:
+                idx1[f1] = j
+                val1[f1] = v
+                f1 += 1

@@ -32,7 +32,6 @@ True
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 __all__ = ["SymmetricGaussSeidel", "CsrGaussSeidel", "gauss_seidel_cg"]
 
@@ -107,25 +106,26 @@ class CsrGaussSeidel:
         bad = np.flatnonzero(~(diagonal > 0))
         if bad.size:
             raise np.linalg.LinAlgError(f"Gauss-Seidel: diagonal entry {bad[0]} is {diagonal[bad[0]]!r}, not positive")
+        from ._kernels import csr_split_counts, csr_split_fill
+        from .threads import RowBlocks, run_tasks
+
         s = 1.0 / np.sqrt(diagonal)
         n = M.shape[0]
-        rows = np.repeat(np.arange(n), np.diff(M.indptr))
-        cols = M.indices
-        data = M.data * s[rows] * s[cols]
-        # each row's block (the thread's range holding it): its strictly lower and upper parts inside the
-        # block, and its couplings to other blocks, as three CSR matrices (the sweeps then never branch)
-        starts = np.array([lo for lo, _ in blocks.ranges], dtype=np.int64)  # type: ignore[attr-defined]
-        ends = np.array([hi for _, hi in blocks.ranges], dtype=np.int64)  # type: ignore[attr-defined]
-        block = np.searchsorted(ends, rows, side="right")
-        first, past = starts[block], ends[block]
-        inside = (cols >= first) & (cols < past)
-        parts = []
-        for keep in (inside & (cols < rows), inside & (cols > rows), ~inside):
-            part = sp.csr_matrix((data[keep], cols[keep], np.r_[0, np.cumsum(np.bincount(rows[keep], minlength=n))]),
-                                 shape=M.shape)
-            parts.append((part.indptr.astype(np.int64), part.indices.astype(np.int64), part.data))
-        self.lower, self.upper_part, self.coupling = parts
+        # each row's strictly lower and upper parts inside its thread's block, and its couplings to the other
+        # blocks, as three CSR matrices scaled to a unit diagonal (the sweeps then never branch), split by
+        # compiled passes on the pool
+        counts = np.zeros((3, n), dtype=np.int64)
+        run_tasks(lambda lo, hi: csr_split_counts(M.indptr, M.indices, lo, min(hi, n), counts), blocks.ranges)
+        ptr = np.zeros((3, n + 1), dtype=np.int64)
+        np.cumsum(counts, axis=1, out=ptr[:, 1:])
+        del counts
+        total = ptr[:, -1]
+        parts = [(np.empty(total[p], dtype=M.indices.dtype), np.empty(total[p])) for p in range(3)]
+        run_tasks(lambda lo, hi: csr_split_fill(M.indptr, M.indices, M.data, s, lo, min(hi, n), ptr,
+                                                *parts[0], *parts[1], *parts[2]), blocks.ranges)
+        self.lower, self.upper_part, self.coupling = ((ptr[p], *parts[p]) for p in range(3))
         self.matrix = M
+        self.product = RowBlocks(M, threads=1, columns=False)  # (the residual's product on (m, c) vectors, any rows)
         self.scale = s
         self.blocks = blocks
 
@@ -225,7 +225,7 @@ def gauss_seidel_cg(
         if columns:
             blocks.matvec(X, Y, lo, hi)  # type: ignore[attr-defined]
         else:
-            Y[lo : min(hi, k)] = sw.matrix[lo : min(hi, k)] @ X[:k]
+            sw.product.matvec(X, Y, lo, hi)
         y = rows(Y, lo, hi)
         np.subtract(rows(Bp, lo, hi), y, out=y)
         return norms2(y)

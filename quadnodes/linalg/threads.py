@@ -200,10 +200,10 @@ class RowBlocks:
     array loops release the GIL) — and returns the results in order.
     ``matvec(X, Y, lo, hi)`` writes rows ``lo:hi`` of ``M @ X`` into ``Y``; the
     vectors are ``(c, n)`` arrays (one vector per row) when ``columns`` (small
-    matrices, see :data:`COLUMNS_MAX_NNZ`), else C-ordered ``(n, c)`` arrays.
+    matrices, see :data:`COLUMNS_MAX_NNZ`; or as the keyword says), else C-ordered ``(n, c)`` arrays.
     """
 
-    def __init__(self, M: sp.spmatrix, *, threads: int | None = None) -> None:
+    def __init__(self, M: sp.spmatrix, *, threads: int | None = None, columns: bool | None = None) -> None:
         M = M.tocsr()
         rows = M.shape[0]
         t = thread_count() if threads is None else max(1, int(threads))
@@ -212,7 +212,7 @@ class RowBlocks:
         cuts = np.searchsorted(M.indptr, np.arange(1, t) * (M.nnz / t)) // RANGE_ALIGN * RANGE_ALIGN
         self.ranges = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, rows].tolist()))
         self.M = M
-        self.columns = M.nnz <= COLUMNS_MAX_NNZ
+        self.columns = M.nnz <= COLUMNS_MAX_NNZ if columns is None else bool(columns)
         idx = np.result_type(M.indptr, M.indices)
         self._indptr = M.indptr.astype(idx, copy=False)
         self._indices = M.indices.astype(idx, copy=False)
