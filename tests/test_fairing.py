@@ -225,6 +225,9 @@ def test_conjugate_gradients_equal_the_direct_solve(make, weight):
 @pytest.mark.parametrize("weight", [0.3, 0.01])  # plain CG, block-Jacobi CG
 @pytest.mark.parametrize("columns", [True, False])  # (3, n) vectors, (n, 3) vectors
 def test_threaded_conjugate_gradients_equal_one_thread(monkeypatch, threads, weight, columns):
+    import quadnodes.fairing as fairing_module
+
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # the SciPy paths (as in a fresh process)
     monkeypatch.setattr(linalg_threads, "COLUMNS_MAX_NNZ", 10**9 if columns else 0)
 
     m, _ = perturb(grid(40, 50, spacing=25.0), tangential=0.25, normal=0.1, seed=3)
