@@ -87,10 +87,10 @@ GRID_BLOCK_JACOBI_RATIO = 500.0
 LINES_CONTRAST = 1000.0
 #: Symmetric Gauss–Seidel leaves its last residual in smooth modes, where a residual means a larger
 #: error than plain CG's (which ends on the oscillating ones): stopping at fair's rtol of 1e-9 its
-#: solution was up to 1.4e-8 of the extent from the exact one (300², broadband noise, eq. 32's own
-#: lengths, ω = 0.003), beyond the 1e-8 the solver keeps to. It stops at this fraction of ``rtol``
-#: instead: at most 1.5e-9 over both noises, both spacings and ω = 0.003–3, for 13–17 % more steps
-#: (``python benchmarks/studies/gauss_seidel.py --accuracy``).
+#: solution was up to 1.4e-8 (300² sheet, broadband noise, eq. 32's own lengths, ω = 0.003) and 1.8e-8
+#: (cube-sphere) of the extent from the exact one, beyond the 1e-8 the solver keeps to. It stops at this
+#: fraction of ``rtol`` instead: at most 1.9e-9 over both noises, both spacings, both meshes and
+#: ω = 0.003–3, for 13–18 % more steps (``python benchmarks/studies/gauss_seidel.py --accuracy``).
 GAUSS_SEIDEL_RTOL = 0.1
 #: On an open grid with the compiled kernels, "auto" takes symmetric Gauss–Seidel where the largest
 #: Gershgorin bound of ``AᵀA + ωI`` exceeds this many times ω (plain CG's steps grow with its square
