@@ -924,11 +924,10 @@ class FairingSystem:
             if isinstance(blocks, DiagonalBlocks):  # the grid's numbering: fixed rows are identity
                 fi = self.free_index
                 shifted = np.zeros((blocks.M.shape[0], 3))
-                shifted[fi] = rhs
                 ones = np.ones((1, shifted.shape[0]))
                 row_sums = np.empty_like(ones)
                 blocks.matvec(ones, row_sums, 0, shifted.shape[0])
-                shifted[fi] -= np.take(row_sums[0], fi)[:, None] * c  # M c = (M 1) c
+                shifted[fi] = rhs - np.take(row_sums[0], fi)[:, None] * c  # M c = (M 1) c: one scatter
                 x0 = np.zeros_like(shifted)
                 x0[fi] = a - c
             else:
