@@ -11,6 +11,8 @@ never a SuperLU abort.
 held to one thread while it runs. ``cg``: conjugate gradients on several
 right-hand sides at once, with block-Jacobi preconditioning and diagonal storage.
 ``grid``: diagonal storage for line operators on structured grids.
+``gauss_seidel``: conjugate gradients preconditioned by symmetric Gauss–Seidel in Eisenstat's
+form (two compiled sweeps per step, no product), on a grid's diagonal storage or compressed rows.
 ``quadratic``: :class:`QuadraticProblem`, "minimize a quadratic energy with some
 unknowns fixed (and linear equality constraints), set up once, solve many
 right-hand sides".

@@ -1,5 +1,5 @@
-"""Compiled kernels (Numba) for the structured-grid solver: a symmetric diagonal-storage
-product and banded solves along grid lines.
+"""Compiled kernels (Numba) for the solver: a symmetric diagonal-storage product, banded solves
+along grid lines, and symmetric Gauss–Seidel sweeps (a grid's diagonal storage and compressed rows).
 
 Every kernel works on a range of rows (or lines) so that the solver's own thread pool
 can run ranges side by side (``nogil``); inner loops run over contiguous memory so
@@ -13,7 +13,8 @@ import numpy as np
 
 __all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines",
            "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "open_grid_family",
-           "unit_backward_sweep", "unit_forward_sweep", "unit_cg_update"]
+           "unit_backward_sweep", "unit_forward_sweep", "unit_cg_update", "unit_scaled", "csr_backward_sweep",
+           "csr_forward_sweep", "rows_cg_update", "csr_split_counts", "csr_split_fill"]
 
 #: Rows of the product computed per chunk (the chunk's slices of every diagonal stay in cache).
 _CHUNK = 1024
