@@ -1278,8 +1278,8 @@ def _fair(
     if gaps == "auto":
         gaps = DEFAULT_GAPS[detection]  # type: ignore[assignment]
     topo = mesh.topology
-    if mesh.n_vertices >= COMPILED_MIN_UNKNOWNS and (topo.grid_shape or topo.closed_grid):
-        kernels.warm_up()  # the grid path will want the compiled kernels: load them while we set up
+    if mesh.n_vertices >= COMPILED_MIN_UNKNOWNS:
+        kernels.warm_up()  # the solve will want the compiled kernels (any mesh): load them while we set up
     held = fixed_vertices(mesh, fix, fixed)
     xw = extraordinary_windows(mesh.vertices, topo) if extraordinary == "lines" else np.empty((0, 4), np.int64)
     if xw.size:
