@@ -647,15 +647,17 @@ class FairingSystem:
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
     preconditioner : {"auto", "gauss-seidel", "lines", "none"}
-        ``"auto"``: on an open vertex grid, from :data:`COMPILED_MIN_UNKNOWNS` unknowns on
-        (or wherever the compiled kernels are loaded), symmetric Gauss–Seidel in Eisenstat's
-        form (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`: 1.7–4.8× fewer
-        steps than plain CG on two threads, each step two sweeps and no product) where the
-        Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω;
-        elsewhere block Jacobi at small weights, the line preconditioner where the matrix
-        has stiff spots (:data:`LINES_CONTRAST`; with the kernels), else none.
-        ``"gauss-seidel"``: that preconditioner at any size (needs a mostly free vertex
-        grid; on a cylinder or torus grid its sweeps go row by row). ``"lines"``:
+        ``"auto"``: from :data:`COMPILED_MIN_UNKNOWNS` unknowns on (or wherever the compiled
+        kernels are loaded), where the Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω,
+        symmetric Gauss–Seidel in Eisenstat's form: 1.7–4.8× fewer steps than plain CG on two
+        threads, each step two sweeps and no product. An open grid takes the grid's fast sweeps
+        (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
+        grid and any other mesh sweep compressed rows
+        (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Elsewhere: block Jacobi at
+        small weights, the line preconditioner where the matrix has stiff spots
+        (:data:`LINES_CONTRAST`; with the kernels), else none.
+        ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
+        ``"lines"``:
         the line preconditioner at any size — on a grid's diagonal storage the additive
         row-line + column-line blocks (:class:`~quadnodes.linalg.cg.LinePreconditioner`),
         on any other mesh (``_lines`` given) the same along its structure lines
@@ -838,10 +840,9 @@ class FairingSystem:
                 offsets, data = pattern.normal_matrix(coef, free, self.weight)
             # the largest Gershgorin bound, against ω: how many steps plain CG would need
             contrast = _gershgorin(data, free) / self.weight if compiled and auto else 0.0
-            if compiled and (self.preconditioner == "gauss-seidel" or (
-                    auto and pattern.offsets.size == 13 and contrast > GAUSS_SEIDEL_CONTRAST)):
-                # an open grid: symmetric Gauss–Seidel in Eisenstat's form, the grid's fast sweeps (a closed
-                # grid asked for it: compressed rows; "auto" keeps plain CG there, as fast)
+            if compiled and (self.preconditioner == "gauss-seidel" or (auto and contrast > GAUSS_SEIDEL_CONTRAST)):
+                # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps, a closed grid's (with the
+                # seams' diagonals) in compressed rows
                 blocks = SymmetricDiagonalBlocks(offsets, data)
                 return self._gauss_seidel(blocks, SymmetricGaussSeidel if pattern.offsets.size == 13 else CsrGaussSeidel)
             if not grid and (self.preconditioner == "gauss-seidel" or (

@@ -148,7 +148,8 @@ def test_a_matrix_that_is_not_positive_definite_stops_at_once_with_an_infinite_r
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
 @pytest.mark.parametrize("shuffle", [False, True])
-def test_cg_with_csr_sweeps_equals_the_dense_solve_in_fewer_steps(small_ranges, threads, shuffle):
+@pytest.mark.parametrize("c", [3, 2])  # (x, y, z in registers; any other count in a loop)
+def test_cg_with_csr_sweeps_equals_the_dense_solve_in_fewer_steps(small_ranges, threads, shuffle, c):
     """Compressed rows in any order (a shuffled numbering: a mesh that is no grid) — the sweeps row by row,
     each thread's block alone, the couplings between blocks as ``E t``."""
     from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
@@ -161,7 +162,7 @@ def test_cg_with_csr_sweeps_equals_the_dense_solve_in_fewer_steps(small_ranges, 
     blocks = RowBlocks(sp.csr_matrix(M), threads=threads)
     assert len(blocks.ranges) == threads
     rng = np.random.default_rng(8)
-    B, X0 = rng.normal(size=(M.shape[0], 3)), rng.normal(size=(M.shape[0], 3))
+    B, X0 = rng.normal(size=(M.shape[0], c)), rng.normal(size=(M.shape[0], c))
     x, steps, res = block_cg(blocks, B, X0, rtol=1e-12, maxiter=3000, precond=CsrGaussSeidel(blocks))
     exact = np.linalg.solve(M, B)
     assert res <= 1e-12 and np.abs(x - exact).max() <= 1e-9 * np.abs(exact).max()
