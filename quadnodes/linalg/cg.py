@@ -169,13 +169,7 @@ def _run_cg(
     width = RANGE_ALIGN * c
 
     def padded(a: np.ndarray | None) -> np.ndarray:
-        out = np.zeros((c, kp) if columns else (kp, c))
-        if a is not None:
-            if columns:
-                out[:, :k] = a.T
-            else:
-                out[:k] = a
-        return out
+        return _threads.padded(a, kp, c, columns=columns)
 
     X, B, R, P, Q = padded(X0), padded(B), padded(None), padded(None), padded(None)
     Z = R if precond is None else padded(None)

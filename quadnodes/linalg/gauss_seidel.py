@@ -179,6 +179,7 @@ def gauss_seidel_cg(
     """
     from ._kernels import (csr_backward_sweep, csr_forward_sweep, rows_cg_update, unit_backward_sweep,
                            unit_cg_update, unit_forward_sweep)
+    from .threads import padded as _padded
 
     if sweeps is None:
         sweeps = SymmetricGaussSeidel(blocks) if hasattr(blocks, "upper") else CsrGaussSeidel(blocks)
@@ -198,13 +199,7 @@ def gauss_seidel_cg(
         return blocks.run(lambda lo, hi: fn(lo, kp if hi == last else hi))  # type: ignore[attr-defined]
 
     def padded(a: np.ndarray | None = None) -> np.ndarray:
-        out = np.zeros((c, kp) if columns else (kp, c))
-        if a is not None:
-            if columns:
-                out[:, :k] = a.T
-            else:
-                out[:k] = a
-        return out
+        return _padded(a, kp, c, columns=columns)
 
     def rows(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
         return V[:, lo:hi] if columns else V[lo:hi]

@@ -27,6 +27,7 @@ except ImportError:  # pragma: no cover - a SciPy that moved them: fall back to 
 
 __all__ = [
     "MAX_THREADS",
+    "padded",
     "PARALLEL_MIN_ROWS",
     "RANGE_ALIGN",
     "COLUMNS_MAX_NNZ",
@@ -80,6 +81,26 @@ def pool() -> ThreadPoolExecutor:
     if _POOL is None:
         _POOL = ThreadPoolExecutor(max_workers=MAX_THREADS - 1, thread_name_prefix="quadnodes")
     return _POOL
+
+
+def padded(a: np.ndarray | None, rows: int, c: int, *, columns: bool) -> np.ndarray:
+    """Zeros of ``rows`` rows (a multiple of :data:`RANGE_ALIGN`, past ``a``'s) for ``c`` vectors, holding ``a``.
+
+    ``a`` is ``(k, c)`` or None; the result is ``(c, rows)`` with ``columns`` (one vector per
+    row), else ``(rows, c)``.
+
+    Examples
+    --------
+    >>> padded(np.ones((2, 3)), 4, 3, columns=True).tolist()
+    [[1.0, 1.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0]]
+    """
+    out = np.zeros((c, rows) if columns else (rows, c))
+    if a is not None:
+        if columns:
+            out[:, : a.shape[0]] = a.T
+        else:
+            out[: a.shape[0]] = a
+    return out
 
 
 def run_tasks(fn: Callable[..., object], tasks: Sequence[tuple]) -> list:
