@@ -92,11 +92,11 @@ LINES_CONTRAST = 1000.0
 #: fraction of ``rtol`` instead: at most 1.9e-9 over both noises, both spacings, both meshes and
 #: ω = 0.003–3, for 13–18 % more steps (``python benchmarks/studies/gauss_seidel.py --accuracy``).
 GAUSS_SEIDEL_RTOL = 0.1
-#: On an open grid with the compiled kernels, "auto" takes symmetric Gauss–Seidel where the largest
-#: Gershgorin bound of ``AᵀA + ωI`` exceeds this many times ω (plain CG's steps grow with its square
-#: root): at the default weight (about 170 ω on broadband noise) it solves 1000² in 38 steps and half the
-#: time of plain CG's 84; at ω = 3 (about 17 ω) the two tie, at ω = 10 plain CG is 10 % faster
-#: (``python benchmarks/studies/gauss_seidel.py``).
+#: With the compiled kernels at hand, "auto" takes symmetric Gauss–Seidel where the largest Gershgorin
+#: bound of ``AᵀA + ωI`` exceeds this many times ω (plain CG's steps grow with its square root): at the
+#: default weight (about 170 ω on broadband noise) it solves a 1000² grid in 38 steps and half the time of
+#: plain CG's 84; at ω = 3 (about 17 ω) the two tie on the grid, at ω = 10 plain CG is 10 % faster
+#: (``python benchmarks/studies/gauss_seidel.py``, also ``--mesh cube-sphere`` and ``--mesh torus``).
 GAUSS_SEIDEL_CONTRAST = 30.0
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "lines", "none")
@@ -813,8 +813,11 @@ class FairingSystem:
     def _cg_setup(self) -> tuple[RowBlocks, BlockJacobi | None, np.ndarray | None]:
         """The CG operator (row ranges), its preconditioner and the unknowns' order, made once.
 
-        On a mostly free open vertex grid with the compiled kernels at hand: symmetric
-        Gauss–Seidel (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`). Otherwise:
+        With the compiled kernels at hand and a Gershgorin bound above :data:`GAUSS_SEIDEL_CONTRAST` ω:
+        symmetric Gauss–Seidel, the fast sweeps on a mostly free open vertex grid
+        (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), compressed rows on a
+        cylinder or torus grid and any other mesh (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
+        Otherwise:
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
