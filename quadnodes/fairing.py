@@ -78,13 +78,6 @@ BLOCK_SIZE = 16
 #: (``benchmarks/studies/cg_weights.py``).
 BLOCK_JACOBI_RATIO = 50.0
 GRID_BLOCK_JACOBI_RATIO = 500.0
-#: On the grid path, precondition by exact solves along the grid lines
-#: (:class:`~quadnodes.linalg.cg.LinePreconditioner`) when the largest Gershgorin bound of
-#: ``AᵀA + ωI`` exceeds this many times ω: stiff spots (short edges of broadband noise:
-#: 1,200–16,000 ω at 300²–1000²) make plain CG need 220–470 steps, the line solves about
-#: 60 whatever the noise; even rows (zigzag noise: about 130 ω) keep plain CG, whose step
-#: costs a third of a preconditioned one (``benchmarks/studies/line_blocks.py``).
-LINES_CONTRAST = 1000.0
 #: Symmetric Gauss–Seidel leaves its last residual in smooth modes, where a residual means a larger
 #: error than plain CG's (which ends on the oscillating ones): stopping at fair's rtol of 1e-9 its
 #: solution was up to 1.4e-8 (300² sheet, broadband noise, eq. 32's own lengths, ω = 0.003) and 1.8e-8
@@ -654,8 +647,7 @@ class FairingSystem:
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
         grid and any other mesh sweep compressed rows
         (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Elsewhere: block Jacobi at
-        small weights, the line preconditioner where the matrix has stiff spots
-        (:data:`LINES_CONTRAST`; with the kernels), else none.
+        small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"lines"``:
         the line preconditioner at any size — on a grid's diagonal storage the additive
@@ -823,10 +815,9 @@ class FairingSystem:
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
         preconditioned by :class:`BlockJacobi`; otherwise CG on ``AᵀA + ωI``:
         on a mostly free complete vertex grid (``_topology`` given) in the grid's
-        numbering with diagonal storage (:class:`~quadnodes.linalg.grid.GridPattern`) — from
-        :data:`COMPILED_MIN_UNKNOWNS` unknowns on with the compiled kernels, preconditioned by
-        line solves where the matrix has stiff spots (:data:`LINES_CONTRAST`) — else plain in
-        ``free_index`` order.
+        numbering with diagonal storage (:class:`~quadnodes.linalg.grid.GridPattern`; compiled
+        from :data:`COMPILED_MIN_UNKNOWNS` unknowns on), else plain in ``free_index`` order. The
+        line preconditioner only on request (``preconditioner="lines"``).
         """
         if self._cg is None:
             A, k = self.A, self.n_free
@@ -860,31 +851,23 @@ class FairingSystem:
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
-                lines = self.preconditioner == "lines" or contrast > LINES_CONTRAST
                 precond = None
-                if lines:
+                if self.preconditioner == "lines":  # (on request: "auto" took Gauss–Seidel where these would pay)
                     try:
                         precond = _line_preconditioner(data, offsets, cols)
-                    except np.linalg.LinAlgError as exc:  # a line block not positive definite: plain CG
-                        if self.preconditioner == "lines":
-                            raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
+                    except np.linalg.LinAlgError as exc:  # a line block not positive definite
+                        raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:
                 M = self.matrix
                 precond = None
-                # line solves along the structure lines where the matrix has stiff spots, as on a grid
-                # (compiled sweeps: from COMPILED_MIN_UNKNOWNS on, or wherever the kernels are loaded)
-                lines = self._lines is not None and (self.preconditioner == "lines" or (
-                    self.preconditioner == "auto" and (k >= COMPILED_MIN_UNKNOWNS or kernels.ready())
-                    and _csr_gershgorin(M) > LINES_CONTRAST * self.weight))
-                if lines and kernels.wait():
+                if self._lines is not None and self.preconditioner == "lines" and kernels.wait():  # (on request)
                     try:
                         precond = PathLinePreconditioner(M, *_line_paths(self._lines, self.free_index,
                                                                          self._n_vertices))
-                    except np.linalg.LinAlgError as exc:  # a band not positive definite: plain CG
-                        if self.preconditioner == "lines":
-                            raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
+                    except np.linalg.LinAlgError as exc:  # a band not positive definite
+                        raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
                 self._cg = (RowBlocks(M), precond, None)
         return self._cg
 

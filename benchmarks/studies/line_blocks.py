@@ -1,6 +1,8 @@
 """The additive line-block preconditioner against plain CG: steps and time, per noise, weight and line spacing.
 
-Backs the "line preconditioner" paragraph and the LINES_CONTRAST rule in docs/fairing.md "Speed" (issue 15, part 2).
+Backs the "line preconditioner" paragraph in docs/fairing.md "Speed" (issue 15, part 2; its table is session 8's,
+when "auto" took the line solves where the Gershgorin bound exceeded 1000 ω — since session 10 it takes symmetric
+Gauss–Seidel wherever the kernels are used, ``benchmarks/studies/gauss_seidel.py``).
 
 On the bench_core sheet (``benchmarks/_common.py``) with every window-middle vertex free, builds the
 one-iteration system as ``fair()`` does (grid diagonal storage), with eq. 32's own edge lengths
@@ -8,8 +10,7 @@ one-iteration system as ``fair()`` does (grid diagonal storage), with eq. 32's o
 with ``FairingSystem(preconditioner="none")`` (plain CG) and ``preconditioner="lines"``
 (``quadnodes.linalg.cg.LinePreconditioner``: exact banded solves along every row and every column, added;
 the compiled kernels, loaded before the clock), x, y and z together, rtol 1e-9. Prints steps, system +
-solve time, what ``"auto"`` picks at this size (line solves only from ``COMPILED_MIN_UNKNOWNS`` unknowns,
-where the largest Gershgorin bound exceeds ``LINES_CONTRAST`` ω), and the largest difference between the
+solve time, what ``"auto"`` picks at this size (plain, lines or gauss-seidel), and the largest difference between the
 two solutions relative to the mesh's extent.
 
 Run:  python benchmarks/studies/line_blocks.py [--size 100] [--weights 0.3 1]
@@ -58,7 +59,8 @@ def main() -> None:
                                       preconditioner=pre, _inverse_lengths=inverse, _topology=t)
                     if pre == "auto":
                         s._cg_setup()
-                        picks = "lines" if s._cg[1] is not None else "plain"
+                        picks = {"NoneType": "plain", "LinePreconditioner": "lines"}.get(
+                            type(s._cg[1]).__name__, "gauss-seidel")
                         continue
                     xs.append(s.solve(m.vertices[free]))
                     row += [str(s.iterations), f"{time.perf_counter() - t0:.3f}"]
