@@ -827,22 +827,27 @@ class FairingSystem:
             # the compiled kernels from COMPILED_MIN_UNKNOWNS on (fair() started loading them), or
             # wherever they are loaded already (a server, a second run): then they cost nothing
             wanted = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner in ("lines", "gauss-seidel") or kernels.ready()
-            compiled = grid and wanted and kernels.wait()
-            auto = self.preconditioner == "auto"
-            if grid:
-                pattern, coef, free = self._grid
-                offsets, data = pattern.normal_matrix(coef, free, self.weight)
-            # the largest Gershgorin bound, against ω: how many steps plain CG would need
-            contrast = _gershgorin(data, free) / self.weight if compiled and auto else 0.0
-            if compiled and (self.preconditioner == "gauss-seidel" or (auto and contrast > GAUSS_SEIDEL_CONTRAST)):
-                # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps, a closed grid's (with the
-                # seams' diagonals) in compressed rows
-                blocks = SymmetricDiagonalBlocks(offsets, data)
-                return self._gauss_seidel(blocks, SymmetricGaussSeidel if pattern.offsets.size == 13 else CsrGaussSeidel)
-            if not grid and (self.preconditioner == "gauss-seidel" or (
-                    auto and wanted and _csr_gershgorin(self.matrix) > GAUSS_SEIDEL_CONTRAST * self.weight)):
-                if kernels.wait():  # a mesh that is no grid: the sweeps row by row in its vertices' order
+            storage: list = []  # the grid's diagonal storage, built once where a path uses it
+
+            def grid_storage() -> tuple[np.ndarray, np.ndarray]:
+                if not storage:
+                    pattern, coef, free = self._grid
+                    storage.extend(pattern.normal_matrix(coef, free, self.weight))
+                return storage[0], storage[1]
+
+            contrast = 0.0  # the largest Gershgorin bound against ω: how many steps plain CG would need
+            if self.preconditioner == "auto" and wanted:
+                bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
+                contrast = bound / self.weight
+            if (self.preconditioner == "gauss-seidel" or contrast > GAUSS_SEIDEL_CONTRAST) and kernels.wait():
+                # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
+                # seams' diagonals) and any other mesh's in compressed rows, in their own order
+                if not grid:
                     return self._gauss_seidel(RowBlocks(self.matrix), CsrGaussSeidel)
+                offsets, data = grid_storage()
+                if self._grid[0].offsets.size == 13:
+                    return self._gauss_seidel(SymmetricDiagonalBlocks(offsets, data), SymmetricGaussSeidel)
+                return self._gauss_seidel(DiagonalBlocks(offsets, data), CsrGaussSeidel)
             if self.preconditioner == "gauss-seidel":
                 raise InputError("preconditioner='gauss-seidel' needs the compiled kernels (Numba); use 'auto'")
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto":
@@ -850,6 +855,8 @@ class FairingSystem:
                 M = permuted(self.matrix, order)
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
+                offsets, data = grid_storage()
+                compiled = wanted and kernels.wait()
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
                 precond = None
                 if self.preconditioner == "lines":  # (on request: "auto" took Gauss–Seidel where these would pay)

@@ -218,11 +218,7 @@ class Topology:
     @cached_property
     def boundary_vertices(self) -> np.ndarray:
         """Mask of vertices on a boundary edge, ``(n,) bool``."""
-        if self.grid_shape is not None:  # an open vertex grid: its outer ring, by index arithmetic
-            return self._grid_ring() > 0
-        mask = np.zeros(self.n_vertices, dtype=bool)
-        mask[self.edges[self.boundary_edges].reshape(-1)] = True
-        return mask
+        return self._boundary_count > 0
 
     @cached_property
     def corner_vertices(self) -> np.ndarray:

@@ -59,32 +59,34 @@ def main() -> None:
     compiled.wait()
     if args.accuracy:
         return accuracy(args)
-    n = args.size
     print("| grid | noise | line_spacing | ω | " + " | ".join(f"{k}: steps | time (s)" for k in KINDS)
           + " | max difference / extent |")
     print("|---|---|---|---:|" + "---:|---:|" * len(KINDS) + "---:|")
-    for noise, spacing, w, m, free, inverse, extent in cases(args):
-        t = m.topology
+    for label, noise, spacing, w, m, free, inverse, extent in cases(args):
         cells, xs = [], []
         for pre in KINDS:
             best, x = np.inf, None
             for _ in range(args.repeat):
                 t0 = time.perf_counter()
-                s = FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, solver="cg",
-                                  preconditioner=pre, _inverse_lengths=inverse, _topology=t,
-                                  _lines=t.structure_lines)
+                s = system(m, free, inverse, w, pre)
                 x = s.solve(m.vertices[free])
                 best = min(best, time.perf_counter() - t0)
             cells.append(f"{s.iterations} | {best:.3f}")
             xs.append(x)
         diff = max(np.abs(x - xs[0]).max() for x in xs[1:]) / extent
-        label = f"{n}×{n}" if args.mesh == "sheet" else f"{args.mesh}, {m.n_vertices:,} vertices"
         print(f"| {label} | {noise} | {spacing} | {w:g} | " + " | ".join(cells) + f" | {diff:.1e} |",
               flush=True)
 
 
+def system(m, free, inverse, w: float, pre: str, rtol: float = 1e-9) -> FairingSystem:  # type: ignore[no-untyped-def]
+    """fair()'s one-iteration system on ``m`` (the grid's storage, the structure lines for the line solves)."""
+    t = m.topology
+    return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, solver="cg", rtol=rtol,
+                         preconditioner=pre, _inverse_lengths=inverse, _topology=t, _lines=t.structure_lines)
+
+
 def cases(args: argparse.Namespace):  # type: ignore[no-untyped-def]
-    """(noise, spacing, ω, mesh, free, inverse lengths, extent) of every row, the meshes built once per noise."""
+    """(label, noise, spacing, ω, mesh, free, inverse lengths, extent) of every row, the meshes built once per noise."""
     for noise in args.noise:
         if args.mesh == "sheet":
             m = _common.noisy_grid(args.size, noise)
@@ -99,24 +101,21 @@ def cases(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         extent = np.ptp(m.vertices, axis=0).max()
         for spacing in args.spacing:
             inverse = held if spacing == "hold" else even_lengths(held)
+            label = f"{args.size}×{args.size}" if args.mesh == "sheet" else f"{args.mesh}, {m.n_vertices:,} vertices"
             for w in args.weights:
-                yield noise, spacing, w, m, free, inverse, extent
+                yield label, noise, spacing, w, m, free, inverse, extent
 
 
 def accuracy(args: argparse.Namespace) -> None:
-    n = args.size
     factor = fairing.GAUSS_SEIDEL_RTOL
     print(f"| grid | noise | line_spacing | ω | plain CG, rtol 1e-9: steps, error | Gauss–Seidel, rtol 1e-9 | "
           f"Gauss–Seidel, rtol {factor:g} × 1e-9 (fair) |")
     print("|---|---|---|---:|---:|---:|---:|")
-    for noise, spacing, w, m, free, inverse, extent in cases(args):
-        t = m.topology
+    for label, noise, spacing, w, m, free, inverse, extent in cases(args):
 
         def solve(pre: str, rtol: float, gs_factor: float) -> tuple[np.ndarray, int]:
             fairing.GAUSS_SEIDEL_RTOL = gs_factor
-            s = FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, solver="cg", rtol=rtol,
-                              preconditioner=pre, _inverse_lengths=inverse, _topology=t,
-                                  _lines=t.structure_lines)
+            s = system(m, free, inverse, w, pre, rtol)
             x = s.solve(m.vertices[free])
             fairing.GAUSS_SEIDEL_RTOL = factor
             return x, s.iterations
@@ -126,7 +125,6 @@ def accuracy(args: argparse.Namespace) -> None:
         for pre, f in (("none", factor), ("gauss-seidel", 1.0), ("gauss-seidel", factor)):
             x, steps = solve(pre, 1e-9, f)
             cells.append(f"{steps}, {np.abs(x - ref).max() / extent:.1e}")
-        label = f"{n}×{n}" if args.mesh == "sheet" else f"{args.mesh}, {m.n_vertices:,} vertices"
         print(f"| {label} | {noise} | {spacing} | {w:g} | " + " | ".join(cells) + " |", flush=True)
 
 

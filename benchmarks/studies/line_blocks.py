@@ -59,8 +59,8 @@ def main() -> None:
                                       preconditioner=pre, _inverse_lengths=inverse, _topology=t)
                     if pre == "auto":
                         s._cg_setup()
-                        picks = {"NoneType": "plain", "LinePreconditioner": "lines"}.get(
-                            type(s._cg[1]).__name__, "gauss-seidel")
+                        picks = "gauss-seidel" if getattr(s._cg[1], "eisenstat", False) else \
+                            "plain" if s._cg[1] is None else "lines"
                         continue
                     xs.append(s.solve(m.vertices[free]))
                     row += [str(s.iterations), f"{time.perf_counter() - t0:.3f}"]

@@ -262,17 +262,12 @@ class NodeType:
             raise graph_error(
                 f"{label(node_id, self.op)}: setting {name!r}{exc.where}: {exc.message}", node_id=node_id
             ) from None
-        problem = s.range.problem(coerced) if s.range is not None else None
+        # out of its range, or inf/nan (settings without a range too: no setting means anything by inf or nan)
+        problem = (s.range.problem(coerced) if s.range is not None else None) or _non_finite(coerced)
         if problem:
             sep = "" if problem.startswith("[") else ": "
             err = graph_error(f"{label(node_id, self.op)}: setting {name!r}{sep}{problem}", node_id=node_id)
             err.out_of_range = True  # type: ignore[attr-defined]  (a sweep keeps such a variant as an error row)
-            raise err
-        problem = _non_finite(coerced)  # settings without a range too: no setting means anything by inf or nan
-        if problem:
-            sep = "" if problem.startswith("[") else ": "
-            err = graph_error(f"{label(node_id, self.op)}: setting {name!r}{sep}{problem}", node_id=node_id)
-            err.out_of_range = True  # type: ignore[attr-defined]
             raise err
         return coerced
 

@@ -553,8 +553,7 @@ def _backward_terms(R: np.ndarray, P: np.ndarray, T: np.ndarray, U: np.ndarray, 
     ``S[q, k] = P[q, i] − Σ_j U[3 + j, i] T[q, i + j·g]`` (``i = a + k``, ``j = 1, 2, 3``)."""
     w = b - a
     m1, m2, m3 = U[4, a:b], U[5, a:b], U[6, a:b]
-    for q in range(P.shape[0]):  # (its own loop: with P written beside S, LLVM did not vectorize)
-        _direction(P[q, a:b], R[q, a:b], beta[q])
+    cg_direction(P, R, beta, a, b)  # (its own pass: with P written beside S, LLVM did not vectorize)
     if P.shape[0] == 3:  # the three coordinates in one pass: each coefficient read once
         p0, p1, p2 = P[0, a:b], P[1, a:b], P[2, a:b]
         s0, s1, s2 = S[0, :w], S[1, :w], S[2, :w]
@@ -572,13 +571,6 @@ def _backward_terms(R: np.ndarray, P: np.ndarray, T: np.ndarray, U: np.ndarray, 
         x1, x2, x3 = T[q, a + g : b + g], T[q, a + 2 * g : b + 2 * g], T[q, a + 3 * g : b + 3 * g]
         for k in range(w):
             sq[k] = p[k] - m1[k] * x1[k] - m2[k] * x2[k] - m3[k] * x3[k]
-
-
-@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
-def _direction(p: np.ndarray, r: np.ndarray, beta: float) -> None:  # pragma: no cover - compiled
-    """``p = r + β p`` elementwise."""
-    for k in range(p.size):
-        p[k] = r[k] + beta * p[k]
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
@@ -623,8 +615,8 @@ def unit_backward_sweep(U: np.ndarray, offsets: np.ndarray, R: np.ndarray, P: np
     g = offsets[4] if offsets.size == 7 and S.shape[1] == offsets[4] else 0
     fast = g > 0 and min(hi, n) - lo > 6 * g
     b0 = min(hi, n) - 3 * g if fast else lo  # (the fast rows' direction is updated with their terms)
+    cg_direction(P, R, beta, b0, hi)
     for q in range(c):
-        _direction(P[q, b0:hi], R[q, b0:hi], beta[q])
         for i in range(max(lo, n), hi):
             T[q, i] = P[q, i]
     hi = min(hi, n)
@@ -643,17 +635,31 @@ def unit_backward_sweep(U: np.ndarray, offsets: np.ndarray, R: np.ndarray, P: np
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _outside(U: np.ndarray, offsets: np.ndarray, T: np.ndarray, q: int, i: int, lo: int,
+             hi: int) -> float:  # pragma: no cover - compiled
+    """``(E T)[q, i]``: row ``i``'s couplings to the rows of ``T`` outside the block ``lo:hi``."""
+    n = U.shape[1]
+    s = 0.0
+    for d in range(1, offsets.size):
+        o = offsets[d]
+        if 0 <= i - o < lo:
+            s += U[d, i - o] * T[q, i - o]
+        if hi <= i + o < n:
+            s += U[d, i] * T[q, i + o]
+    return s
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def unit_forward_sweep(U: np.ndarray, offsets: np.ndarray, F: np.ndarray, P: np.ndarray, T: np.ndarray,
-                       W: np.ndarray, S: np.ndarray, lo: int, hi: int, couple: bool, dots: np.ndarray) -> None:  # pragma: no cover - compiled
+                       W: np.ndarray, S: np.ndarray, lo: int, hi: int, dots: np.ndarray) -> None:  # pragma: no cover - compiled
     """On the block ``lo:hi``: ``W = (I + L)⁻¹ (P − T + E T)`` and ``dots[q] = P·(T + W)`` over the block.
 
-    ``E T``: the couplings of the block's rows to the other blocks' rows of ``T`` (only with
-    ``couple``; ``T`` must be complete there). ``F[d, i] = M[i, i − d]`` (``d = 1, 2, 3``, the
-    open grid's fast path; else empty). Rows from ``U.shape[1]`` on: ``W = P − T``.
+    ``E T``: the couplings of the block's rows to the other blocks' rows of ``T`` (``T`` complete
+    there; zero for a plain forward solve). ``F[d, i] = M[i, i − d]`` (``d = 1, 2, 3``, the open
+    grid's fast path; else empty). Rows from ``U.shape[1]`` on: ``W = P − T``.
     """
     n = U.shape[1]
     c = P.shape[0]
-    nd = offsets.size
     for q in range(c):
         acc = 0.0
         for i in range(max(lo, n), hi):
@@ -664,54 +670,28 @@ def unit_forward_sweep(U: np.ndarray, offsets: np.ndarray, F: np.ndarray, P: np.
     if hi <= lo:
         return
     g = offsets[4] if offsets.size == 7 and F.shape[0] == 4 and S.shape[1] == offsets[4] else 0
-    top = offsets[nd - 1]
-    # right-hand side P − T + E T on the rows that couple outside the block (the others in the sweep)
-    edge = hi - lo if g == 0 or hi - lo <= 6 * g else 3 * g
+    top = offsets[offsets.size - 1]
+    fast = g > 0 and hi - lo > 6 * g
+    # the right-hand side P − T + E T of the rows swept one by one (the others' with their chunk's terms)
+    a0 = lo + 3 * g if fast else hi
     for q in range(c):
-        _difference_into(W[q, lo : lo + edge], P[q, lo : lo + edge], T[q, lo : lo + edge])
-    if couple:
-        for q in range(c):
-            for i in range(lo, min(hi, lo + top)):  # couplings to rows before the block
-                s = 0.0
-                for d in range(1, nd):
-                    j = i - offsets[d]
-                    if 0 <= j < lo:
-                        s += U[d, j] * T[q, j]
-                W[q, i] += s
-    if g == 0 or hi - lo <= 6 * g:
-        if couple:
-            for q in range(c):
-                for i in range(max(lo, hi - top), hi):  # couplings to rows after the block
-                    s = 0.0
-                    for d in range(1, nd):
-                        j = i + offsets[d]
-                        if hi <= j < n:
-                            s += U[d, i] * T[q, j]
-                    W[q, i] += s
-        _unit_rows(U, offsets, W, W, lo, hi, lo, hi, True)
-    else:
-        a0 = lo + 3 * g
-        _unit_rows(U, offsets, W, W, lo, hi, lo, a0, True)
+        _difference_into(W[q, lo:a0], P[q, lo:a0], T[q, lo:a0])
+        for i in range(lo, a0):
+            if i < lo + top or i >= hi - top:
+                W[q, i] += _outside(U, offsets, T, q, i, lo, hi)
+    _unit_rows(U, offsets, W, W, lo, hi, lo, a0, True)
+    if fast:
         f1, f2, f3 = F[1], F[2], F[3]
         H = np.empty((c, 3))
         for a in range(a0, hi, g):
-            w = min(a + g, hi) - a
-            b = a + w
+            b = min(a + g, hi)
             _forward_terms(P, T, W, U, S, a, b, g)
             for q in range(c):
-                sq = S[q, :w]
-                if couple and b > hi - top:  # couplings to rows after the block
-                    for i in range(max(a, hi - top), b):
-                        s = 0.0
-                        for d in range(1, nd):
-                            j = i + offsets[d]
-                            if hi <= j < n:
-                                s += U[d, i] * T[q, j]
-                        sq[i - a] += s
+                for i in range(max(a, hi - top), b):  # couplings to rows after the block
+                    S[q, i - a] += _outside(U, offsets, T, q, i, lo, hi)
             _recurrence(S, f1, f2, f3, W, a, b, True, H)
             _add_dots(P, T, W, a, b, dots)  # (while the chunk is in cache)
-        hi = a0
-    _add_dots(P, T, W, lo, hi, dots)
+    _add_dots(P, T, W, lo, a0, dots)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)

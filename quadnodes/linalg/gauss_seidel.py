@@ -36,6 +36,14 @@ import numpy as np
 __all__ = ["SymmetricGaussSeidel", "CsrGaussSeidel", "gauss_seidel_cg"]
 
 
+def _unit_scale(diagonal: np.ndarray) -> np.ndarray:
+    """``D^{-1/2}``: the scaling to a unit diagonal (refused where an entry is not positive)."""
+    bad = np.flatnonzero(~(diagonal > 0))
+    if bad.size:
+        raise np.linalg.LinAlgError(f"Gauss-Seidel: diagonal entry {bad[0]} is {diagonal[bad[0]]!r}, not positive")
+    return 1.0 / np.sqrt(diagonal)
+
+
 class SymmetricGaussSeidel:
     """The symmetric Gauss–Seidel preconditioner of a :class:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks`, made once.
 
@@ -43,7 +51,7 @@ class SymmetricGaussSeidel:
     grid (upper offsets ``0, 1, 2, 3, g, 2g, 3g``) the couplings along a grid row again at the
     row they act on (``F[d, i] = M̃[i, i − d]``) for the forward sweep's recurrence. Passed to
     :func:`~quadnodes.linalg.cg.block_cg` as ``precond``, it makes the solve
-    :func:`gauss_seidel_cg`.
+    :func:`gauss_seidel_cg`, on ``(c, m)`` vectors (``columns``).
 
     Parameters
     ----------
@@ -56,35 +64,57 @@ class SymmetricGaussSeidel:
     """
 
     eisenstat = True  # (block_cg hands the whole solve to gauss_seidel_cg)
+    columns = True
 
     def __init__(self, blocks: object) -> None:
-        U = blocks.upper  # type: ignore[attr-defined]
-        offsets = blocks.upper_offsets  # type: ignore[attr-defined]
-        diagonal = U[0]
-        bad = np.flatnonzero(~(diagonal > 0))
-        if bad.size:
-            raise np.linalg.LinAlgError(f"Gauss-Seidel: diagonal entry {bad[0]} is {diagonal[bad[0]]!r}, not positive")
         from ._kernels import unit_scaled
         from .threads import run_tasks
 
-        n = U.shape[1]
-        s = 1.0 / np.sqrt(diagonal)
+        U = blocks.upper  # type: ignore[attr-defined]
+        offsets = blocks.upper_offsets  # type: ignore[attr-defined]
+        s = _unit_scale(U[0])
         g = int(offsets[4]) if offsets.size == 7 else 0
         fast = g > 3 and np.array_equal(offsets, [0, 1, 2, 3, g, 2 * g, 3 * g])
         Us = np.empty_like(U)
-        F = np.empty((4, n)) if fast else np.zeros((0, 0))
-        self.row = g if fast else 1
+        F = np.empty((4, U.shape[1])) if fast else np.zeros((0, 0))
+        self.row = g if fast else 1  # (the sweeps' scratch: one grid row per column)
         run_tasks(lambda lo, hi: unit_scaled(U, offsets, s, Us, F, lo, hi), blocks.ranges)  # type: ignore[attr-defined]
-        self.upper, self.offsets, self.forward, self.scale = Us, offsets, F, s
-        self.blocks = blocks
+        self.upper, self.offsets, self.forward_rows, self.scale = Us, offsets, F, s
+        self._blocks = blocks
+
+    def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray, lo: int,
+                 hi: int) -> None:
+        """``P = R + β P``, then ``T = (I + Lᵀ)⁻¹ P`` on the block ``lo:hi``."""
+        from ._kernels import unit_backward_sweep
+
+        unit_backward_sweep(self.upper, self.offsets, R, P, T, beta, S, lo, hi)
+
+    def forward(self, P: np.ndarray, T: np.ndarray, W: np.ndarray, S: np.ndarray, lo: int, hi: int,
+                dots: np.ndarray) -> None:
+        """``W = (I + L)⁻¹ (P − T + E T)`` on the block ``lo:hi``; ``dots = P·(T + W)`` over it."""
+        from ._kernels import unit_forward_sweep
+
+        unit_forward_sweep(self.upper, self.offsets, self.forward_rows, P, T, W, S, lo, hi, dots)
+
+    def update(self, X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, alpha: np.ndarray, lo: int,
+               hi: int, rr: np.ndarray) -> None:
+        """``x += α t``, ``r −= α (t + w)``, ``rr = r·r`` on rows ``lo:hi``."""
+        from ._kernels import unit_cg_update
+
+        unit_cg_update(X, R, T, W, alpha, lo, hi, rr)
+
+    def product(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
+        """Rows ``lo:hi`` of ``Y = M X`` (the unscaled matrix)."""
+        self._blocks.matvec(X, Y, lo, hi)  # type: ignore[attr-defined]
 
 
 class CsrGaussSeidel:
     """The symmetric Gauss–Seidel preconditioner of a :class:`~quadnodes.linalg.threads.RowBlocks` (CSR), made once.
 
     Holds ``M̃ = D^{-1/2} M D^{-1/2}`` (unit diagonal) in compressed rows; the sweeps go row by
-    row in the matrix's own order (a mesh that is no open grid: its vertices' order). Passed to
-    :func:`~quadnodes.linalg.cg.block_cg` as ``precond``, it makes the solve :func:`gauss_seidel_cg`.
+    row in the matrix's own order (a mesh that is no open grid: its vertices' order), on ``(m, c)``
+    vectors. Passed to :func:`~quadnodes.linalg.cg.block_cg` as ``precond``, it makes the solve
+    :func:`gauss_seidel_cg`.
 
     Parameters
     ----------
@@ -98,36 +128,55 @@ class CsrGaussSeidel:
     """
 
     eisenstat = True  # (block_cg hands the whole solve to gauss_seidel_cg)
+    columns = False
     row = 1
 
     def __init__(self, blocks: object) -> None:
-        M = blocks.M.tocsr()  # type: ignore[attr-defined]  # (diagonal storage too: a closed grid's seams)
-        diagonal = M.diagonal()
-        bad = np.flatnonzero(~(diagonal > 0))
-        if bad.size:
-            raise np.linalg.LinAlgError(f"Gauss-Seidel: diagonal entry {bad[0]} is {diagonal[bad[0]]!r}, not positive")
         from ._kernels import csr_split_counts, csr_split_fill
         from .threads import RowBlocks, run_tasks
 
-        s = 1.0 / np.sqrt(diagonal)
+        M = blocks.M.tocsr()  # type: ignore[attr-defined]  # (diagonal storage too: a closed grid's seams)
+        s = _unit_scale(M.diagonal())
         n = M.shape[0]
         # each row's strictly lower and upper parts inside its thread's block, and its couplings to the other
         # blocks, as three CSR matrices scaled to a unit diagonal (the sweeps then never branch), split by
         # compiled passes on the pool
         counts = np.zeros((3, n), dtype=np.int64)
-        run_tasks(lambda lo, hi: csr_split_counts(M.indptr, M.indices, lo, min(hi, n), counts), blocks.ranges)
+        run_tasks(lambda lo, hi: csr_split_counts(M.indptr, M.indices, lo, hi, counts), blocks.ranges)
         ptr = np.zeros((3, n + 1), dtype=np.int64)
         np.cumsum(counts, axis=1, out=ptr[:, 1:])
-        del counts
         total = ptr[:, -1]
         parts = [(np.empty(total[p], dtype=M.indices.dtype), np.empty(total[p])) for p in range(3)]
-        run_tasks(lambda lo, hi: csr_split_fill(M.indptr, M.indices, M.data, s, lo, min(hi, n), ptr,
+        run_tasks(lambda lo, hi: csr_split_fill(M.indptr, M.indices, M.data, s, lo, hi, ptr,
                                                 *parts[0], *parts[1], *parts[2]), blocks.ranges)
         self.lower, self.upper_part, self.coupling = ((ptr[p], *parts[p]) for p in range(3))
-        self.matrix = M
-        self.product = RowBlocks(M, threads=1, columns=False)  # (the residual's product on (m, c) vectors, any rows)
+        self._product = RowBlocks(M, threads=1, columns=False)  # (the residual's product on (m, c) vectors)
         self.scale = s
-        self.blocks = blocks
+
+    def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray, lo: int,
+                 hi: int) -> None:
+        """As :meth:`SymmetricGaussSeidel.backward`, row by row."""
+        from ._kernels import csr_backward_sweep
+
+        csr_backward_sweep(*self.upper_part, R, P, T, beta, lo, hi)
+
+    def forward(self, P: np.ndarray, T: np.ndarray, W: np.ndarray, S: np.ndarray, lo: int, hi: int,
+                dots: np.ndarray) -> None:
+        """As :meth:`SymmetricGaussSeidel.forward`, row by row."""
+        from ._kernels import csr_forward_sweep
+
+        csr_forward_sweep(*self.lower, *self.coupling, P, T, W, lo, hi, dots)
+
+    def update(self, X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, alpha: np.ndarray, lo: int,
+               hi: int, rr: np.ndarray) -> None:
+        """As :meth:`SymmetricGaussSeidel.update`, on ``(m, c)`` vectors."""
+        from ._kernels import rows_cg_update
+
+        rows_cg_update(X, R, T, W, alpha, lo, hi, rr)
+
+    def product(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
+        """Rows ``lo:hi`` of ``Y = M X`` (SciPy's multi-vector kernel)."""
+        self._product.matvec(X, Y, lo, hi)
 
 
 def gauss_seidel_cg(
@@ -177,26 +226,22 @@ def gauss_seidel_cg(
     numpy.linalg.LinAlgError
         When a diagonal entry of ``M`` is not positive.
     """
-    from ._kernels import (csr_backward_sweep, csr_forward_sweep, rows_cg_update, unit_backward_sweep,
-                           unit_cg_update, unit_forward_sweep)
-    from .threads import padded as _padded
+    from .threads import RANGE_ALIGN, padded as _padded
 
     if sweeps is None:
         sweeps = SymmetricGaussSeidel(blocks) if hasattr(blocks, "upper") else CsrGaussSeidel(blocks)
     sw = sweeps
-    columns = isinstance(sw, SymmetricGaussSeidel)  # (c, m) vectors for the grid's sweeps, (m, c) for CSR rows
-    scale = sw.scale
+    columns = sw.columns  # (c, m) vectors for the grid's sweeps, (m, c) for compressed rows
     k, c = B.shape
-    if k != scale.size:
-        raise ValueError(f"B: expected {scale.size} rows (the matrix's), got {k}")
-    kp = -(-k // 64) * 64  # (padded as block_cg's vectors: the ranges end on multiples of 64)
-    last = blocks.ranges[-1][1]  # type: ignore[attr-defined]
+    if k != sw.scale.size:
+        raise ValueError(f"B: expected {sw.scale.size} rows (the matrix's), got {k}")
+    kp = -(-k // RANGE_ALIGN) * RANGE_ALIGN  # (padded as block_cg's vectors)
     # scratch per range (by its bounds: an empty range may share its start with the next)
-    scratch = {(lo, kp if hi == last else hi): (np.empty((c, sw.row)), np.empty(c))
+    scratch = {(lo, kp if hi == k else hi): (np.empty((c, sw.row)), np.empty(c))
                for lo, hi in blocks.ranges}  # type: ignore[attr-defined]
 
     def run(fn) -> list:  # type: ignore[no-untyped-def]  # fn(lo, hi) on every range, the last to kp
-        return blocks.run(lambda lo, hi: fn(lo, kp if hi == last else hi))  # type: ignore[attr-defined]
+        return blocks.run(lambda lo, hi: fn(lo, kp if hi == k else hi))  # type: ignore[attr-defined]
 
     def padded(a: np.ndarray | None = None) -> np.ndarray:
         return _padded(a, kp, c, columns=columns)
@@ -207,9 +252,12 @@ def gauss_seidel_cg(
     def norms2(V: np.ndarray) -> np.ndarray:
         return np.einsum("ij,ij->i", V, V) if columns else np.einsum("ij,ij->j", V, V)
 
+    def result(residual: float) -> tuple[np.ndarray, int, float]:
+        return (np.ascontiguousarray(X[:, :k].T) if columns else X[:k].copy()), steps, residual
+
     Bp, X = padded(B), padded(X0)
     s = np.ones(kp)
-    s[:k] = scale
+    s[:k] = sw.scale
     s = s if columns else s[:, None]
     bnorm = np.maximum(np.sqrt(norms2(Bp)), 1e-300)
     Y, Rh, P, T, W, Xs = (padded() for _ in range(6))
@@ -217,41 +265,29 @@ def gauss_seidel_cg(
     nothing = padded()  # (never written: zero pages, read as T = 0 by the forward solves)
 
     def residual(lo: int, hi: int) -> np.ndarray:  # Y = B − M X on the range; its squared norms
-        if columns:
-            blocks.matvec(X, Y, lo, hi)  # type: ignore[attr-defined]
-        else:
-            sw.product.matvec(X, Y, lo, hi)
+        sw.product(X, Y, lo, hi)
         y = rows(Y, lo, hi)
         np.subtract(rows(Bp, lo, hi), y, out=y)
         return norms2(y)
 
-    def sweep_forward(V: np.ndarray, Tv: np.ndarray, out: np.ndarray, lo: int, hi: int, d: np.ndarray) -> None:
-        if columns:
-            unit_forward_sweep(sw.upper, sw.offsets, sw.forward, V, Tv, out, scratch[lo, hi][0], lo, hi, True, d)
-        else:
-            csr_forward_sweep(*sw.lower, *sw.coupling, V, Tv, out, lo, hi, d)
-
     def forward_solve(V: np.ndarray, out: np.ndarray) -> np.ndarray:  # out = (I + L)⁻¹ V; its squared norms
         def part(lo: int, hi: int) -> np.ndarray:
-            sweep_forward(V, nothing, out, lo, hi, np.empty(c))
+            sw.forward(V, nothing, out, scratch[lo, hi][0], lo, hi, np.empty(c))
             return norms2(rows(out, lo, hi))
 
         return sum(run(part))
 
     def backward(lo: int, hi: int) -> None:
-        if columns:
-            unit_backward_sweep(sw.upper, sw.offsets, Rh, P, T, beta, scratch[lo, hi][0], lo, hi)
-        else:
-            csr_backward_sweep(*sw.upper_part, Rh, P, T, beta, lo, hi)
+        sw.backward(Rh, P, T, beta, scratch[lo, hi][0], lo, hi)
 
     def forward(lo: int, hi: int) -> np.ndarray:
-        d = scratch[lo, hi][1]
-        sweep_forward(P, T, W, lo, hi, d)
+        S, d = scratch[lo, hi]
+        sw.forward(P, T, W, S, lo, hi, d)
         return d.copy()
 
     def update(lo: int, hi: int) -> np.ndarray:
         out = np.empty(c)
-        (unit_cg_update if columns else rows_cg_update)(Xs, Rh, T, W, alpha, lo, hi, out)
+        sw.update(Xs, Rh, T, W, alpha, lo, hi, out)
         return out
 
     bh = np.sqrt(forward_solve(Bp * s, W))  # ‖(I + L)⁻¹ D^{-1/2} B‖: the preconditioned residual's scale
@@ -260,7 +296,7 @@ def gauss_seidel_cg(
     while True:
         true = np.sqrt(sum(run(residual))) / bnorm
         if (true <= rtol).all() or steps >= maxiter or inner < 1e-17:
-            return (np.ascontiguousarray(X[:, :k].T) if columns else X[:k].copy()), steps, float(true.max())
+            return result(float(true.max()))
         Y *= s  # D^{-1/2} (B − M X), then CG's preconditioned residual
         rr = forward_solve(Y, Rh)
         tol2 = (inner * np.maximum(bh, 1e-300)) ** 2
@@ -273,7 +309,7 @@ def gauss_seidel_cg(
             run(backward)
             pq = sum(run(forward))
             if not (pq[rr > tol2] > 0).all():  # a breakdown (M not positive definite in floating point)
-                return (np.ascontiguousarray(X[:, :k].T) if columns else X[:k].copy()), steps, float(np.inf)
+                return result(float(np.inf))
             alpha = np.divide(rr, pq, out=np.zeros(c), where=pq > 0)
             rr_new = sum(run(update))
             beta = np.divide(rr_new, rr, out=np.zeros(c), where=rr > 0)

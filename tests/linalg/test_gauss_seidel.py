@@ -73,7 +73,7 @@ def test_one_step_is_the_preconditioned_product_of_each_block(rows, cols, thread
     dots = np.zeros(c)
     for lo, hi in ranges:
         d = np.empty(c)
-        unit_forward_sweep(sw.upper, sw.offsets, sw.forward, P, T, W, np.empty((c, sw.row)), lo, hi, True, d)
+        unit_forward_sweep(sw.upper, sw.offsets, sw.forward_rows, P, T, W, np.empty((c, sw.row)), lo, hi, d)
         dots += d
     I = np.eye(n)
     t = np.linalg.solve(I + L.T, R[:, :n].T)
@@ -109,7 +109,7 @@ def test_any_offsets_take_the_row_by_row_sweeps_and_any_column_count():
     M = sp.diags([0.3, -1.0, 4.0, -1.0, 0.3], [-5, -1, 0, 1, 5], shape=(n, n)).toarray()
     blocks = blocks_of(M, 1)
     sw = SymmetricGaussSeidel(blocks)
-    assert sw.forward.size == 0 and sw.row == 1
+    assert sw.forward_rows.size == 0 and sw.row == 1
     B = np.random.default_rng(1).normal(size=(n, 2))
     x, steps, res = gauss_seidel_cg(blocks, B, np.zeros((n, 2)), rtol=1e-12, maxiter=500, sweeps=sw)
     np.testing.assert_allclose(x, np.linalg.solve(M, B), rtol=1e-9, atol=1e-10)
