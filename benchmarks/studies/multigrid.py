@@ -1,0 +1,229 @@
+"""Geometric multigrid for the fairing system: steps that do not grow as the weight falls, and what a step costs.
+
+Backs the multigrid paragraph in docs/fairing.md "Symmetric Gauss–Seidel" (issue 15, part 2: a preconditioner
+whose steps do not depend on the weight; not in the solver, and why).
+
+On the bench_core sheet (``benchmarks/_common.py``) with every window-middle vertex free, builds fair()'s
+one-iteration normal matrix ``M = AᵀA + ωI`` in the grid's numbering (fixed vertices as identity rows; fair's
+default ``line_spacing="fair"``) and solves ``M X = B`` for a seeded right-hand side of x, y and z together to
+rtol 1e-9 with conjugate gradients preconditioned by:
+
+- ``none``: plain CG;
+- ``SGS``: one symmetric Gauss–Seidel sweep over all rows (what fair's Gauss–Seidel path does on one thread);
+- ``MG linear`` / ``MG cubic``: a multigrid V(1,1) cycle, symmetric Gauss–Seidel smoothing (forward before,
+  backward after), vertex-centred coarsening by 2 in both directions down to at most 400 vertices (solved
+  directly), Galerkin coarse matrices ``PᵀMP``, and a prolongation ``P`` that interpolates along the grid's
+  rows and columns with Lagrange polynomials of degree 1 or 3 (``P`` zero at fixed vertices);
+- ``two-grid cubic``: the cubic cycle with one coarse level solved exactly (the bound any deeper cycle
+  approaches).
+
+The fairing energy of a line does not see a motion that is quadratic along it, so at a small ω the slow
+modes are global biquadratics that only ω holds; cubic interpolation carries them to the coarse grid
+exactly, linear interpolation does not.
+
+Prints, per weight, each preconditioner's steps, its work per step and in all (the matrix nonzeros read,
+counted in products with the fine ``M``: a CG product 1, a sweep over a level its nonzeros (a first sweep
+from zero and the product after it half each), a transfer the nonzeros of ``P``, the coarse solve those of
+its factors; Gauss–Seidel in Eisenstat's form, as fair runs it, reads each triangle once per step: 1), and
+the operator complexity (all levels' nonzeros over the fine matrix's). Wall times of this NumPy/SciPy
+prototype are printed too, one thread, but say less than the work: the multigrid's transfers and coarse
+products are SciPy's, the sweeps small Numba loops.
+
+Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [--weights 0.001 0.01 0.1 0.3 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import _common  # noqa: E402
+
+from quadnodes.fairing import FairingSystem, even_lengths  # noqa: E402
+from quadnodes.zigzag import _window_geometry, detect  # noqa: E402
+
+COARSEST = 400  # vertices at most on the level solved directly
+
+
+@numba.njit
+def _sweep(indptr, indices, data, diag, b, x, forward):  # type: ignore[no-untyped-def]
+    """One Gauss–Seidel sweep ``x_i = (b_i − Σ_{j≠i} m_ij x_j) / m_ii`` over every row, in place, on (n, 3)."""
+    n = b.shape[0]
+    for step in range(n):
+        i = step if forward else n - 1 - step
+        s0, s1, s2 = b[i, 0], b[i, 1], b[i, 2]
+        for k in range(indptr[i], indptr[i + 1]):
+            j = indices[k]
+            if j != i:
+                v = data[k]
+                s0 -= v * x[j, 0]
+                s1 -= v * x[j, 1]
+                s2 -= v * x[j, 2]
+        d = diag[i]
+        x[i, 0], x[i, 1], x[i, 2] = s0 / d, s1 / d, s2 / d
+
+
+def prolongation_1d(n: int, degree: int) -> tuple[sp.csr_matrix, int]:
+    """``(n, nc)`` interpolation from every other node (and the last) by Lagrange polynomials of ``degree``."""
+    coarse = np.arange(0, n, 2)
+    if coarse[-1] != n - 1:
+        coarse = np.append(coarse, n - 1)
+    nc, m = coarse.size, degree + 1
+    rows, cols, vals = [], [], []
+    at = {int(c): k for k, c in enumerate(coarse)}
+    for i in range(n):
+        if i in at:
+            rows.append(i), cols.append(at[i]), vals.append(1.0)
+            continue
+        lo = min(max(int(np.searchsorted(coarse, i)) - m // 2, 0), nc - m)
+        xs = coarse[lo : lo + m].astype(float)
+        for a in range(m):
+            w = np.prod([(i - xs[b]) / (xs[a] - xs[b]) for b in range(m) if b != a])
+            rows.append(i), cols.append(lo + a), vals.append(w)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n, nc)), nc
+
+
+class Multigrid:
+    """V(ν, ν) cycles on the grid's matrix: Gauss–Seidel smoothing, Galerkin coarse levels, a direct coarsest."""
+
+    def __init__(self, M: sp.csr_matrix, size: int, free: np.ndarray, degree: int, levels: int = 99,
+                 sweeps: int = 1) -> None:
+        self.M, self.P, self.sweeps = [M], [], sweeps
+        side = size
+        while side * side > COARSEST and len(self.M) < levels:
+            P1, nc = prolongation_1d(side, degree)
+            P = sp.kron(P1, P1, format="csr")
+            if not self.P:  # nothing moves a fixed vertex
+                P = (sp.diags(free.astype(float)) @ P).tocsr()
+            C = (P.T @ (self.M[-1] @ P)).tocsr()
+            C = (C + sp.diags((C.diagonal() == 0).astype(float))).tocsr()  # a node that moves nothing: identity
+            self.P.append(P)
+            self.M.append(C)
+            side = nc
+        for A in self.M:
+            A.sort_indices()
+        self.diag = [A.diagonal().copy() for A in self.M]
+        self.lu = spla.splu(self.M[-1].tocsc())
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        return self._cycle(0, r)
+
+    def _cycle(self, level: int, r: np.ndarray) -> np.ndarray:
+        if level == len(self.M) - 1:
+            return self.lu.solve(r)
+        A, d, P = self.M[level], self.diag[level], self.P[level]
+        x = np.zeros_like(r)
+        for _ in range(self.sweeps):
+            _sweep(A.indptr, A.indices, A.data, d, r, x, True)
+        x += P @ self._cycle(level + 1, np.ascontiguousarray(P.T @ (r - A @ x)))
+        for _ in range(self.sweeps):
+            _sweep(A.indptr, A.indices, A.data, d, r, x, False)
+        return x
+
+    def work(self) -> float:
+        """Nonzeros one cycle reads, in fine-matrix products (see the module's docstring)."""
+        total = 0.0
+        for A, P in zip(self.M[:-1], self.P):
+            total += A.nnz * (2 * self.sweeps + 1) + 2 * P.nnz  # 2ν sweeps, 2 products; the first two at half
+        total += self.lu.L.nnz + self.lu.U.nnz
+        return total / self.M[0].nnz
+
+    def complexity(self) -> float:
+        return sum(A.nnz for A in self.M) / self.M[0].nnz
+
+
+def symmetric_gauss_seidel(M: sp.csr_matrix):  # type: ignore[no-untyped-def]
+    M.sort_indices()
+    d = M.diagonal().copy()
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        x = np.zeros_like(r)
+        _sweep(M.indptr, M.indices, M.data, d, r, x, True)
+        _sweep(M.indptr, M.indices, M.data, d, r, x, False)
+        return x
+    return apply
+
+
+def pcg(M: sp.csr_matrix, b: np.ndarray, precond, rtol: float = 1e-9, maxiter: int = 5000) -> tuple[np.ndarray, int]:  # type: ignore[no-untyped-def]
+    """Preconditioned CG on the columns of ``b`` together (per-column scalars), from zero."""
+    x, r = np.zeros_like(b), b.copy()
+    z = precond(r)
+    p, rz = z.copy(), np.einsum("ij,ij->j", r, z)
+    tol = rtol * np.sqrt(np.einsum("ij,ij->j", b, b))
+    for step in range(1, maxiter + 1):
+        q = M @ p
+        a = rz / np.einsum("ij,ij->j", p, q)
+        x += a * p
+        r -= a * q
+        if (np.sqrt(np.einsum("ij,ij->j", r, r)) <= tol).all():
+            return x, step
+        z = precond(r)
+        rz, old = np.einsum("ij,ij->j", r, z), rz
+        p = z + (rz / old) * p
+    return x, maxiter
+
+
+def grid_system(m, free: np.ndarray, inverse: np.ndarray, w: float) -> sp.csr_matrix:  # type: ignore[no-untyped-def]
+    """fair()'s normal matrix in the grid's numbering (fixed vertices as identity rows)."""
+    t = m.topology
+    s = FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, solver="cg",
+                      _inverse_lengths=inverse, _topology=t)
+    pattern, coef, fr = s._grid
+    offsets, data = pattern.normal_matrix(coef, fr, s.weight)
+    return sp.dia_matrix((data, offsets), shape=(m.n_vertices,) * 2).tocsr()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--size", type=int, default=100)
+    ap.add_argument("--noise", choices=_common.NOISES, default="broadband")
+    ap.add_argument("--weights", type=float, nargs="+", default=[0.001, 0.01, 0.1, 0.3, 3.0])
+    args = ap.parse_args()
+    n = args.size
+    m = _common.noisy_grid(n, args.noise)
+    t = m.topology
+    free = detect(m, 0.0).free
+    inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
+    kinds = {
+        "none": lambda M: (lambda r: r, 1.0, 1.0),
+        "SGS": lambda M: (symmetric_gauss_seidel(M), 1.0, 1.0),
+        "MG linear": lambda M: _mg(M, n, free, 1),
+        "MG cubic": lambda M: _mg(M, n, free, 3),
+        "two-grid cubic": lambda M: _mg(M, n, free, 3, levels=2),
+    }
+    print(f"{n}×{n} sheet, {args.noise} noise, all window middles free; steps to rtol 1e-9 · work per step · "
+          f"work in all (fine products) · operator complexity · prototype time (s)\n")
+    print("| ω | " + " | ".join(kinds) + " |")
+    print("|---:|" + "---:|" * len(kinds))
+    warm = sp.identity(16, format="csr")
+    _sweep(warm.indptr, warm.indices, warm.data, np.ones(16), np.ones((16, 3)), np.zeros((16, 3)), True)
+    for w in args.weights:
+        M = grid_system(m, free, inverse, w)
+        B = M @ np.random.default_rng(1).normal(size=(m.n_vertices, 3))
+        B[~free] = 0.0
+        cells = []
+        for make in kinds.values():
+            t0 = time.perf_counter()
+            precond, per_step, complexity = make(M)
+            x, steps = pcg(M, B, precond)
+            seconds = time.perf_counter() - t0
+            assert np.abs(M @ x - B).max() <= 1e-6 * np.abs(B).max()
+            cells.append(f"{steps} · {per_step:.1f} · {steps * per_step:.0f} · {complexity:.2f} · {seconds:.2f}")
+        print(f"| {w:g} | " + " | ".join(cells) + " |", flush=True)
+
+
+def _mg(M: sp.csr_matrix, n: int, free: np.ndarray, degree: int, levels: int = 99):  # type: ignore[no-untyped-def]
+    mg = Multigrid(M, n, free, degree, levels)
+    return mg, 1.0 + mg.work(), mg.complexity()
+
+
+if __name__ == "__main__":
+    main()
