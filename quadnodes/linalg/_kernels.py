@@ -14,7 +14,7 @@ import numpy as np
 __all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines",
            "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "open_grid_family",
            "unit_backward_sweep", "unit_forward_sweep", "unit_cg_update", "unit_scaled", "csr_backward_sweep",
-           "csr_forward_sweep", "rows_cg_update", "csr_split_counts", "csr_split_fill"]
+           "csr_forward_sweep", "rows_cg_update", "csr_separators", "csr_split_counts", "csr_split_fill"]
 
 #: Rows of the product computed per chunk (the chunk's slices of every diagonal stay in cache).
 _CHUNK = 1024
@@ -510,22 +510,41 @@ def _recurrence(T: np.ndarray, L1: np.ndarray, L2: np.ndarray, L3: np.ndarray, Z
 
 # Conjugate gradients on the symmetrically Gauss–Seidel-preconditioned system in Eisenstat's form
 # (quadnodes.linalg.gauss_seidel.gauss_seidel_cg): with M scaled to a unit diagonal, M = (I + L) +
-# (I + Lᵀ) − I + E (L: strictly lower part inside each thread's block of rows; E: the couplings
-# between blocks), the preconditioned operator (I + L)⁻¹ M (I + Lᵀ)⁻¹ applied to p is
-# t + (I + L)⁻¹ (p − t + E t) with t = (I + Lᵀ)⁻¹ p: one backward and one forward sweep, no product.
+# (I + U) − I in the sweeps' order of the rows (every thread's interior rows first, the separator rows
+# between the threads' ranges last), the preconditioned operator (I + L)⁻¹ M (I + U)⁻¹ applied to p is
+# t + (I + L)⁻¹ (p − t) with t = (I + U)⁻¹ p: one backward and one forward sweep, no product. A block's
+# sweep reads the rows beside it that come later (backward) or earlier (forward) in that order as fixed
+# values: the rows ``below:lo`` and ``hi:above``.
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def _beyond(U: np.ndarray, offsets: np.ndarray, V: np.ndarray, q: int, i: int, lo: int, hi: int, below: int,
+            above: int) -> float:  # pragma: no cover - compiled
+    """``Σ_j M_ij V[q, j]`` over the fixed rows ``j`` beside the block ``lo:hi`` (``below:lo`` and ``hi:above``)."""
+    s = 0.0
+    for d in range(1, offsets.size):
+        o = offsets[d]
+        j = i - o
+        if below <= j < lo:
+            s += U[d, j] * V[q, j]
+        j = i + o
+        if hi <= j < above:
+            s += U[d, i] * V[q, j]
+    return s
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def _unit_rows(U: np.ndarray, offsets: np.ndarray, V: np.ndarray, Z: np.ndarray, lo: int, hi: int, a: int, b: int,
-               forward: bool) -> None:  # pragma: no cover - compiled
+               forward: bool, below: int, above: int) -> None:  # pragma: no cover - compiled
     """Rows ``a:b`` of a unit triangular solve on the block ``lo:hi``, row by row (any offsets):
     forward ``z_i = v_i − Σ_{j<i} M_ij z_j``, backward ``z_i = v_i − Σ_{j>i} M_ij z_j`` (``j`` in the
-    block); ``V`` already holds the right-hand side's rows (may be ``Z``)."""
+    block), each less its couplings to the fixed rows ``below:lo`` and ``hi:above`` of ``Z``; ``V``
+    already holds the right-hand side's rows (may be ``Z``)."""
     nd = offsets.size
     for k in range(b - a):
         i = a + k if forward else b - 1 - k
         for q in range(Z.shape[0]):
-            s = V[q, i]
+            s = V[q, i] - _beyond(U, offsets, Z, q, i, lo, hi, below, above)
             for d in range(1, nd):
                 o = offsets[d]
                 if forward:
@@ -602,8 +621,10 @@ def _forward_terms(P: np.ndarray, T: np.ndarray, W: np.ndarray, U: np.ndarray, S
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def unit_backward_sweep(U: np.ndarray, offsets: np.ndarray, R: np.ndarray, P: np.ndarray, T: np.ndarray,
-                        beta: np.ndarray, S: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover - compiled
-    """On the block ``lo:hi``: ``P = R + β P`` (per column), then ``T = (I + Lᵀ)⁻¹ P``.
+                        beta: np.ndarray, S: np.ndarray, lo: int, hi: int, below: int,
+                        above: int) -> None:  # pragma: no cover - compiled
+    """On the block ``lo:hi``: ``P = R + β P`` (per column), then ``T = (I + U)⁻¹ P``, the rows ``below:lo``
+    and ``hi:above`` of ``T`` read as fixed (they come later in the sweeps' order).
 
     ``U[d, i] = M[i, i + offsets[d]]`` of a unit-diagonal symmetric ``M`` (``U[0]`` unused);
     ``(c, m)`` C-contiguous vectors, rows from ``U.shape[1]`` on: ``T = P``. With the open grid's
@@ -623,40 +644,30 @@ def unit_backward_sweep(U: np.ndarray, offsets: np.ndarray, R: np.ndarray, P: np
     if hi <= lo:
         return
     if not fast:
-        _unit_rows(U, offsets, P, T, lo, hi, lo, hi, False)
+        _unit_rows(U, offsets, P, T, lo, hi, lo, hi, False, below, above)
         return
-    _unit_rows(U, offsets, P, T, lo, hi, b0, hi, False)
+    _unit_rows(U, offsets, P, T, lo, hi, b0, hi, False, below, above)
     u1, u2, u3 = U[1], U[2], U[3]
     H = np.empty((c, 3))
     for b in range(b0, lo, -g):
         a = max(b - g, lo)
         _backward_terms(R, P, T, U, beta, S, a, b, g)
+        if a < lo + 3 * g and below < lo:  # the couplings to the fixed rows before the block
+            for q in range(c):
+                for i in range(a, min(b, lo + 3 * g)):
+                    S[q, i - a] -= _beyond(U, offsets, T, q, i, lo, hi, below, lo)
         _recurrence(S, u1, u2, u3, T, a, b, False, H)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
-def _outside(U: np.ndarray, offsets: np.ndarray, T: np.ndarray, q: int, i: int, lo: int,
-             hi: int) -> float:  # pragma: no cover - compiled
-    """``(E T)[q, i]``: row ``i``'s couplings to the rows of ``T`` outside the block ``lo:hi``."""
-    n = U.shape[1]
-    s = 0.0
-    for d in range(1, offsets.size):
-        o = offsets[d]
-        if 0 <= i - o < lo:
-            s += U[d, i - o] * T[q, i - o]
-        if hi <= i + o < n:
-            s += U[d, i] * T[q, i + o]
-    return s
-
-
-@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def unit_forward_sweep(U: np.ndarray, offsets: np.ndarray, F: np.ndarray, P: np.ndarray, T: np.ndarray,
-                       W: np.ndarray, S: np.ndarray, lo: int, hi: int, dots: np.ndarray) -> None:  # pragma: no cover - compiled
-    """On the block ``lo:hi``: ``W = (I + L)⁻¹ (P − T + E T)`` and ``dots[q] = P·(T + W)`` over the block.
+                       W: np.ndarray, S: np.ndarray, lo: int, hi: int, below: int, above: int,
+                       dots: np.ndarray) -> None:  # pragma: no cover - compiled
+    """On the block ``lo:hi``: ``W = (I + L)⁻¹ (P − T)``, the rows ``below:lo`` and ``hi:above`` of ``W``
+    read as fixed (they come earlier in the sweeps' order), and ``dots[q] = P·(T + W)`` over the block.
 
-    ``E T``: the couplings of the block's rows to the other blocks' rows of ``T`` (``T`` complete
-    there; zero for a plain forward solve). ``F[d, i] = M[i, i − d]`` (``d = 1, 2, 3``, the open
-    grid's fast path; else empty). Rows from ``U.shape[1]`` on: ``W = P − T``.
+    ``F[d, i] = M[i, i − d]`` (``d = 1, 2, 3``, the open grid's fast path; else empty). Rows from
+    ``U.shape[1]`` on: ``W = P − T``. ``T`` zero: a plain forward solve of ``P``.
     """
     n = U.shape[1]
     c = P.shape[0]
@@ -672,23 +683,20 @@ def unit_forward_sweep(U: np.ndarray, offsets: np.ndarray, F: np.ndarray, P: np.
     g = offsets[4] if offsets.size == 7 and F.shape[0] == 4 and S.shape[1] == offsets[4] else 0
     top = offsets[offsets.size - 1]
     fast = g > 0 and hi - lo > 6 * g
-    # the right-hand side P − T + E T of the rows swept one by one (the others' with their chunk's terms)
-    a0 = lo + 3 * g if fast else hi
+    a0 = lo + 3 * g if fast else hi  # (the rows swept one by one; the others with their chunk's terms)
     for q in range(c):
         _difference_into(W[q, lo:a0], P[q, lo:a0], T[q, lo:a0])
-        for i in range(lo, a0):
-            if i < lo + top or i >= hi - top:
-                W[q, i] += _outside(U, offsets, T, q, i, lo, hi)
-    _unit_rows(U, offsets, W, W, lo, hi, lo, a0, True)
+    _unit_rows(U, offsets, W, W, lo, hi, lo, a0, True, below, above)
     if fast:
         f1, f2, f3 = F[1], F[2], F[3]
         H = np.empty((c, 3))
         for a in range(a0, hi, g):
             b = min(a + g, hi)
             _forward_terms(P, T, W, U, S, a, b, g)
-            for q in range(c):
-                for i in range(max(a, hi - top), b):  # couplings to rows after the block
-                    S[q, i - a] += _outside(U, offsets, T, q, i, lo, hi)
+            if above > hi and b > hi - top:  # the couplings to the fixed rows after the block
+                for q in range(c):
+                    for i in range(max(a, hi - top), b):
+                        S[q, i - a] -= _beyond(U, offsets, W, q, i, lo, hi, lo, above)
             _recurrence(S, f1, f2, f3, W, a, b, True, H)
             _add_dots(P, T, W, a, b, dots)  # (while the chunk is in cache)
     _add_dots(P, T, W, lo, a0, dots)
@@ -747,71 +755,87 @@ def unit_scaled(U: np.ndarray, offsets: np.ndarray, s: np.ndarray, Us: np.ndarra
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
-def csr_backward_sweep(up_ptr: np.ndarray, up_idx: np.ndarray, up: np.ndarray, R: np.ndarray, P: np.ndarray,
-                       T: np.ndarray, beta: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover - compiled
-    """:func:`unit_backward_sweep` on ``(m, c)`` vectors with the unit-diagonal matrix's strictly upper part
-    inside each block in CSR (``up_*``; rows past it: none): ``P = R + β P``, then ``T = (I + Lᵀ)⁻¹ P``."""
-    n = up_ptr.size - 1
+def csr_backward_sweep(up_ptr: np.ndarray, up_idx: np.ndarray, up: np.ndarray, out_ptr: np.ndarray,
+                       out_idx: np.ndarray, out: np.ndarray, R: np.ndarray, P: np.ndarray, T: np.ndarray,
+                       beta: np.ndarray, rows: np.ndarray, couple: bool) -> None:  # pragma: no cover - compiled
+    """:func:`unit_backward_sweep` on ``(m, c)`` vectors over the block's ``rows`` (ascending; swept from the
+    last), with the unit-diagonal matrix's strictly upper part inside each block (``up_*``) and its
+    couplings outside the block (``out_*``) in CSR: ``P = R + β P``, then ``T = (I + U)⁻¹ (P − E T)``,
+    ``E`` the couplings (with ``couple``; the rows they reach hold their final ``T``)."""
     c = P.shape[1]
     if c == 3:  # (x, y, z in registers: the general loop keeps them in a scratch array, 1.6× slower)
         b0, b1, b2 = beta[0], beta[1], beta[2]
-        for i in range(hi - 1, lo - 1, -1):
+        for k in range(rows.size - 1, -1, -1):
+            i = rows[k]
             a0 = R[i, 0] + b0 * P[i, 0]
             a1 = R[i, 1] + b1 * P[i, 1]
             a2 = R[i, 2] + b2 * P[i, 2]
             P[i, 0], P[i, 1], P[i, 2] = a0, a1, a2
-            if i < n:
-                for e in range(up_ptr[i], up_ptr[i + 1]):
-                    j = up_idx[e]
-                    a = up[e]
+            if couple:
+                for e in range(out_ptr[i], out_ptr[i + 1]):
+                    j = out_idx[e]
+                    a = out[e]
                     a0 -= a * T[j, 0]
                     a1 -= a * T[j, 1]
                     a2 -= a * T[j, 2]
-            T[i, 0], T[i, 1], T[i, 2] = a0, a1, a2
-        return
-    acc = np.empty(c)
-    for i in range(hi - 1, lo - 1, -1):
-        for q in range(c):
-            acc[q] = R[i, q] + beta[q] * P[i, q]
-            P[i, q] = acc[q]
-        if i < n:
             for e in range(up_ptr[i], up_ptr[i + 1]):
                 j = up_idx[e]
                 a = up[e]
+                a0 -= a * T[j, 0]
+                a1 -= a * T[j, 1]
+                a2 -= a * T[j, 2]
+            T[i, 0], T[i, 1], T[i, 2] = a0, a1, a2
+        return
+    acc = np.empty(c)
+    for k in range(rows.size - 1, -1, -1):
+        i = rows[k]
+        for q in range(c):
+            acc[q] = R[i, q] + beta[q] * P[i, q]
+            P[i, q] = acc[q]
+        if couple:
+            for e in range(out_ptr[i], out_ptr[i + 1]):
+                j = out_idx[e]
+                a = out[e]
                 for q in range(c):
                     acc[q] -= a * T[j, q]
+        for e in range(up_ptr[i], up_ptr[i + 1]):
+            j = up_idx[e]
+            a = up[e]
+            for q in range(c):
+                acc[q] -= a * T[j, q]
         for q in range(c):
             T[i, q] = acc[q]
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def csr_forward_sweep(low_ptr: np.ndarray, low_idx: np.ndarray, low: np.ndarray, out_ptr: np.ndarray,
-                      out_idx: np.ndarray, out: np.ndarray, P: np.ndarray, T: np.ndarray, W: np.ndarray, lo: int,
-                      hi: int, dots: np.ndarray) -> None:  # pragma: no cover - compiled
-    """:func:`unit_forward_sweep` on ``(m, c)`` vectors with the strictly lower part inside each block
-    (``low_*``) and the couplings between blocks (``out_*``) in CSR: ``W = (I + L)⁻¹ (P − T + E T)``
-    on the block and ``dots[q] = P·(T + W)`` over it."""
-    n = low_ptr.size - 1
+                      out_idx: np.ndarray, out: np.ndarray, P: np.ndarray, T: np.ndarray, W: np.ndarray,
+                      rows: np.ndarray, couple: bool, dots: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`unit_forward_sweep` on ``(m, c)`` vectors over the block's ``rows`` (ascending), with the
+    strictly lower part inside each block (``low_*``) and the couplings outside it (``out_*``) in CSR:
+    ``W = (I + L)⁻¹ (P − T − E W)`` on the block, ``E`` the couplings (with ``couple``; the rows they
+    reach hold their final ``W``), and ``dots[q] = P·(T + W)`` over it."""
     c = P.shape[1]
     if c == 3:  # (x, y, z in registers, as in csr_backward_sweep)
         d0 = d1 = d2 = 0.0
-        for i in range(lo, hi):
+        for k in range(rows.size):
+            i = rows[k]
             a0 = P[i, 0] - T[i, 0]
             a1 = P[i, 1] - T[i, 1]
             a2 = P[i, 2] - T[i, 2]
-            if i < n:
+            if couple:
                 for e in range(out_ptr[i], out_ptr[i + 1]):
                     j = out_idx[e]
                     a = out[e]
-                    a0 += a * T[j, 0]
-                    a1 += a * T[j, 1]
-                    a2 += a * T[j, 2]
-                for e in range(low_ptr[i], low_ptr[i + 1]):
-                    j = low_idx[e]
-                    a = low[e]
                     a0 -= a * W[j, 0]
                     a1 -= a * W[j, 1]
                     a2 -= a * W[j, 2]
+            for e in range(low_ptr[i], low_ptr[i + 1]):
+                j = low_idx[e]
+                a = low[e]
+                a0 -= a * W[j, 0]
+                a1 -= a * W[j, 1]
+                a2 -= a * W[j, 2]
             W[i, 0], W[i, 1], W[i, 2] = a0, a1, a2
             d0 += P[i, 0] * (T[i, 0] + a0)
             d1 += P[i, 1] * (T[i, 1] + a1)
@@ -821,20 +845,21 @@ def csr_forward_sweep(low_ptr: np.ndarray, low_idx: np.ndarray, low: np.ndarray,
     acc = np.empty(c)
     for q in range(c):
         dots[q] = 0.0
-    for i in range(lo, hi):
+    for k in range(rows.size):
+        i = rows[k]
         for q in range(c):
             acc[q] = P[i, q] - T[i, q]
-        if i < n:
+        if couple:
             for e in range(out_ptr[i], out_ptr[i + 1]):
                 j = out_idx[e]
                 a = out[e]
                 for q in range(c):
-                    acc[q] += a * T[j, q]
-            for e in range(low_ptr[i], low_ptr[i + 1]):
-                j = low_idx[e]
-                a = low[e]
-                for q in range(c):
                     acc[q] -= a * W[j, q]
+        for e in range(low_ptr[i], low_ptr[i + 1]):
+            j = low_idx[e]
+            a = low[e]
+            for q in range(c):
+                acc[q] -= a * W[j, q]
         for q in range(c):
             W[i, q] = acc[q]
             dots[q] += P[i, q] * (T[i, q] + acc[q])
@@ -857,15 +882,37 @@ def rows_cg_update(X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, a
 
 
 @nb.njit(cache=True, nogil=True, boundscheck=False)
-def csr_split_counts(indptr: np.ndarray, indices: np.ndarray, lo: int, hi: int,
+def csr_separators(indptr: np.ndarray, indices: np.ndarray, lo: int, hi: int,
+                   separator: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Rows ``lo:hi`` (a thread's range): ``separator[i]`` where row ``i`` couples to a row from ``hi`` on."""
+    for i in range(lo, hi):
+        reach = False
+        for e in range(indptr[i], indptr[i + 1]):
+            if indices[e] >= hi:
+                reach = True
+        separator[i] = reach
+
+
+@nb.njit(cache=True, nogil=True, boundscheck=False)
+def _same_block(separator: np.ndarray, i: int, j: int, lo: int, hi: int) -> bool:  # pragma: no cover - compiled
+    """Whether rows ``i`` (of the range ``lo:hi``) and ``j`` share a block: both separators, or both in the
+    range's interior."""
+    if separator[i]:
+        return separator[j]
+    return not separator[j] and lo <= j < hi
+
+
+@nb.njit(cache=True, nogil=True, boundscheck=False)
+def csr_split_counts(indptr: np.ndarray, indices: np.ndarray, separator: np.ndarray, lo: int, hi: int,
                      counts: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Per row of the block ``lo:hi``: its entries strictly below the diagonal inside the block,
-    strictly above it inside the block, and outside the block (``counts[0..2, i]``; the diagonal in none)."""
+    """Per row of the range ``lo:hi``: its entries strictly below the diagonal inside its block (the
+    range's interior, or all separator rows), strictly above it inside its block, and outside it
+    (``counts[0..2, i]``; the diagonal in none)."""
     for i in range(lo, hi):
         a = b = o = 0
         for e in range(indptr[i], indptr[i + 1]):
             j = indices[e]
-            if j < lo or j >= hi:
+            if not _same_block(separator, i, j, lo, hi):
                 o += 1
             elif j < i:
                 a += 1
@@ -875,9 +922,10 @@ def csr_split_counts(indptr: np.ndarray, indices: np.ndarray, lo: int, hi: int,
 
 
 @nb.njit(cache=True, nogil=True, boundscheck=False)
-def csr_split_fill(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, s: np.ndarray, lo: int, hi: int,
-                   ptr: np.ndarray, idx0: np.ndarray, val0: np.ndarray, idx1: np.ndarray, val1: np.ndarray,
-                   idx2: np.ndarray, val2: np.ndarray) -> None:  # pragma: no cover - compiled
+def csr_split_fill(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, s: np.ndarray,
+                   separator: np.ndarray, lo: int, hi: int, ptr: np.ndarray, idx0: np.ndarray, val0: np.ndarray,
+                   idx1: np.ndarray, val1: np.ndarray, idx2: np.ndarray,
+                   val2: np.ndarray) -> None:  # pragma: no cover - compiled
     """Rows ``lo:hi`` of the three parts of :func:`csr_split_counts` (lower, upper, outside the block),
     scaled to a unit diagonal (``data · s_i · s_j``): part ``p``'s row ``i`` starts at ``ptr[p, i]``."""
     for i in range(lo, hi):
@@ -886,7 +934,7 @@ def csr_split_fill(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, s:
         for e in range(indptr[i], indptr[i + 1]):
             j = indices[e]
             v = data[e] * si * s[j]
-            if j < lo or j >= hi:
+            if not _same_block(separator, i, j, lo, hi):
                 idx2[f2] = j
                 val2[f2] = v
                 f2 += 1

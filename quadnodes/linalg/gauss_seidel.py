@@ -1,10 +1,16 @@
-"""Symmetric Gauss–Seidel preconditioning for conjugate gradients on a grid's diagonal storage.
+"""Symmetric Gauss–Seidel preconditioning for conjugate gradients on a grid's diagonal storage or compressed rows.
 
-For a symmetric positive definite ``M = L + D + Lᵀ`` (``L`` strictly lower), one forward and
-one backward Gauss–Seidel sweep give ``P⁻¹ r = (D + Lᵀ)⁻¹ D (D + L)⁻¹ r``: ``P = (D + L) D⁻¹
-(D + Lᵀ)`` is symmetric positive definite whenever ``D`` is positive, so CG may use it. Each
-thread sweeps its own range of rows and leaves out the couplings to the other ranges (block
-Jacobi over the ranges, Gauss–Seidel inside each): still SPD, and the ranges run side by side.
+For a symmetric positive definite ``M = L + D + U`` (``L`` strictly lower, ``U = Lᵀ`` in the sweeps'
+order of the rows), one forward and one backward Gauss–Seidel sweep give ``P⁻¹ r = (D + U)⁻¹ D
+(D + L)⁻¹ r``: ``P = (D + L) D⁻¹ (D + U)`` is symmetric positive definite whenever ``D`` is positive,
+so CG may use it.
+
+**Threads without lost couplings.** The rows are cut into one range per thread. The rows of a range
+that couple to a later range are its *separator*; the rest are its *interior*. No interior couples to
+another, so the sweeps order the rows interiors first (each thread sweeps its own, side by side) and
+separators last (swept on one thread, a few grid rows each): a Gauss–Seidel sweep of the whole matrix
+in that order, every coupling kept. (Sweeping each range alone and dropping the couplings between them
+cost steps: 40 against 32 on two ranges at 300², ω = 0.3; one range took 30.)
 
 CG runs in Eisenstat's form (:func:`gauss_seidel_cg`): with ``M`` scaled to a unit diagonal,
 the preconditioned operator's product is one backward and one forward sweep, so a step costs
@@ -12,9 +18,8 @@ the two sweeps and no product with ``M``.
 
 On a fairing matrix (a sum of per-line operators coupling four consecutive vertices, plus ω)
 the sweeps damp the oscillating error that makes plain CG slow: on the bench sheets
-(``benchmarks/_common.py``, all free) 3–5× fewer steps than plain CG on one range of rows
-(100²) and 1.7–4.8× fewer on two (300²: the couplings between the ranges are left out), at
-every weight from 0.003 to 3 and on both noises (``python benchmarks/studies/gauss_seidel.py``).
+(``benchmarks/_common.py``, all free) 3–5× fewer steps than plain CG at every weight from
+0.003 to 3 and on both noises (``python benchmarks/studies/gauss_seidel.py``).
 
 Examples
 --------
@@ -44,18 +49,34 @@ def _unit_scale(diagonal: np.ndarray) -> np.ndarray:
     return 1.0 / np.sqrt(diagonal)
 
 
+def _equal_ranges(n: int, parts: int) -> list[tuple[int, int]]:
+    """``parts`` consecutive ranges of ``range(n)`` cut at multiples of :data:`~quadnodes.linalg.threads.RANGE_ALIGN`."""
+    from .threads import RANGE_ALIGN
+
+    cuts = (np.arange(1, parts) * n // parts) // RANGE_ALIGN * RANGE_ALIGN
+    return list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, n].tolist()))
+
+
 class SymmetricGaussSeidel:
     """The symmetric Gauss–Seidel preconditioner of a :class:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks`, made once.
 
     Holds ``M̃ = D^{-1/2} M D^{-1/2}`` (unit diagonal) by its upper diagonals, and for an open
     grid (upper offsets ``0, 1, 2, 3, g, 2g, 3g``) the couplings along a grid row again at the
-    row they act on (``F[d, i] = M̃[i, i − d]``) for the forward sweep's recurrence. Passed to
-    :func:`~quadnodes.linalg.cg.block_cg` as ``precond``, it makes the solve
-    :func:`gauss_seidel_cg`, on ``(c, m)`` vectors (``columns``).
+    row they act on (``F[d, i] = M̃[i, i − d]``) for the forward sweep's recurrence. A thread's
+    separator is the last ``w`` rows of its range (``w`` the largest offset: three grid rows),
+    so the numbering stays the grid's. Passed to :func:`~quadnodes.linalg.cg.block_cg` as
+    ``precond``, it makes the solve :func:`gauss_seidel_cg`, on ``(c, m)`` vectors (``columns``).
 
     Parameters
     ----------
     blocks : SymmetricDiagonalBlocks
+
+    Attributes
+    ----------
+    interiors, separators : list of tuple
+        ``(lo, hi, below, above, before, after)`` of every part: its rows ``lo:hi``, and the
+        fixed rows its backward sweep reads (``below:lo``, ``hi:above``: separators, later in the
+        order) and its forward sweep reads (``before:lo``, ``hi:after``: interiors, earlier).
 
     Raises
     ------
@@ -81,20 +102,32 @@ class SymmetricGaussSeidel:
         run_tasks(lambda lo, hi: unit_scaled(U, offsets, s, Us, F, lo, hi), blocks.ranges)  # type: ignore[attr-defined]
         self.upper, self.offsets, self.forward_rows, self.scale = Us, offsets, F, s
         self._blocks = blocks
+        n, w = U.shape[1], int(offsets.max())
+        ranges = list(blocks.ranges)  # type: ignore[attr-defined]
+        while len(ranges) > 1 and min(hi - lo for lo, hi in ranges) <= 2 * w:  # separators must not touch
+            ranges = _equal_ranges(n, len(ranges) - 1)
+        last = len(ranges) - 1
+        self.interiors = []
+        for r, (lo, hi) in enumerate(ranges):
+            top = hi - w if r < last else hi  # (the interior: lo:top; the separator: top:hi)
+            self.interiors.append((lo, top, lo - w if r else lo, hi, lo, top))
+        self.separators = [(hi - w, hi, hi - w, hi, hi - 2 * w, min(n, hi + w)) for _, hi in ranges[:-1]]
 
-    def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray, lo: int,
-                 hi: int) -> None:
-        """``P = R + β P``, then ``T = (I + Lᵀ)⁻¹ P`` on the block ``lo:hi``."""
+    def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray,
+                 part: tuple) -> None:
+        """``P = R + β P``, then ``T = (I + U)⁻¹ P`` on the part's rows (the later rows beside it fixed)."""
         from ._kernels import unit_backward_sweep
 
-        unit_backward_sweep(self.upper, self.offsets, R, P, T, beta, S, lo, hi)
+        lo, hi, below, above, _, _ = part
+        unit_backward_sweep(self.upper, self.offsets, R, P, T, beta, S, lo, hi, below, above)
 
-    def forward(self, P: np.ndarray, T: np.ndarray, W: np.ndarray, S: np.ndarray, lo: int, hi: int,
+    def forward(self, P: np.ndarray, T: np.ndarray, W: np.ndarray, S: np.ndarray, part: tuple,
                 dots: np.ndarray) -> None:
-        """``W = (I + L)⁻¹ (P − T + E T)`` on the block ``lo:hi``; ``dots = P·(T + W)`` over it."""
+        """``W = (I + L)⁻¹ (P − T)`` on the part's rows (the earlier rows beside it fixed); ``dots = P·(T + W)`` there."""
         from ._kernels import unit_forward_sweep
 
-        unit_forward_sweep(self.upper, self.offsets, self.forward_rows, P, T, W, S, lo, hi, dots)
+        lo, hi, _, _, before, after = part
+        unit_forward_sweep(self.upper, self.offsets, self.forward_rows, P, T, W, S, lo, hi, before, after, dots)
 
     def update(self, X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, alpha: np.ndarray, lo: int,
                hi: int, rr: np.ndarray) -> None:
@@ -103,23 +136,34 @@ class SymmetricGaussSeidel:
 
         unit_cg_update(X, R, T, W, alpha, lo, hi, rr)
 
-    def product(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
-        """Rows ``lo:hi`` of ``Y = M X`` (the unscaled matrix)."""
-        self._blocks.matvec(X, Y, lo, hi)  # type: ignore[attr-defined]
+    def product(self, X: np.ndarray, Y: np.ndarray) -> None:
+        """``Y = M X`` (the unscaled matrix) on the rows of ``M``, on the blocks' threads."""
+        b = self._blocks
+        b.run(lambda lo, hi: b.matvec(X, Y, lo, hi))  # type: ignore[attr-defined]
 
 
 class CsrGaussSeidel:
     """The symmetric Gauss–Seidel preconditioner of a :class:`~quadnodes.linalg.threads.RowBlocks` (CSR), made once.
 
-    Holds ``M̃ = D^{-1/2} M D^{-1/2}`` (unit diagonal) in compressed rows; the sweeps go row by
-    row in the matrix's own order (a mesh that is no open grid: its vertices' order), on ``(m, c)``
-    vectors. Passed to :func:`~quadnodes.linalg.cg.block_cg` as ``precond``, it makes the solve
-    :func:`gauss_seidel_cg`.
+    Holds ``M̃ = D^{-1/2} M D^{-1/2}`` (unit diagonal) in compressed rows, each row's couplings split
+    into those inside its block (lower and upper) and those outside it. A thread's block is its range's
+    interior; all separator rows form one more block, swept after the interiors on one thread. The
+    sweeps go row by row, in the matrix's own numbering within a block, on ``(m, c)`` vectors. Where
+    the separators would hold more than a quarter of the rows (a numbering without locality), the
+    sweeps run on one thread instead. Passed to :func:`~quadnodes.linalg.cg.block_cg` as ``precond``,
+    it makes the solve :func:`gauss_seidel_cg`.
 
     Parameters
     ----------
     blocks : RowBlocks or DiagonalBlocks
         The operator CG multiplies by (its matrix, in CSR here) and its row ranges.
+
+    Attributes
+    ----------
+    interiors, separators : list of tuple
+        ``(rows, couple_backward, couple_forward)`` of every block: its rows (ascending), and whether
+        each sweep reads its couplings outside the block (the interiors' backward sweeps read the
+        separators' ``T``; the separators' forward sweep reads the interiors' ``W``).
 
     Raises
     ------
@@ -132,40 +176,52 @@ class CsrGaussSeidel:
     row = 1
 
     def __init__(self, blocks: object) -> None:
-        from ._kernels import csr_split_counts, csr_split_fill
+        from ._kernels import csr_separators, csr_split_counts, csr_split_fill
         from .threads import RowBlocks, run_tasks
 
         M = blocks.M.tocsr()  # type: ignore[attr-defined]  # (diagonal storage too: a closed grid's seams)
         s = _unit_scale(M.diagonal())
         n = M.shape[0]
-        # each row's strictly lower and upper parts inside its thread's block, and its couplings to the other
-        # blocks, as three CSR matrices scaled to a unit diagonal (the sweeps then never branch), split by
-        # compiled passes on the pool
+        ranges = list(blocks.ranges)  # type: ignore[attr-defined]
+        separator = np.zeros(n, dtype=np.bool_)
+        if len(ranges) > 1:  # (the last range reaches no later one)
+            run_tasks(lambda lo, hi: csr_separators(M.indptr, M.indices, lo, hi, separator), ranges[:-1])
+            if np.count_nonzero(separator) > n // 4:
+                separator[:] = False
+                ranges = [(0, n)]
+        # each row's strictly lower and upper parts inside its block, and its couplings outside it, as three
+        # CSR matrices scaled to a unit diagonal (the sweeps then never branch), split on the pool
         counts = np.zeros((3, n), dtype=np.int64)
-        run_tasks(lambda lo, hi: csr_split_counts(M.indptr, M.indices, lo, hi, counts), blocks.ranges)
+        run_tasks(lambda lo, hi: csr_split_counts(M.indptr, M.indices, separator, lo, hi, counts), ranges)
         ptr = np.zeros((3, n + 1), dtype=np.int64)
         np.cumsum(counts, axis=1, out=ptr[:, 1:])
         total = ptr[:, -1]
-        parts = [(np.empty(total[p], dtype=M.indices.dtype), np.empty(total[p])) for p in range(3)]
-        run_tasks(lambda lo, hi: csr_split_fill(M.indptr, M.indices, M.data, s, lo, hi, ptr,
-                                                *parts[0], *parts[1], *parts[2]), blocks.ranges)
-        self.lower, self.upper_part, self.coupling = ((ptr[p], *parts[p]) for p in range(3))
+        split = [(np.empty(total[p], dtype=M.indices.dtype), np.empty(total[p])) for p in range(3)]
+        run_tasks(lambda lo, hi: csr_split_fill(M.indptr, M.indices, M.data, s, separator, lo, hi, ptr,
+                                                *split[0], *split[1], *split[2]), ranges)
+        self.lower, self.upper_part, self.coupling = ((ptr[p], *split[p]) for p in range(3))
+        idx = M.indices.dtype
+        self.interiors = [(lo + np.flatnonzero(~separator[lo:hi]).astype(idx), True, False) for lo, hi in ranges]
+        self.separators = [(np.flatnonzero(separator).astype(idx), False, True)] if len(ranges) > 1 else []
         self._product = RowBlocks(M, threads=1, columns=False)  # (the residual's product on (m, c) vectors)
+        self._ranges = ranges
         self.scale = s
 
-    def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray, lo: int,
-                 hi: int) -> None:
+    def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray,
+                 part: tuple) -> None:
         """As :meth:`SymmetricGaussSeidel.backward`, row by row."""
         from ._kernels import csr_backward_sweep
 
-        csr_backward_sweep(*self.upper_part, R, P, T, beta, lo, hi)
+        rows, couple, _ = part
+        csr_backward_sweep(*self.upper_part, *self.coupling, R, P, T, beta, rows, couple)
 
-    def forward(self, P: np.ndarray, T: np.ndarray, W: np.ndarray, S: np.ndarray, lo: int, hi: int,
+    def forward(self, P: np.ndarray, T: np.ndarray, W: np.ndarray, S: np.ndarray, part: tuple,
                 dots: np.ndarray) -> None:
         """As :meth:`SymmetricGaussSeidel.forward`, row by row."""
         from ._kernels import csr_forward_sweep
 
-        csr_forward_sweep(*self.lower, *self.coupling, P, T, W, lo, hi, dots)
+        rows, _, couple = part
+        csr_forward_sweep(*self.lower, *self.coupling, P, T, W, rows, couple, dots)
 
     def update(self, X: np.ndarray, R: np.ndarray, T: np.ndarray, W: np.ndarray, alpha: np.ndarray, lo: int,
                hi: int, rr: np.ndarray) -> None:
@@ -174,9 +230,12 @@ class CsrGaussSeidel:
 
         rows_cg_update(X, R, T, W, alpha, lo, hi, rr)
 
-    def product(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
-        """Rows ``lo:hi`` of ``Y = M X`` (SciPy's multi-vector kernel)."""
-        self._product.matvec(X, Y, lo, hi)
+    def product(self, X: np.ndarray, Y: np.ndarray) -> None:
+        """``Y = M X`` on the rows of ``M`` (SciPy's multi-vector kernel, on the ranges' threads)."""
+        from .threads import run_tasks
+
+        prod = self._product
+        run_tasks(lambda lo, hi: prod.matvec(X, Y, lo, hi), self._ranges)
 
 
 def gauss_seidel_cg(
@@ -188,16 +247,17 @@ def gauss_seidel_cg(
     maxiter: int,
     sweeps: SymmetricGaussSeidel | CsrGaussSeidel | None = None,
 ) -> tuple[np.ndarray, int, float]:
-    """Conjugate gradients preconditioned by one symmetric Gauss–Seidel sweep per thread's block, in Eisenstat's form.
+    """Conjugate gradients preconditioned by one symmetric Gauss–Seidel sweep, in Eisenstat's form, on threads.
 
-    Solves ``M X = B`` (every column) for ``M`` in symmetric diagonal storage. With ``M``
-    scaled to a unit diagonal and split inside each block of rows into ``I + L``, ``I``
-    and ``I + Lᵀ`` (couplings between blocks: ``E``), CG runs on ``(I + L)⁻¹ M (I + Lᵀ)⁻¹``,
-    whose product with ``p`` is ``t + (I + L)⁻¹ (p − t + E t)``, ``t = (I + Lᵀ)⁻¹ p``
-    (Eisenstat 1981): the two sweeps of the preconditioner are the whole step, no product
-    with ``M``. Stops when every column's preconditioned residual is at most ``rtol``
-    times its preconditioned right-hand side and its true residual (one product to check)
-    at most ``rtol`` times ``B``'s; else goes on.
+    Solves ``M X = B`` (every column). With ``M`` scaled to a unit diagonal and split in the
+    sweeps' order (the threads' interiors, then the separators between their ranges; see the
+    module) into ``I + L``, ``I`` and ``I + U``, CG runs on ``(I + L)⁻¹ M (I + U)⁻¹``, whose
+    product with ``p`` is ``t + (I + L)⁻¹ (p − t)``, ``t = (I + U)⁻¹ p`` (Eisenstat 1981): the
+    two sweeps of the preconditioner are the whole step, no product with ``M``. A step sweeps the
+    separators backward, then each thread its interior backward and forward, then the separators
+    forward. Stops when every column's preconditioned residual is at most ``rtol`` times its
+    preconditioned right-hand side and its true residual (one product to check) at most ``rtol``
+    times ``B``'s; else goes on.
 
     Parameters
     ----------
@@ -226,7 +286,7 @@ def gauss_seidel_cg(
     numpy.linalg.LinAlgError
         When a diagonal entry of ``M`` is not positive.
     """
-    from .threads import RANGE_ALIGN, padded as _padded
+    from .threads import RANGE_ALIGN, padded as _padded, run_tasks
 
     if sweeps is None:
         sweeps = SymmetricGaussSeidel(blocks) if hasattr(blocks, "upper") else CsrGaussSeidel(blocks)
@@ -236,18 +296,16 @@ def gauss_seidel_cg(
     if k != sw.scale.size:
         raise ValueError(f"B: expected {sw.scale.size} rows (the matrix's), got {k}")
     kp = -(-k // RANGE_ALIGN) * RANGE_ALIGN  # (padded as block_cg's vectors)
-    # scratch per range (by its bounds: an empty range may share its start with the next)
-    scratch = {(lo, kp if hi == k else hi): (np.empty((c, sw.row)), np.empty(c))
-               for lo, hi in blocks.ranges}  # type: ignore[attr-defined]
+
+    interiors, separators = sw.interiors, sw.separators  # (the padding rows stay zero: no sweep touches them)
+    scratch = [(np.empty((c, sw.row)), np.empty(c)) for _ in range(len(interiors) + len(separators))]
+    tasks = list(enumerate(interiors))
 
     def run(fn) -> list:  # type: ignore[no-untyped-def]  # fn(lo, hi) on every range, the last to kp
         return blocks.run(lambda lo, hi: fn(lo, kp if hi == k else hi))  # type: ignore[attr-defined]
 
     def padded(a: np.ndarray | None = None) -> np.ndarray:
         return _padded(a, kp, c, columns=columns)
-
-    def rows(V: np.ndarray, lo: int, hi: int) -> np.ndarray:
-        return V[:, lo:hi] if columns else V[lo:hi]
 
     def norms2(V: np.ndarray) -> np.ndarray:
         return np.einsum("ij,ij->i", V, V) if columns else np.einsum("ij,ij->j", V, V)
@@ -264,25 +322,19 @@ def gauss_seidel_cg(
     zero = np.zeros(c)
     nothing = padded()  # (never written: zero pages, read as T = 0 by the forward solves)
 
-    def residual(lo: int, hi: int) -> np.ndarray:  # Y = B − M X on the range; its squared norms
-        sw.product(X, Y, lo, hi)
-        y = rows(Y, lo, hi)
-        np.subtract(rows(Bp, lo, hi), y, out=y)
-        return norms2(y)
-
     def forward_solve(V: np.ndarray, out: np.ndarray) -> np.ndarray:  # out = (I + L)⁻¹ V; its squared norms
-        def part(lo: int, hi: int) -> np.ndarray:
-            sw.forward(V, nothing, out, scratch[lo, hi][0], lo, hi, np.empty(c))
-            return norms2(rows(out, lo, hi))
+        def part(i: int, p: tuple) -> None:
+            sw.forward(V, nothing, out, scratch[i][0], p, scratch[i][1])
 
-        return sum(run(part))
+        run_tasks(part, tasks)
+        for i, p in enumerate(separators, len(interiors)):
+            part(i, p)
+        return norms2(out)
 
-    def backward(lo: int, hi: int) -> None:
-        sw.backward(Rh, P, T, beta, scratch[lo, hi][0], lo, hi)
-
-    def forward(lo: int, hi: int) -> np.ndarray:
-        S, d = scratch[lo, hi]
-        sw.forward(P, T, W, S, lo, hi, d)
+    def interior(i: int, p: tuple) -> np.ndarray:  # both sweeps of a thread's interior; its dots
+        S, d = scratch[i]
+        sw.backward(Rh, P, T, beta, S, p)
+        sw.forward(P, T, W, S, p, d)
         return d.copy()
 
     def update(lo: int, hi: int) -> np.ndarray:
@@ -294,7 +346,9 @@ def gauss_seidel_cg(
     steps = 0
     inner = rtol  # the preconditioned residual's target, tightened when the true residual misses rtol
     while True:
-        true = np.sqrt(sum(run(residual))) / bnorm
+        sw.product(X, Y)  # Y = B − M X, the true residual
+        np.subtract(Bp, Y, out=Y)
+        true = np.sqrt(norms2(Y)) / bnorm
         if (true <= rtol).all() or steps >= maxiter or inner < 1e-17:
             return result(float(true.max()))
         Y *= s  # D^{-1/2} (B − M X), then CG's preconditioned residual
@@ -306,8 +360,12 @@ def gauss_seidel_cg(
         beta = zero
         start = steps
         while steps < maxiter and (rr > tol2).any():
-            run(backward)
-            pq = sum(run(forward))
+            for i, p in enumerate(separators, len(interiors)):
+                sw.backward(Rh, P, T, beta, scratch[i][0], p)
+            pq = sum(run_tasks(interior, tasks))
+            for i, p in enumerate(separators, len(interiors)):
+                sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
+                pq = pq + scratch[i][1]
             if not (pq[rr > tol2] > 0).all():  # a breakdown (M not positive definite in floating point)
                 return result(float(np.inf))
             alpha = np.divide(rr, pq, out=np.zeros(c), where=pq > 0)

@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import quadnodes.linalg.threads as linalg_threads
-from quadnodes.linalg._kernels import unit_backward_sweep, unit_forward_sweep
 from quadnodes.linalg.cg import SymmetricDiagonalBlocks, block_cg
-from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel, gauss_seidel_cg
+from quadnodes.linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, gauss_seidel_cg
+from quadnodes.linalg.threads import RowBlocks
 
 
 def grid_matrix(rows: int, cols: int, seed: int, weight: float = 0.05) -> np.ndarray:
@@ -40,50 +40,79 @@ def small_ranges(monkeypatch):
     monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 8)
 
 
+def one_step(sw, R: np.ndarray) -> tuple[np.ndarray, ...]:
+    """P, T, W and the dots of one step from ``p = r`` (β = 0), run as gauss_seidel_cg runs it: the separators
+    backward, every interior backward and forward, the separators forward (vectors in ``sw``'s layout)."""
+    c = R.shape[0] if sw.columns else R.shape[1]
+    P, T, W = np.zeros_like(R), np.zeros_like(R), np.zeros_like(R)
+    S, beta = np.empty((c, sw.row)), np.zeros(c)
+    dots = np.zeros(c)
+    for part in sw.separators:
+        sw.backward(R, P, T, beta, S, part)
+    for part in sw.interiors:
+        d = np.empty(c)
+        sw.backward(R, P, T, beta, S, part)
+        sw.forward(P, T, W, S, part, d)
+        dots += d
+    for part in sw.separators:
+        d = np.empty(c)
+        sw.forward(P, T, W, S, part, d)
+        dots += d
+    return P, T, W, dots
+
+
+def check_one_step(Mt: np.ndarray, order: np.ndarray, R: np.ndarray, P, T, W, dots) -> None:
+    """The step against dense solves: ``t = (I + U)⁻¹ r``, ``w = (I + L)⁻¹ (r − t)`` with ``L`` the strictly
+    lower part of the whole scaled matrix in the sweeps' order (``order``: the rows in that order; ``(n, c)``)."""
+    n = Mt.shape[0]
+    Mo = Mt[np.ix_(order, order)]
+    L, I = np.tril(Mo, -1), np.eye(n)
+    r = R[order]
+    t = np.linalg.solve(I + L.T, r)
+    w = np.linalg.solve(I + L, r - t)
+    np.testing.assert_allclose(P[order], r)
+    np.testing.assert_allclose(T[order], t, rtol=1e-9, atol=1e-9 * np.abs(t).max())
+    np.testing.assert_allclose(W[order], w, rtol=1e-9, atol=1e-9 * np.abs(w).max())
+    np.testing.assert_allclose(dots, np.einsum("ij,ij->j", r, t + w), rtol=1e-9)
+    Ahat = np.linalg.solve(I + L, Mo) @ np.linalg.inv(I + L.T)  # the preconditioned operator CG sees
+    np.testing.assert_allclose(t + w, Ahat @ r, rtol=1e-8, atol=1e-8 * np.abs(t + w).max())
+
+
 @settings(max_examples=25, deadline=None)
 @given(rows=st.integers(4, 24), cols=st.integers(4, 24), threads=st.integers(1, 3), c=st.sampled_from([1, 2, 3, 4]),
        seed=st.integers(0, 2**16))
-def test_one_step_is_the_preconditioned_product_of_each_block(rows, cols, threads, c, seed):
-    """One backward and one forward sweep give ``t = (I + Lᵀ)⁻¹ p`` and ``w = (I + L)⁻¹ (p − t + E t)`` with
-    ``L`` the strictly lower part inside each thread's block and ``E`` the couplings between blocks (dense
-    reference); both the open grid's fast path and the row-by-row path."""
+def test_one_step_is_the_symmetric_sweep_of_the_whole_matrix_interiors_first(rows, cols, threads, c, seed):
+    """One step gives ``t = (I + U)⁻¹ p`` and ``w = (I + L)⁻¹ (p − t)``, ``L`` the strictly lower part of the
+    whole matrix ordered interiors first and separators last (no coupling between threads left out); both
+    the open grid's fast path and the row-by-row path, and the compressed rows' sweeps in their own order."""
     linalg_threads.PARALLEL_MIN_ROWS, saved = 8, linalg_threads.PARALLEL_MIN_ROWS
     try:
         M = grid_matrix(rows, cols, seed)
         blocks = blocks_of(M, threads)
+        rows_blocks = RowBlocks(sp.csr_matrix(M), threads=threads)
     finally:
         linalg_threads.PARALLEL_MIN_ROWS = saved
-    sw = SymmetricGaussSeidel(blocks)
     n = M.shape[0]
     s = 1.0 / np.sqrt(np.diag(M))
     Mt = M * s[:, None] * s[None, :]
-    same = np.zeros((n, n), bool)
-    for lo, hi in blocks.ranges:
-        same[lo:hi, lo:hi] = True
-    L = np.tril(np.where(same, Mt, 0.0), -1)
-    E = np.where(same, 0.0, Mt)
     kp = -(-n // 64) * 64
     rng = np.random.default_rng(seed)
+    r = rng.normal(size=(n, c))
+
+    sw = SymmetricGaussSeidel(blocks)  # the grid's numbering, (c, m) vectors
+    parts = sw.interiors + sw.separators
+    order = np.concatenate([np.arange(p[0], p[1]) for p in parts])
+    assert np.array_equal(np.sort(order), np.arange(n))  # every row in one part
     R = np.zeros((c, kp))
-    R[:, :n] = rng.normal(size=(c, n))
-    P, T, W = np.zeros((c, kp)), np.zeros((c, kp)), np.zeros((c, kp))
-    ranges = [(lo, kp if hi == n else hi) for lo, hi in blocks.ranges]
-    for lo, hi in ranges:  # (β = 0: p = r)
-        unit_backward_sweep(sw.upper, sw.offsets, R, P, T, np.zeros(c), np.empty((c, sw.row)), lo, hi)
-    dots = np.zeros(c)
-    for lo, hi in ranges:
-        d = np.empty(c)
-        unit_forward_sweep(sw.upper, sw.offsets, sw.forward_rows, P, T, W, np.empty((c, sw.row)), lo, hi, d)
-        dots += d
-    I = np.eye(n)
-    t = np.linalg.solve(I + L.T, R[:, :n].T)
-    w = np.linalg.solve(I + L, R[:, :n].T - t + E @ t)
-    np.testing.assert_allclose(P[:, :n], R[:, :n])
-    np.testing.assert_allclose(T[:, :n], t.T, rtol=1e-9, atol=1e-9 * np.abs(t).max())
-    np.testing.assert_allclose(W[:, :n], w.T, rtol=1e-9, atol=1e-9 * np.abs(w).max())
-    np.testing.assert_allclose(dots, np.einsum("ij,ji->i", R[:, :n], t + w), rtol=1e-9)
-    Ahat = np.linalg.solve(I + L, Mt) @ np.linalg.inv(I + L.T)  # the preconditioned operator CG sees
-    np.testing.assert_allclose((t + w).T, (Ahat @ R[:, :n].T).T, rtol=1e-8, atol=1e-8 * np.abs(t + w).max())
+    R[:, :n] = r.T
+    P, T, W, dots = one_step(sw, R)
+    check_one_step(Mt, order, r, P[:, :n].T, T[:, :n].T, W[:, :n].T, dots)
+
+    cs = CsrGaussSeidel(rows_blocks)  # compressed rows: (m, c) vectors, the rows of each block listed
+    order = np.concatenate([p[0] for p in cs.interiors + cs.separators])
+    assert np.array_equal(np.sort(order), np.arange(n))
+    P, T, W, dots = one_step(cs, np.ascontiguousarray(r))
+    check_one_step(Mt, order, r, P, T, W, dots)
 
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
@@ -151,7 +180,8 @@ def test_a_matrix_that_is_not_positive_definite_stops_at_once_with_an_infinite_r
 @pytest.mark.parametrize("c", [3, 2])  # (x, y, z in registers; any other count in a loop)
 def test_cg_with_csr_sweeps_equals_the_dense_solve_in_fewer_steps(small_ranges, threads, shuffle, c):
     """Compressed rows in any order (a shuffled numbering: a mesh that is no grid) — the sweeps row by row,
-    each thread's block alone, the couplings between blocks as ``E t``."""
+    interiors on the threads, separators after them (a shuffled numbering has no interiors to speak of:
+    one thread sweeps)."""
     from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
     from quadnodes.linalg.threads import RowBlocks
 
@@ -168,3 +198,28 @@ def test_cg_with_csr_sweeps_equals_the_dense_solve_in_fewer_steps(small_ranges, 
     assert res <= 1e-12 and np.abs(x - exact).max() <= 1e-9 * np.abs(exact).max()
     _, plain, _ = block_cg(blocks, B, X0, rtol=1e-12, maxiter=5000)
     assert steps < plain / 2
+
+
+@pytest.mark.parametrize("kind", ["grid", "rows"])
+def test_threads_keep_every_coupling_so_they_take_about_the_steps_of_one(small_ranges, kind):
+    """Interiors first and separators last is a Gauss–Seidel sweep of the whole matrix: on 2 and 3 threads
+    the steps stay those of one thread within a few (dropping the couplings between ranges cost a quarter)."""
+    M = grid_matrix(60, 12, seed=5)
+    rng = np.random.default_rng(9)
+    B = rng.normal(size=(M.shape[0], 3))
+    exact = np.linalg.solve(M, B)
+    steps = {}
+    for t in (1, 2, 3):
+        blocks = blocks_of(M, t) if kind == "grid" else RowBlocks(sp.csr_matrix(M), threads=t)
+        sw = SymmetricGaussSeidel(blocks) if kind == "grid" else CsrGaussSeidel(blocks)
+        assert len(sw.interiors) == t and len(sw.separators) == (t - 1 if kind == "grid" else int(t > 1))
+        x, steps[t], res = gauss_seidel_cg(blocks, B, np.zeros_like(B), rtol=1e-12, maxiter=3000, sweeps=sw)
+        assert res <= 1e-12 and np.abs(x - exact).max() <= 1e-9 * np.abs(exact).max()
+    assert max(abs(steps[t] - steps[1]) for t in (2, 3)) <= max(2, steps[1] // 10), steps
+
+
+def test_a_numbering_without_locality_sweeps_on_one_thread(small_ranges):
+    M = grid_matrix(20, 30, seed=1)
+    p = np.random.default_rng(1).permutation(M.shape[0])
+    cs = CsrGaussSeidel(RowBlocks(sp.csr_matrix(M[p][:, p]), threads=2))
+    assert len(cs.interiors) == 1 and not cs.separators
