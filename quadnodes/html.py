@@ -506,8 +506,8 @@ def figure(
     if reference is not None:
         _validate.quad_mesh(reference, "reference")
     # one scene: every mesh in the first one's unit
-    ms = [m if m.unit == ms[0].unit else m.with_unit(ms[0].unit) for m in ms]
-    if reference is not None and reference.unit != ms[0].unit:
+    ms = [m.with_unit(ms[0].unit) for m in ms]
+    if reference is not None:
         reference = reference.with_unit(ms[0].unit)
     vmin_ = _validate.positive_number(vmin, "vmin")
     vmax_ = _validate.positive_number(vmax, "vmax")

@@ -270,7 +270,7 @@ def as_reference(reference: Any, like: QuadMesh, *, samples: int = 4, name: str 
             return Reference(reference.mesh.with_unit(like.unit), source=reference.source)
         return reference
     if isinstance(reference, QuadMesh):
-        return Reference(reference if reference.unit == like.unit else reference.with_unit(like.unit))
+        return Reference(reference.with_unit(like.unit))
     samples = _validate.positive_int(samples, f"{name}_samples")
     try:
         from build123d import Face

@@ -251,8 +251,8 @@ def render_png(
         if r is not None:
             _validate.quad_mesh(r, "reference" if isinstance(reference, QuadMesh) else f"reference[{i}]")
     # one camera and one scale bar: every mesh in the first one's unit
-    ms = [m if m.unit == ms[0].unit else m.with_unit(ms[0].unit) for m in ms]
-    refs = [r if r is None or r.unit == ms[0].unit else r.with_unit(ms[0].unit) for r in refs]
+    ms = [m.with_unit(ms[0].unit) for m in ms]
+    refs = [None if r is None else r.with_unit(ms[0].unit) for r in refs]
     plan = _per_panel(planarity, k, "planarity", (bool, np.bool_, str))
     for i, p in enumerate(plan):
         if isinstance(p, str):
