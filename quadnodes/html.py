@@ -545,8 +545,8 @@ def figure(
         fig.add_trace(tr)
         owner.append(-1)
 
-    pts = [m.vertices[m.topology.valence > 0] for m in ms]  # (a vertex in no face is not drawn)
-    pts += [reference.vertices[reference.topology.valence > 0]] if reference is not None else []
+    pts = [m.vertices[m.topology.vertex_face_count > 0] for m in ms]  # (a vertex in no face is not drawn)
+    pts += [reference.vertices[reference.topology.vertex_face_count > 0]] if reference is not None else []
     titles_html = [_title(t, d.summary()) for t, d in zip(names, data)]
     menus = []
     if k > 1:

@@ -292,8 +292,8 @@ def render_png(
 
     cam = camera(elev_, azim_)
     # shared limits: everything drawn in any panel
-    pts = [m.vertices[m.topology.valence > 0] @ cam[:2].T for m in ms]  # (a vertex in no face is not drawn)
-    pts += [r.vertices[r.topology.valence > 0] @ cam[:2].T for r in refs if r is not None]
+    pts = [m.vertices[m.topology.vertex_face_count > 0] @ cam[:2].T for m in ms]  # (a vertex in no face is not drawn)
+    pts += [r.vertices[r.topology.vertex_face_count > 0] @ cam[:2].T for r in refs if r is not None]
     allp = np.vstack(pts)
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     span = np.maximum(hi - lo, 1e-9 * max(float((hi - lo).max()), 1e-300))
