@@ -506,8 +506,8 @@ def figure(
     if reference is not None:
         _validate.quad_mesh(reference, "reference")
     # one scene: every mesh in the first one's unit
-    ms = [m if m.unit == ms[0].unit else m.with_unit(ms[0].unit) for m in ms]
-    if reference is not None and reference.unit != ms[0].unit:
+    ms = [m.with_unit(ms[0].unit) for m in ms]
+    if reference is not None:
         reference = reference.with_unit(ms[0].unit)
     vmin_ = _validate.positive_number(vmin, "vmin")
     vmax_ = _validate.positive_number(vmax, "vmax")
@@ -545,8 +545,8 @@ def figure(
         fig.add_trace(tr)
         owner.append(-1)
 
-    pts = [m.vertices[m.topology.valence > 0] for m in ms]  # (a vertex in no face is not drawn)
-    pts += [reference.vertices[reference.topology.valence > 0]] if reference is not None else []
+    pts = [m.vertices[m.topology.vertex_face_count > 0] for m in ms]  # (a vertex in no face is not drawn)
+    pts += [reference.vertices[reference.topology.vertex_face_count > 0]] if reference is not None else []
     titles_html = [_title(t, d.summary()) for t, d in zip(names, data)]
     menus = []
     if k > 1:

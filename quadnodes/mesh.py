@@ -131,14 +131,27 @@ class QuadMesh:
     def with_unit(self, unit: str) -> QuadMesh:
         """The same mesh with its coordinates converted to ``unit`` (scaled), topology shared.
 
+        The mesh itself when it is already in ``unit`` (a mesh is immutable, so callers
+        need not check the unit first).
+
+        Raises
+        ------
+        InputError
+            If ``unit`` is not one of :data:`quadnodes.units.UNITS`.
+
         Examples
         --------
-        >>> grid(2, 2, spacing=1000.0).with_unit("m").vertices[-1].tolist()
+        >>> m = grid(2, 2, spacing=1000.0)
+        >>> m.with_unit("m").vertices[-1].tolist()
         [1.0, 1.0, 0.0]
+        >>> m.with_unit("mm") is m
+        True
         """
         from .units import to_unit
 
-        factor = to_unit(1.0, self.unit, check_unit(unit))
+        if check_unit(unit) == self.unit:
+            return self
+        factor = to_unit(1.0, self.unit, unit)
         new = self.with_vertices(self.vertices * factor)
         object.__setattr__(new, "unit", unit)
         return new

@@ -125,9 +125,8 @@ def compare(
     _validate.quad_mesh(result, "result")
     if original.faces.shape != result.faces.shape or not np.array_equal(original.faces, result.faces):
         raise InputError("result: must have the same faces as original to compare vertex by vertex")
-    if result.unit != original.unit:  # every number in the original's unit
-        result = result.with_unit(original.unit)
-    if isinstance(reference, QuadMesh) and reference.unit != original.unit:
+    result = result.with_unit(original.unit)  # every number in the original's unit
+    if isinstance(reference, QuadMesh):
         reference = reference.with_unit(original.unit)
     out = zigzag_stats(result, thresholds)
     d = np.linalg.norm(result.vertices - original.vertices, axis=1)

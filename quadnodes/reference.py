@@ -124,15 +124,14 @@ class Reference:
 
     def _closest_compiled(self, p: np.ndarray, out: np.ndarray, kernel: Any) -> None:
         """:meth:`_closest` for all points at once: the k-d tree and the compiled test on the pool's threads."""
-        from .linalg.threads import run_tasks, thread_count
+        from .linalg.threads import run_tasks, split_ranges
 
-        t = max(1, min(thread_count(), len(p) // CHUNK))
+        ranges = split_ranges(len(p), min_size=CHUNK)
         k = min(NEAREST, self.mesh.n_vertices)
-        _, near = self._tree.query(p, k=k, workers=t)
+        _, near = self._tree.query(p, k=k, workers=len(ranges))
         cand = self._faces_of[near.reshape(len(p), k)].reshape(len(p), -1)
-        cuts = np.linspace(0, len(p), t + 1).astype(np.int64).tolist()
         args = (p, self._a, self._ab, self._ac, self._gram, cand, self._m, out)
-        run_tasks(kernel, [args + (lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:])])
+        run_tasks(kernel, [args + r for r in ranges])
 
     def _closest(self, p: np.ndarray) -> np.ndarray:
         k = min(NEAREST, self.mesh.n_vertices)
@@ -271,7 +270,7 @@ def as_reference(reference: Any, like: QuadMesh, *, samples: int = 4, name: str 
             return Reference(reference.mesh.with_unit(like.unit), source=reference.source)
         return reference
     if isinstance(reference, QuadMesh):
-        return Reference(reference if reference.unit == like.unit else reference.with_unit(like.unit))
+        return Reference(reference.with_unit(like.unit))
     samples = _validate.positive_int(samples, f"{name}_samples")
     try:
         from build123d import Face

@@ -818,7 +818,7 @@ def fixed_vertices(mesh: QuadMesh, fix: str = "none", fixed: object = None) -> n
         mask |= corner_vertices(mesh)
     elif mode == "boundary":
         mask |= mesh.topology.boundary_vertices
-    mask |= mesh.topology.valence == 0  # a vertex in no face: no energy acts on it, so every method holds it
+    mask |= mesh.topology.vertex_face_count == 0  # a vertex in no face: no energy acts on it, so every method holds it
     return mask
 
 

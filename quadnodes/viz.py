@@ -251,8 +251,8 @@ def render_png(
         if r is not None:
             _validate.quad_mesh(r, "reference" if isinstance(reference, QuadMesh) else f"reference[{i}]")
     # one camera and one scale bar: every mesh in the first one's unit
-    ms = [m if m.unit == ms[0].unit else m.with_unit(ms[0].unit) for m in ms]
-    refs = [r if r is None or r.unit == ms[0].unit else r.with_unit(ms[0].unit) for r in refs]
+    ms = [m.with_unit(ms[0].unit) for m in ms]
+    refs = [None if r is None else r.with_unit(ms[0].unit) for r in refs]
     plan = _per_panel(planarity, k, "planarity", (bool, np.bool_, str))
     for i, p in enumerate(plan):
         if isinstance(p, str):
@@ -292,8 +292,8 @@ def render_png(
 
     cam = camera(elev_, azim_)
     # shared limits: everything drawn in any panel
-    pts = [m.vertices[m.topology.valence > 0] @ cam[:2].T for m in ms]  # (a vertex in no face is not drawn)
-    pts += [r.vertices[r.topology.valence > 0] @ cam[:2].T for r in refs if r is not None]
+    pts = [m.vertices[m.topology.vertex_face_count > 0] @ cam[:2].T for m in ms]  # (a vertex in no face is not drawn)
+    pts += [r.vertices[r.topology.vertex_face_count > 0] @ cam[:2].T for r in refs if r is not None]
     allp = np.vstack(pts)
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     span = np.maximum(hi - lo, 1e-9 * max(float((hi - lo).max()), 1e-300))

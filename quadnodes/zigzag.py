@@ -273,10 +273,9 @@ def _compiled_window_geometry(vertices: np.ndarray, ext: np.ndarray, start: np.n
     dev, inverse = np.empty(w), np.empty((3, w))
     alt = np.empty(w if alternation else 0)
     mean, energy = (np.empty((w, 3)), np.empty(w)) if even else (np.empty((0, 3)), np.empty(0))
-    t = min(_threads.thread_count(), max(1, w // _PARALLEL_MIN_WINDOWS))
-    cuts = [w * i // t for i in range(t + 1)]
     args = (V, ext, start, dev, inverse, alt, mean, energy, alternation, even)
-    _threads.run_tasks(window_geometry, [args + (lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:])])
+    ranges = _threads.split_ranges(w, min_size=_PARALLEL_MIN_WINDOWS)
+    _threads.run_tasks(window_geometry, [args + r for r in ranges])
     out: tuple[np.ndarray, ...] = (dev, inverse.T)
     return out + ((alt,) if alternation else ()) + ((mean, energy) if even else ())
 

@@ -107,6 +107,9 @@ def test_unit_is_carried_and_converted():
     metres = m.with_unit("m")
     assert metres.unit == "m" and np.allclose(metres.vertices, m.vertices / 1000.0)
     assert metres.topology is m.topology or metres.faces is m.faces
+    assert m.with_unit("mm") is m and metres.with_unit("m") is metres  # already in that unit: itself
+    with pytest.raises(InputError, match="unit: expected one of"):
+        m.with_unit("furlong")
     with pytest.raises(InputError, match="unit: expected one of"):
         QuadMesh(m.vertices, m.faces, unit="furlong")
 

@@ -626,8 +626,8 @@ class LinePreconditioner:
         self._second, self._dinv2 = F2, 1.0 / F2[kd]
         self._scratch: np.ndarray | None = None
         t = _threads.thread_count() if n >= LINES_PARALLEL_MIN_ROWS else 1
-        self._row_ranges = [(a * LANES, b * LANES) for a, b in _split(-(-rows // LANES), t)]
-        self._col_ranges = _split(cols, t)
+        self._row_ranges = [(a * LANES, b * LANES) for a, b in _threads.split_ranges(-(-rows // LANES), parts=t)]
+        self._col_ranges = _threads.split_ranges(cols, parts=t)
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
         """``Z = P⁻¹ R`` on every row (``lo``, ``hi`` are ignored: the solves run along whole lines)."""
@@ -659,10 +659,3 @@ class LinePreconditioner:
         else:
             Z[:n] = Zc.T
             Z[n:] = 0.0
-
-
-def _split(count: int, parts: int) -> list[tuple[int, int]]:
-    """``parts`` about equal consecutive ranges of ``range(count)`` (fewer if ``count`` is small)."""
-    parts = max(1, min(parts, count))
-    cuts = np.linspace(0, count, parts + 1).round().astype(int).tolist()
-    return list(zip(cuts[:-1], cuts[1:]))

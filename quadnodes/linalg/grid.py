@@ -184,12 +184,11 @@ class GridPattern:
         coef = np.ascontiguousarray(coef, dtype=np.float64)
         F = free.astype(np.float64)
         data = np.zeros((13, n))
-        t = min(threads.thread_count(), max(1, n // threads.PARALLEL_MIN_ROWS))
+        t = min(threads.thread_count(), max(1, n // threads.PARALLEL_MIN_ROWS))  # (counted by nodes, cut by lines)
         for family in (0, 1):  # (family 1 adds to the main diagonal family 0 wrote)
-            lines = rows if family == 0 else cols
-            cuts = [lines * i // t // 16 * 16 for i in range(t)] + [lines]
+            ranges = threads.split_ranges(rows if family == 0 else cols, parts=t, align=16)  # (its column tile)
             args = (coef, first[family], F, rows, cols, family, float(weight), data)
-            threads.run_tasks(open_grid_family, [args + (lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:])])
+            threads.run_tasks(open_grid_family, [args + r for r in ranges])
         return data
 
     def normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray]:

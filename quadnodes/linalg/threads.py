@@ -32,6 +32,7 @@ __all__ = [
     "RANGE_ALIGN",
     "COLUMNS_MAX_NNZ",
     "thread_count",
+    "split_ranges",
     "pool",
     "run_tasks",
     "blas_pinned",
@@ -64,6 +65,55 @@ def thread_count() -> int:
     except AttributeError:  # pragma: no cover - not Linux
         n = os.cpu_count() or 1
     return max(1, min(n, MAX_THREADS))
+
+
+def split_ranges(count: int, *, parts: int | None = None, min_size: int = 1, align: int = 1) -> list[tuple[int, int]]:
+    """``range(count)`` cut into consecutive ``(lo, hi)`` ranges of about equal size, one per thread.
+
+    Range ``i`` starts at ``count * i // parts`` rounded down to a multiple of ``align``
+    (integer arithmetic, so the cuts are the same on every machine); the last ends at
+    ``count``. Ranges that the rounding leaves empty are dropped, so the result has at
+    most ``parts`` ranges (exactly ``min(parts, count)`` with ``align = 1``).
+
+    Parameters
+    ----------
+    count : int
+        Items to share (>= 0).
+    parts : int, optional
+        Ranges wanted (at most ``count``). Default: :func:`thread_count`, but at
+        most one per ``min_size`` items (and at least one).
+    min_size : int
+        Items per range below which fewer ranges are made (only when ``parts`` is None).
+    align : int
+        Every cut but the end is a multiple of this.
+
+    Returns
+    -------
+    list of (int, int)
+        Covering ``0 .. count`` in order, none empty; ``[(0, 0)]`` when ``count`` is 0.
+
+    Raises
+    ------
+    ValueError
+        On a negative ``count`` or a ``parts``, ``min_size`` or ``align`` below 1.
+
+    Examples
+    --------
+    >>> split_ranges(10, parts=3)
+    [(0, 3), (3, 6), (6, 10)]
+    >>> split_ranges(100, parts=4, align=16)
+    [(0, 16), (16, 48), (48, 64), (64, 100)]
+    >>> split_ranges(1000, min_size=600)
+    [(0, 1000)]
+    """
+    if count < 0 or (parts is not None and parts < 1) or min_size < 1 or align < 1:
+        raise ValueError(f"split_ranges: count {count} >= 0, parts {parts}, min_size {min_size}, align {align} >= 1")
+    if parts is None:
+        parts = min(thread_count(), max(1, count // min_size))
+    parts = max(1, min(parts, count))
+    cuts = [count * i // parts // align * align for i in range(parts)] + [count]
+    ranges = [(lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:]) if hi > lo]
+    return ranges or [(0, 0)]
 
 
 _POOL: ThreadPoolExecutor | None = None
