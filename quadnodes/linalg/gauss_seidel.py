@@ -49,14 +49,6 @@ def _unit_scale(diagonal: np.ndarray) -> np.ndarray:
     return 1.0 / np.sqrt(diagonal)
 
 
-def _equal_ranges(n: int, parts: int) -> list[tuple[int, int]]:
-    """``parts`` consecutive ranges of ``range(n)`` cut at multiples of :data:`~quadnodes.linalg.threads.RANGE_ALIGN`."""
-    from .threads import RANGE_ALIGN
-
-    cuts = (np.arange(1, parts) * n // parts) // RANGE_ALIGN * RANGE_ALIGN
-    return list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, n].tolist()))
-
-
 class SymmetricGaussSeidel:
     """The symmetric Gauss–Seidel preconditioner of a :class:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks`, made once.
 
@@ -89,7 +81,7 @@ class SymmetricGaussSeidel:
 
     def __init__(self, blocks: object) -> None:
         from ._kernels import unit_scaled
-        from .threads import run_tasks
+        from .threads import RANGE_ALIGN, run_tasks, split_ranges
 
         U = blocks.upper  # type: ignore[attr-defined]
         offsets = blocks.upper_offsets  # type: ignore[attr-defined]
@@ -105,7 +97,7 @@ class SymmetricGaussSeidel:
         n, w = U.shape[1], int(offsets.max())
         ranges = list(blocks.ranges)  # type: ignore[attr-defined]
         while len(ranges) > 1 and min(hi - lo for lo, hi in ranges) <= 2 * w:  # separators must not touch
-            ranges = _equal_ranges(n, len(ranges) - 1)
+            ranges = split_ranges(n, parts=len(ranges) - 1, align=RANGE_ALIGN)
         last = len(ranges) - 1
         self.interiors = []
         for r, (lo, hi) in enumerate(ranges):
