@@ -116,10 +116,12 @@ def faces_array(faces: ArrayLike, n_vertices: int, name: str = "faces") -> np.nd
 MIN_RELATIVE_EDGE = 1e-9
 
 
-def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray | None = None) -> None:
+def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray | None = None, *,
+                       grid_shape: tuple[int, int] | None = None) -> None:
     """Reject a zero-length edge or near-duplicate vertices (an edge below 1e-9 of the mean edge).
 
-    ``edges`` (the mesh's unique edges, when known) halves the work.
+    ``edges`` (the mesh's unique edges, when known) halves the work; ``grid_shape`` (an open
+    vertex grid's, whose edges ``edges`` then are, in their order) measures them without gathers.
 
     Raises
     ------
@@ -134,9 +136,17 @@ def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarra
     if start.size == 0:
         return
     with np.errstate(over="ignore", invalid="ignore"):  # coordinates near the float limit
-        d = np.take(vertices, end, axis=0)
-        d -= np.take(vertices, start, axis=0)
-        sq = np.einsum("ij,ij->i", d, d)
+        if grid_shape is not None and edges is not None:  # each vertex's edge to the right, then the one below
+            V = vertices.reshape(tuple(grid_shape) + (3,))
+            sq = np.full(tuple(grid_shape) + (2,), np.nan)
+            for axis, d in enumerate((V[:, 1:] - V[:, :-1], V[1:] - V[:-1])):
+                sq[: grid_shape[0] - axis, : grid_shape[1] - 1 + axis, axis] = np.einsum("ijk,ijk->ij", d, d)
+            sq = sq.reshape(-1)
+            sq = sq[~np.isnan(sq)]
+        else:
+            d = np.take(vertices, end, axis=0)
+            d -= np.take(vertices, start, axis=0)
+            sq = np.einsum("ij,ij->i", d, d)
         mean = float(np.sqrt(sq).mean())
     if not np.isfinite(mean):  # lengths overflow: only exact duplicates can be told
         zero = np.ones(start.size, dtype=bool)

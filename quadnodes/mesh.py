@@ -123,6 +123,14 @@ class QuadMesh:
     @cached_property
     def mean_edge_length(self) -> float:
         """Mean length of the undirected edges."""
+        shape = self.topology.grid_shape
+        if shape is not None:  # an open grid: its edges by index arithmetic, in the edge list's order
+            V = self.vertices.reshape(shape + (3,))
+            length = np.full(shape + (2,), np.nan)  # (each vertex's edge to the right, then the one below)
+            for axis, d in enumerate((V[:, 1:] - V[:, :-1], V[1:] - V[:-1])):  # (the edge list's formula)
+                length[: shape[0] - axis, : shape[1] - 1 + axis, axis] = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
+            length = length.reshape(-1)
+            return float(length[~np.isnan(length)].mean())
         e = self.topology.edges
         d = np.take(self.vertices, e[:, 1], axis=0)
         d -= np.take(self.vertices, e[:, 0], axis=0)
@@ -180,7 +188,8 @@ class QuadMesh:
         if topo is not None:
             new.__dict__["topology"] = topo
         # the faces are unchanged; only edge lengths may have collapsed
-        _validate.check_edge_lengths(v, self.faces, None if topo is None else topo.edges)
+        _validate.check_edge_lengths(v, self.faces, None if topo is None else topo.edges,
+                                     grid_shape=None if topo is None else topo.grid_shape)
         return new
 
     def __repr__(self) -> str:

@@ -165,6 +165,14 @@ class Topology:
     @cached_property
     def edges(self) -> np.ndarray:
         """Undirected edges ``(E, 2) int64``, each as ``(low, high)`` vertex index, sorted."""
+        if self.grid_shape is not None:  # an open grid: by index arithmetic (each vertex's right, then lower edge)
+            rows, cols = self.grid_shape
+            node = np.arange(rows * cols, dtype=np.int64).reshape(rows, cols)
+            pair = np.full((rows, cols, 2, 2), -1, dtype=np.int64)
+            pair[:, :-1, 0, 0], pair[:, :-1, 0, 1] = node[:, :-1], node[:, 1:]
+            pair[:-1, :, 1, 0], pair[:-1, :, 1, 1] = node[:-1], node[1:]
+            pair = pair.reshape(-1, 2)
+            return pair[pair[:, 0] >= 0]
         und = self._undirected
         return np.stack([np.repeat(np.arange(self.n_vertices), np.diff(und.indptr)),
                          und.indices.astype(np.int64)], axis=1)
@@ -208,12 +216,25 @@ class Topology:
     @cached_property
     def valence(self) -> np.ndarray:
         """Number of edges at every vertex, ``(n,)``."""
+        if self.grid_shape is not None:  # an open grid: by index arithmetic, no edge list
+            return self._grid_counts(4, 3, 2)
         return np.bincount(self.edges.reshape(-1), minlength=self.n_vertices)
 
     @cached_property
     def vertex_face_count(self) -> np.ndarray:
         """Number of faces at every vertex, ``(n,)``."""
+        if self.grid_shape is not None:
+            return self._grid_counts(4, 2, 1)
         return np.bincount(self.faces.reshape(-1), minlength=self.n_vertices)
+
+    def _grid_counts(self, inside: int, side: int, corner: int) -> np.ndarray:
+        """An open grid's per-vertex count that is ``inside``, ``side`` or ``corner`` by position, ``(n,) int64``."""
+        rows, cols = self.grid_shape  # type: ignore[misc]
+        count = np.full((rows, cols), inside, dtype=np.int64)
+        count[[0, -1], :] = side
+        count[:, [0, -1]] = side
+        count[[0, 0, -1, -1], [0, -1, 0, -1]] = corner
+        return count.reshape(-1)
 
     @cached_property
     def boundary_vertices(self) -> np.ndarray:

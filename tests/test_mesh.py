@@ -1,5 +1,7 @@
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from quadnodes.errors import InputError
 from quadnodes.mesh import QuadMesh, cylinder, from_grid_points, grid, grid_faces, torus
@@ -129,3 +131,31 @@ def test_a_duplicate_face_is_named_as_one_not_as_an_orientation_problem():
     with pytest.raises(InputError, match=r"^faces: faces 0 and 1 are the same panel \(vertices \[0, 1, 2, 3\]\) "
                                          r"listed twice; remove one$"):
         QuadMesh(_square(), [[0, 1, 2, 3], [3, 2, 1, 0]])  # a lone panel and its reverse: a closed pillow
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(2, 12), st.integers(2, 12), st.integers(0, 10_000))
+def test_a_grids_mean_edge_length_by_index_arithmetic_is_the_edge_lists_to_the_bit(rows, cols, seed):
+    """An open grid measures its edges without building the edge list, in the same order: the same float."""
+    rng = np.random.default_rng(seed)
+    m = grid(rows, cols)
+    f = m.faces[rng.permutation(len(m.faces))]
+    m = QuadMesh(m.vertices + rng.normal(scale=0.3, size=m.vertices.shape), f)
+    assert m.topology.grid_shape == (rows, cols)
+    e = m.topology.edges
+    d = m.vertices[e[:, 1]] - m.vertices[e[:, 0]]
+    assert m.mean_edge_length == float(np.sqrt(np.einsum("ij,ij->i", d, d)).mean())
+
+
+@pytest.mark.parametrize("offset, words", [(0.0, "zero-length edge between vertices 7 and 12"),
+                                           (1e-12, "near-duplicate vertices 7 and 12")])
+def test_a_grids_new_positions_are_checked_edge_by_edge_without_the_edge_list_gathers(offset, words):
+    m = grid(4, 5)
+    assert m.topology.grid_shape == (4, 5)
+    v = m.vertices.copy()
+    v[12] = v[7] + offset  # (7 and 12: one above the other)
+    with pytest.raises(InputError, match=words):
+        m.with_vertices(v)
+    v = m.vertices.copy()
+    v[12, 2] += 0.5
+    assert m.with_vertices(v).vertices[12, 2] == 0.5

@@ -143,8 +143,8 @@ def test_grid_fast_path_equals_tracing(rows, cols, seed, reverse):
 
 @given(st.integers(2, 9), st.integers(2, 9), st.integers(0, 10_000))
 def test_grid_boundary_and_corners_by_index_arithmetic_equal_the_edge_counts(rows, cols, seed):
-    """A complete vertex grid's boundary ring, boundary-edge counts and corners come from index arithmetic;
-    they equal what the edges give (faces in any order and orientation)."""
+    """A complete vertex grid's boundary ring, boundary-edge counts, corners, valences and face counts come
+    from index arithmetic; they equal what the edges and faces give (faces in any order and orientation)."""
     from quadnodes.topology import Topology
 
     rng = np.random.default_rng(seed)
@@ -159,6 +159,11 @@ def test_grid_boundary_and_corners_by_index_arithmetic_equal_the_edge_counts(row
     assert np.array_equal(topo.boundary_vertices, count > 0)
     assert np.array_equal(topo.corner_vertices, (count > 0) & ~topo.regular_boundary)
     assert np.array_equal(corner_vertices(QuadMesh(grid(rows, cols).vertices, f)), topo.corner_vertices)
+    und = topo._undirected  # the edges as the faces give them
+    assert np.array_equal(topo.edges, np.stack([np.repeat(np.arange(n), np.diff(und.indptr)), und.indices], axis=1))
+    assert np.array_equal(topo.valence, np.bincount(topo.edges.reshape(-1), minlength=n))
+    assert np.array_equal(topo.vertex_face_count, np.bincount(f.reshape(-1), minlength=n))
+    assert not topo.extraordinary.any() and topo.regular_interior.sum() == (rows - 2) * (cols - 2)
 
 
 @pytest.mark.parametrize("kind", ["missing cell", "cylinder", "extraordinary", "lhole", "transposed numbering"])
