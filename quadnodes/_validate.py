@@ -22,6 +22,7 @@ __all__ = [
     "faces_array",
     "check_quad_mesh",
     "check_edge_lengths",
+    "grid_edge_squares",
     "corner_turns",
     "vertex_mask",
     "positive_number",
@@ -116,6 +117,24 @@ def faces_array(faces: ArrayLike, n_vertices: int, name: str = "faces") -> np.nd
 MIN_RELATIVE_EDGE = 1e-9
 
 
+def grid_edge_squares(vertices: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Squared lengths of an open vertex grid's edges, in its edge list's order (each vertex's edge to the
+    right, then the one below), by index arithmetic: ``(E,)``.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> grid_edge_squares(grid(2, 3, spacing=2.0).vertices, (2, 3)).tolist()
+    [4.0, 4.0, 4.0, 4.0, 4.0, 4.0, 4.0]
+    """
+    V = vertices.reshape(tuple(shape) + (3,))
+    sq = np.full(tuple(shape) + (2,), np.nan)
+    for axis, d in enumerate((V[:, 1:] - V[:, :-1], V[1:] - V[:-1])):
+        sq[: shape[0] - axis, : shape[1] - 1 + axis, axis] = np.einsum("ijk,ijk->ij", d, d)
+    sq = sq.reshape(-1)
+    return sq[~np.isnan(sq)]
+
+
 def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray | None = None, *,
                        grid_shape: tuple[int, int] | None = None) -> None:
     """Reject a zero-length edge or near-duplicate vertices (an edge below 1e-9 of the mean edge).
@@ -136,13 +155,8 @@ def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarra
     if start.size == 0:
         return
     with np.errstate(over="ignore", invalid="ignore"):  # coordinates near the float limit
-        if grid_shape is not None and edges is not None:  # each vertex's edge to the right, then the one below
-            V = vertices.reshape(tuple(grid_shape) + (3,))
-            sq = np.full(tuple(grid_shape) + (2,), np.nan)
-            for axis, d in enumerate((V[:, 1:] - V[:, :-1], V[1:] - V[:-1])):
-                sq[: grid_shape[0] - axis, : grid_shape[1] - 1 + axis, axis] = np.einsum("ijk,ijk->ij", d, d)
-            sq = sq.reshape(-1)
-            sq = sq[~np.isnan(sq)]
+        if grid_shape is not None and edges is not None:
+            sq = grid_edge_squares(vertices, grid_shape)
         else:
             d = np.take(vertices, end, axis=0)
             d -= np.take(vertices, start, axis=0)

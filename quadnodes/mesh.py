@@ -125,12 +125,7 @@ class QuadMesh:
         """Mean length of the undirected edges."""
         shape = self.topology.grid_shape
         if shape is not None:  # an open grid: its edges by index arithmetic, in the edge list's order
-            V = self.vertices.reshape(shape + (3,))
-            length = np.full(shape + (2,), np.nan)  # (each vertex's edge to the right, then the one below)
-            for axis, d in enumerate((V[:, 1:] - V[:, :-1], V[1:] - V[:-1])):  # (the edge list's formula)
-                length[: shape[0] - axis, : shape[1] - 1 + axis, axis] = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
-            length = length.reshape(-1)
-            return float(length[~np.isnan(length)].mean())
+            return float(np.sqrt(_validate.grid_edge_squares(self.vertices, shape)).mean())
         e = self.topology.edges
         d = np.take(self.vertices, e[:, 1], axis=0)
         d -= np.take(self.vertices, e[:, 0], axis=0)

@@ -258,18 +258,10 @@ class Topology:
     @cached_property
     def _boundary_count(self) -> np.ndarray:
         if self.grid_shape is not None:  # every vertex of the ring has two boundary edges
-            return self._grid_ring()
+            return self._grid_counts(0, 2, 2)  # (every vertex of the ring: two boundary edges)
         return np.bincount(
             self.edges[self.boundary_edges].reshape(-1), minlength=self.n_vertices
         )
-
-    def _grid_ring(self) -> np.ndarray:
-        """An open grid's boundary edges per vertex: 2 on the outer ring, 0 inside, ``(n,) int64``."""
-        rows, cols = self.grid_shape  # type: ignore[misc]
-        ring = np.zeros((rows, cols), dtype=np.int64)
-        ring[[0, -1], :] = 2
-        ring[:, [0, -1]] = 2
-        return ring.reshape(-1)
 
     @cached_property
     def regular_interior(self) -> np.ndarray:

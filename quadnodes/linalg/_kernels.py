@@ -627,20 +627,15 @@ def unit_backward_sweep(U: np.ndarray, offsets: np.ndarray, R: np.ndarray, P: np
     and ``hi:above`` of ``T`` read as fixed (they come later in the sweeps' order).
 
     ``U[d, i] = M[i, i + offsets[d]]`` of a unit-diagonal symmetric ``M`` (``U[0]`` unused);
-    ``(c, m)`` C-contiguous vectors, rows from ``U.shape[1]`` on: ``T = P``. With the open grid's
+    ``(c, m)`` C-contiguous vectors (``hi ≤ U.shape[1]``). With the open grid's
     offsets ``0, 1, 2, 3, g, 2g, 3g`` and ``S`` of shape ``(c, g)`` the couplings to later grid
     rows are summed vectorized and only those along the row run as the recurrence.
     """
-    n = U.shape[1]
     c = P.shape[0]
     g = offsets[4] if offsets.size == 7 and S.shape[1] == offsets[4] else 0
-    fast = g > 0 and min(hi, n) - lo > 6 * g
-    b0 = min(hi, n) - 3 * g if fast else lo  # (the fast rows' direction is updated with their terms)
+    fast = g > 0 and hi - lo > 6 * g
+    b0 = hi - 3 * g if fast else lo  # (the fast rows' direction is updated with their terms)
     cg_direction(P, R, beta, b0, hi)
-    for q in range(c):
-        for i in range(max(lo, n), hi):
-            T[q, i] = P[q, i]
-    hi = min(hi, n)
     if hi <= lo:
         return
     if not fast:
@@ -666,23 +661,17 @@ def unit_forward_sweep(U: np.ndarray, offsets: np.ndarray, F: np.ndarray, P: np.
     """On the block ``lo:hi``: ``W = (I + L)⁻¹ (P − T)``, the rows ``below:lo`` and ``hi:above`` of ``W``
     read as fixed (they come earlier in the sweeps' order), and ``dots[q] = P·(T + W)`` over the block.
 
-    ``F[d, i] = M[i, i − d]`` (``d = 1, 2, 3``, the open grid's fast path; else empty). Rows from
-    ``U.shape[1]`` on: ``W = P − T``. ``T`` zero: a plain forward solve of ``P``.
+    ``F[d, i] = M[i, i − d]`` (``d = 1, 2, 3``, the open grid's fast path; else empty); ``hi ≤ U.shape[1]``.
+    ``T`` zero: a plain forward solve of ``P``. (The fast path reads no fixed rows after the block; a
+    block with them, a separator, is short and goes row by row.)
     """
-    n = U.shape[1]
     c = P.shape[0]
     for q in range(c):
-        acc = 0.0
-        for i in range(max(lo, n), hi):
-            W[q, i] = P[q, i] - T[q, i]
-            acc += P[q, i] * P[q, i]
-        dots[q] = acc
-    hi = min(hi, n)
+        dots[q] = 0.0
     if hi <= lo:
         return
     g = offsets[4] if offsets.size == 7 and F.shape[0] == 4 and S.shape[1] == offsets[4] else 0
-    top = offsets[offsets.size - 1]
-    fast = g > 0 and hi - lo > 6 * g
+    fast = g > 0 and hi - lo > 6 * g and above == hi
     a0 = lo + 3 * g if fast else hi  # (the rows swept one by one; the others with their chunk's terms)
     for q in range(c):
         _difference_into(W[q, lo:a0], P[q, lo:a0], T[q, lo:a0])
@@ -693,10 +682,6 @@ def unit_forward_sweep(U: np.ndarray, offsets: np.ndarray, F: np.ndarray, P: np.
         for a in range(a0, hi, g):
             b = min(a + g, hi)
             _forward_terms(P, T, W, U, S, a, b, g)
-            if above > hi and b > hi - top:  # the couplings to the fixed rows after the block
-                for q in range(c):
-                    for i in range(max(a, hi - top), b):
-                        S[q, i - a] -= _beyond(U, offsets, W, q, i, lo, hi, lo, above)
             _recurrence(S, f1, f2, f3, W, a, b, True, H)
             _add_dots(P, T, W, a, b, dots)  # (while the chunk is in cache)
     _add_dots(P, T, W, lo, a0, dots)

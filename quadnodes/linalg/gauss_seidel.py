@@ -10,7 +10,9 @@ that couple to a later range are its *separator*; the rest are its *interior*. N
 another, so the sweeps order the rows interiors first (each thread sweeps its own, side by side) and
 separators last (swept on one thread, a few grid rows each): a Gauss–Seidel sweep of the whole matrix
 in that order, every coupling kept. (Sweeping each range alone and dropping the couplings between them
-cost steps: 40 against 32 on two ranges at 300², ω = 0.3; one range took 30.)
+cost steps: at 1000², two threads, fair's system at ω = 0.3, 38 against 30 on broadband noise and 32
+against 26 on zigzag noise, ``python benchmarks/studies/gauss_seidel.py --size 1000 --weights 0.3 --spacing fair``
+against the previous engine; two and three threads now take the steps of one, ``tests/linalg/test_gauss_seidel.py``.)
 
 CG runs in Eisenstat's form (:func:`gauss_seidel_cg`): with ``M`` scaled to a unit diagonal,
 the preconditioned operator's product is one backward and one forward sweep, so a step costs
@@ -174,7 +176,7 @@ class CsrGaussSeidel:
         M = blocks.M.tocsr()  # type: ignore[attr-defined]  # (diagonal storage too: a closed grid's seams)
         s = _unit_scale(M.diagonal())
         n = M.shape[0]
-        ranges = list(blocks.ranges)  # type: ignore[attr-defined]
+        ranges = self._ranges = list(blocks.ranges)  # type: ignore[attr-defined]  # (the product's)
         separator = np.zeros(n, dtype=np.bool_)
         if len(ranges) > 1:  # (the last range reaches no later one)
             run_tasks(lambda lo, hi: csr_separators(M.indptr, M.indices, lo, hi, separator), ranges[:-1])
@@ -196,7 +198,6 @@ class CsrGaussSeidel:
         self.interiors = [(lo + np.flatnonzero(~separator[lo:hi]).astype(idx), True, False) for lo, hi in ranges]
         self.separators = [(np.flatnonzero(separator).astype(idx), False, True)] if len(ranges) > 1 else []
         self._product = RowBlocks(M, threads=1, columns=False)  # (the residual's product on (m, c) vectors)
-        self._ranges = ranges
         self.scale = s
 
     def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray,

@@ -182,9 +182,6 @@ def test_cg_with_csr_sweeps_equals_the_dense_solve_in_fewer_steps(small_ranges, 
     """Compressed rows in any order (a shuffled numbering: a mesh that is no grid) — the sweeps row by row,
     interiors on the threads, separators after them (a shuffled numbering has no interiors to speak of:
     one thread sweeps)."""
-    from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
-    from quadnodes.linalg.threads import RowBlocks
-
     M = grid_matrix(20, 30, seed=threads)
     if shuffle:
         p = np.random.default_rng(threads).permutation(M.shape[0])
