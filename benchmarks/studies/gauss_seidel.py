@@ -6,8 +6,8 @@ On the bench_core sheet (``benchmarks/_common.py``) with every window-middle ver
 one-iteration system as ``fair()`` does (grid diagonal storage; eq. 32's own edge lengths,
 ``line_spacing="hold"``, and fair's default ``"fair"``), and solves it, x, y and z together to rtol 1e-9,
 with ``FairingSystem(preconditioner=...)`` = ``"none"`` (plain CG), ``"lines"`` (additive row + column
-line solves) and ``"gauss-seidel"`` (one symmetric Gauss–Seidel sweep per thread's range of rows,
-``quadnodes.linalg.gauss_seidel``), the compiled kernels loaded before the clock. Prints the steps and the
+line solves) and ``"gauss-seidel"`` (one symmetric Gauss–Seidel sweep, the threads' interiors first
+and the separators between their ranges last, ``quadnodes.linalg.gauss_seidel``), the compiled kernels loaded before the clock. Prints the steps and the
 system + solve time of each (best of ``--repeat``), and the largest difference from plain CG's solution
 relative to the mesh's extent.
 

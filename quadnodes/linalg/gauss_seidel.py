@@ -20,8 +20,9 @@ the two sweeps and no product with ``M``.
 
 On a fairing matrix (a sum of per-line operators coupling four consecutive vertices, plus ω)
 the sweeps damp the oscillating error that makes plain CG slow: on the bench sheets
-(``benchmarks/_common.py``, all free) 3–5× fewer steps than plain CG at every weight from
-0.003 to 3 and on both noises (``python benchmarks/studies/gauss_seidel.py``).
+(``benchmarks/_common.py``, all free, 300², two threads) 2.2–3.0× fewer steps than plain CG at every
+weight from 0.003 to 3 and on both noises, up to 6.2× on eq. 32's own edge lengths
+(``python benchmarks/studies/gauss_seidel.py``).
 
 Examples
 --------
