@@ -136,11 +136,14 @@ def grid_edge_squares(vertices: np.ndarray, shape: tuple[int, int]) -> np.ndarra
 
 
 def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray | None = None, *,
-                       grid_shape: tuple[int, int] | None = None) -> None:
+                       grid_shape: tuple[int, int] | None = None) -> float:
     """Reject a zero-length edge or near-duplicate vertices (an edge below 1e-9 of the mean edge).
 
     ``edges`` (the mesh's unique edges, when known) halves the work; ``grid_shape`` (an open
     vertex grid's, whose edges ``edges`` then are, in their order) measures them without gathers.
+    Returns the mean length of the edges measured: with ``edges`` the mesh's mean edge length as
+    :attr:`quadnodes.mesh.QuadMesh.mean_edge_length` computes it (to the bit), without them the
+    mean over every face's four sides; inf where lengths overflow, nan for no edge.
 
     Raises
     ------
@@ -153,7 +156,7 @@ def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarra
         start = faces.reshape(-1)
         end = np.roll(faces, -1, axis=1).reshape(-1)
     if start.size == 0:
-        return
+        return float("nan")
     with np.errstate(over="ignore", invalid="ignore"):  # coordinates near the float limit
         if grid_shape is not None and edges is not None:
             sq = grid_edge_squares(vertices, grid_shape)
@@ -181,6 +184,7 @@ def check_edge_lengths(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarra
             f"faces: face {face} joins near-duplicate vertices {a} and {b} (edge {np.sqrt(sq[k]):.3g}, "
             f"mean edge {mean:.3g}); merge them or remove the face"
         )
+    return mean
 
 
 def corner_turns(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -183,8 +183,10 @@ class QuadMesh:
         if topo is not None:
             new.__dict__["topology"] = topo
         # the faces are unchanged; only edge lengths may have collapsed
-        _validate.check_edge_lengths(v, self.faces, None if topo is None else topo.edges,
-                                     grid_shape=None if topo is None else topo.grid_shape)
+        mean = _validate.check_edge_lengths(v, self.faces, None if topo is None else topo.edges,
+                                            grid_shape=None if topo is None else topo.grid_shape)
+        if topo is not None and np.isfinite(mean):  # (measured over the edges: the mean edge length itself)
+            new.__dict__["mean_edge_length"] = mean
         return new
 
     def __repr__(self) -> str:

@@ -159,3 +159,14 @@ def test_a_grids_new_positions_are_checked_edge_by_edge_without_the_edge_list_ga
     v = m.vertices.copy()
     v[12, 2] += 0.5
     assert m.with_vertices(v).vertices[12, 2] == 0.5
+
+
+@pytest.mark.parametrize("make", [lambda: grid(5, 7), lambda: cylinder(4, 9), lambda: torus(5, 6)])
+def test_with_vertices_keeps_the_mean_edge_length_it_measured_to_the_bit(make):
+    """The edge check measures every edge; the new mesh keeps that mean instead of measuring again."""
+    m = make()
+    m.topology.edges  # (the topology known: the check measures the edges)
+    v = m.vertices + np.random.default_rng(2).normal(scale=0.05, size=m.vertices.shape)
+    kept = m.with_vertices(v)
+    assert "mean_edge_length" in kept.__dict__
+    assert kept.mean_edge_length == QuadMesh(v, m.faces).mean_edge_length

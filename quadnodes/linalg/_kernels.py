@@ -739,6 +739,30 @@ def unit_scaled(U: np.ndarray, offsets: np.ndarray, s: np.ndarray, Us: np.ndarra
 # vectors (a row's c values side by side: one cache line per neighbour).
 
 
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False, inline="always")
+def _minus_row3(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, V: np.ndarray, i: int, a0: float, a1: float,
+                a2: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """``a − Σ_e val[e] V[idx[e]]`` over CSR row ``i``, three columns in registers."""
+    for e in range(ptr[i], ptr[i + 1]):
+        j = idx[e]
+        a = val[e]
+        a0 -= a * V[j, 0]
+        a1 -= a * V[j, 1]
+        a2 -= a * V[j, 2]
+    return a0, a1, a2
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False, inline="always")
+def _minus_row(ptr: np.ndarray, idx: np.ndarray, val: np.ndarray, V: np.ndarray, i: int,
+               acc: np.ndarray) -> None:  # pragma: no cover - compiled
+    """``acc −= Σ_e val[e] V[idx[e]]`` over CSR row ``i``, any number of columns."""
+    for e in range(ptr[i], ptr[i + 1]):
+        j = idx[e]
+        a = val[e]
+        for q in range(acc.size):
+            acc[q] -= a * V[j, q]
+
+
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
 def csr_backward_sweep(up_ptr: np.ndarray, up_idx: np.ndarray, up: np.ndarray, out_ptr: np.ndarray,
                        out_idx: np.ndarray, out: np.ndarray, R: np.ndarray, P: np.ndarray, T: np.ndarray,
@@ -757,18 +781,8 @@ def csr_backward_sweep(up_ptr: np.ndarray, up_idx: np.ndarray, up: np.ndarray, o
             a2 = R[i, 2] + b2 * P[i, 2]
             P[i, 0], P[i, 1], P[i, 2] = a0, a1, a2
             if couple:
-                for e in range(out_ptr[i], out_ptr[i + 1]):
-                    j = out_idx[e]
-                    a = out[e]
-                    a0 -= a * T[j, 0]
-                    a1 -= a * T[j, 1]
-                    a2 -= a * T[j, 2]
-            for e in range(up_ptr[i], up_ptr[i + 1]):
-                j = up_idx[e]
-                a = up[e]
-                a0 -= a * T[j, 0]
-                a1 -= a * T[j, 1]
-                a2 -= a * T[j, 2]
+                a0, a1, a2 = _minus_row3(out_ptr, out_idx, out, T, i, a0, a1, a2)
+            a0, a1, a2 = _minus_row3(up_ptr, up_idx, up, T, i, a0, a1, a2)
             T[i, 0], T[i, 1], T[i, 2] = a0, a1, a2
         return
     acc = np.empty(c)
@@ -778,16 +792,8 @@ def csr_backward_sweep(up_ptr: np.ndarray, up_idx: np.ndarray, up: np.ndarray, o
             acc[q] = R[i, q] + beta[q] * P[i, q]
             P[i, q] = acc[q]
         if couple:
-            for e in range(out_ptr[i], out_ptr[i + 1]):
-                j = out_idx[e]
-                a = out[e]
-                for q in range(c):
-                    acc[q] -= a * T[j, q]
-        for e in range(up_ptr[i], up_ptr[i + 1]):
-            j = up_idx[e]
-            a = up[e]
-            for q in range(c):
-                acc[q] -= a * T[j, q]
+            _minus_row(out_ptr, out_idx, out, T, i, acc)
+        _minus_row(up_ptr, up_idx, up, T, i, acc)
         for q in range(c):
             T[i, q] = acc[q]
 
@@ -809,18 +815,8 @@ def csr_forward_sweep(low_ptr: np.ndarray, low_idx: np.ndarray, low: np.ndarray,
             a1 = P[i, 1] - T[i, 1]
             a2 = P[i, 2] - T[i, 2]
             if couple:
-                for e in range(out_ptr[i], out_ptr[i + 1]):
-                    j = out_idx[e]
-                    a = out[e]
-                    a0 -= a * W[j, 0]
-                    a1 -= a * W[j, 1]
-                    a2 -= a * W[j, 2]
-            for e in range(low_ptr[i], low_ptr[i + 1]):
-                j = low_idx[e]
-                a = low[e]
-                a0 -= a * W[j, 0]
-                a1 -= a * W[j, 1]
-                a2 -= a * W[j, 2]
+                a0, a1, a2 = _minus_row3(out_ptr, out_idx, out, W, i, a0, a1, a2)
+            a0, a1, a2 = _minus_row3(low_ptr, low_idx, low, W, i, a0, a1, a2)
             W[i, 0], W[i, 1], W[i, 2] = a0, a1, a2
             d0 += P[i, 0] * (T[i, 0] + a0)
             d1 += P[i, 1] * (T[i, 1] + a1)
@@ -835,16 +831,8 @@ def csr_forward_sweep(low_ptr: np.ndarray, low_idx: np.ndarray, low: np.ndarray,
         for q in range(c):
             acc[q] = P[i, q] - T[i, q]
         if couple:
-            for e in range(out_ptr[i], out_ptr[i + 1]):
-                j = out_idx[e]
-                a = out[e]
-                for q in range(c):
-                    acc[q] -= a * W[j, q]
-        for e in range(low_ptr[i], low_ptr[i + 1]):
-            j = low_idx[e]
-            a = low[e]
-            for q in range(c):
-                acc[q] -= a * W[j, q]
+            _minus_row(out_ptr, out_idx, out, W, i, acc)
+        _minus_row(low_ptr, low_idx, low, W, i, acc)
         for q in range(c):
             W[i, q] = acc[q]
             dots[q] += P[i, q] * (T[i, q] + acc[q])
