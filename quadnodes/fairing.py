@@ -36,6 +36,7 @@ from .linalg import compiled as kernels
 from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel
 from .linalg.grid import GridPattern
 from .linalg.heap import reused_heap
+from .linalg.multigrid import TWO_GRID_STRIDE, TwoGrid
 from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
@@ -85,14 +86,32 @@ GRID_BLOCK_JACOBI_RATIO = 500.0
 #: fraction of ``rtol`` instead: at most 1.9e-9 over both noises, both spacings, both meshes and
 #: ω = 0.003–3, for 13–18 % more steps (``python benchmarks/studies/gauss_seidel.py --accuracy``).
 GAUSS_SEIDEL_RTOL = 0.1
+#: Below the weights measured there the smooth error a residual leaves grows as the weight falls (κ ≈ 64/ω): at
+#: a Gershgorin bound above this many times ω (a weight below about 10⁻³) the stop tightens further, as
+#: (this / contrast)^GAUSS_SEIDEL_TIGHTEN_POWER (the 300² sheet at ω = 10⁻⁵ and 10⁻⁶: 2.0e-8 and 1.0e-7 of the
+#: extent from the direct solve without it; ``python benchmarks/studies/gauss_seidel.py --accuracy --tiny``).
+GAUSS_SEIDEL_TIGHTEN_CONTRAST = 5e4
+GAUSS_SEIDEL_TIGHTEN_POWER = 0.5
 #: With the compiled kernels at hand, "auto" takes symmetric Gauss–Seidel where the largest Gershgorin
 #: bound of ``AᵀA + ωI`` exceeds this many times ω (plain CG's steps grow with its square root): at the
 #: default weight (about 170 ω on broadband noise) it solves a 1000² grid in 38 steps and half the time of
 #: plain CG's 84; at ω = 3 (about 17 ω) the two tie on the grid, at ω = 10 plain CG is 10 % faster
 #: (``python benchmarks/studies/gauss_seidel.py``, also ``--mesh cube-sphere`` and ``--mesh torus``).
 GAUSS_SEIDEL_CONTRAST = 30.0
+#: Below a weight of about 3·10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
+#: (about 70 at every smaller weight, each some six Gauss–Seidel steps' work plus a coarse factorization once):
+#: "auto" takes :class:`~quadnodes.linalg.multigrid.TwoGrid` on an open grid where the Gershgorin bound exceeds
+#: this many times ω (``python benchmarks/studies/multigrid.py --solver``).
+TWO_GRID_CONTRAST = 2e5
+#: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
+#: 400 × 400): SciPy's SuperLU factorizes and solves the coarse matrix, whose fill grows faster than its size
+#: (at 1000², 63,001 coarse vertices: a 14 s factorization and 0.35 s per solve, 50–63 M entries), so larger grids
+#: keep Gauss–Seidel until a deeper cycle replaces the coarse factorization.
+TWO_GRID_COARSE_MAX = 12_000
+#: The two-grid path stops at this fraction of ``rtol`` (its residual, like Gauss–Seidel's, leaves smooth error).
+TWO_GRID_RTOL = 0.1
 #: ``FairingSystem(preconditioner=...)``'s choices.
-PRECONDITIONERS = ("auto", "gauss-seidel", "lines", "none")
+PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
 #: fused CG passes and the line preconditioner) from this many unknowns on. Below, SciPy's
 #: diagonal kernel and NumPy: loading Numba and its cached kernels costs about a second per
@@ -485,6 +504,13 @@ def grid_pattern(topology: object) -> GridPattern | None:
     return pattern
 
 
+def _gauss_seidel_rtol(contrast: float) -> float:
+    """Gauss–Seidel's stop as a fraction of ``rtol`` at a Gershgorin bound ``contrast`` times ω (0: unknown)."""
+    if contrast <= GAUSS_SEIDEL_TIGHTEN_CONTRAST:
+        return GAUSS_SEIDEL_RTOL
+    return GAUSS_SEIDEL_RTOL * (GAUSS_SEIDEL_TIGHTEN_CONTRAST / contrast) ** GAUSS_SEIDEL_TIGHTEN_POWER
+
+
 def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
     """Largest Gershgorin bound (absolute row sum) over ``rows`` (a mask) of a symmetric matrix
     in diagonal storage (a column sum there: ``data[d, j] = M[j - offset_d, j]``)."""
@@ -639,16 +665,19 @@ class FairingSystem:
     rtol : float
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
-    preconditioner : {"auto", "gauss-seidel", "lines", "none"}
+    preconditioner : {"auto", "gauss-seidel", "two-grid", "lines", "none"}
         ``"auto"``: from :data:`COMPILED_MIN_UNKNOWNS` unknowns on (or wherever the compiled
         kernels are loaded), where the Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω,
         symmetric Gauss–Seidel in Eisenstat's form: 2.2–6.2× fewer steps than plain CG on two
         threads, each step two sweeps and no product. An open grid takes the grid's fast sweeps
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
         grid and any other mesh sweep compressed rows
-        (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Elsewhere: block Jacobi at
-        small weights, else none.
+        (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). On an open grid where the bound
+        exceeds :data:`TWO_GRID_CONTRAST` ω (a weight below about 3·10⁻⁴), the two-grid cycle
+        around the grid's sweeps (:class:`~quadnodes.linalg.multigrid.TwoGrid`), whose steps do not
+        grow as the weight falls. Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
+        ``"two-grid"``: the two-grid cycle at any weight (an open, mostly free vertex grid only).
         ``"lines"``:
         the line preconditioner at any size — on a grid's diagonal storage the additive
         row-line + column-line blocks (:class:`~quadnodes.linalg.cg.LinePreconditioner`),
@@ -683,7 +712,7 @@ class FairingSystem:
         *,
         solver: Literal["auto", "direct", "cg"] = "auto",
         rtol: float = 1e-9,
-        preconditioner: Literal["auto", "gauss-seidel", "lines", "none"] = "auto",
+        preconditioner: Literal["auto", "gauss-seidel", "two-grid", "lines", "none"] = "auto",
         _inverse_lengths: np.ndarray | None = None,
         _topology: object | None = None,
         _lines: object | None = None,
@@ -826,7 +855,8 @@ class FairingSystem:
             ratio = GRID_BLOCK_JACOBI_RATIO if grid else BLOCK_JACOBI_RATIO
             # the compiled kernels from COMPILED_MIN_UNKNOWNS on (fair() started loading them), or
             # wherever they are loaded already (a server, a second run): then they cost nothing
-            wanted = k >= COMPILED_MIN_UNKNOWNS or self.preconditioner in ("lines", "gauss-seidel") or kernels.ready()
+            wanted = (k >= COMPILED_MIN_UNKNOWNS or self.preconditioner in ("lines", "gauss-seidel", "two-grid")
+                      or kernels.ready())
             storage: list = []  # the grid's diagonal storage, built once where a path uses it
 
             def grid_storage() -> tuple[np.ndarray, np.ndarray]:
@@ -836,20 +866,38 @@ class FairingSystem:
                 return storage[0], storage[1]
 
             contrast = 0.0  # the largest Gershgorin bound against ω: how many steps plain CG would need
-            if self.preconditioner == "auto" and wanted:
+            if (self.preconditioner == "auto" and wanted) or self.preconditioner in ("gauss-seidel", "two-grid"):
                 bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
                 contrast = bound / self.weight
-            if (self.preconditioner == "gauss-seidel" or contrast > GAUSS_SEIDEL_CONTRAST) and kernels.wait():
+            self._contrast = contrast
+            two_grid = self.preconditioner == "two-grid" or (
+                self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST)
+            if (self.preconditioner in ("gauss-seidel", "two-grid") or contrast > GAUSS_SEIDEL_CONTRAST) and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
-                # seams' diagonals) and any other mesh's in compressed rows, in their own order
+                # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights on
+                # an open grid, the two-grid cycle around the grid's sweeps.
+                open_grid = grid and self._grid[0].offsets.size == 13
+                if self.preconditioner == "two-grid" and not open_grid:
+                    raise InputError("preconditioner='two-grid' needs an open vertex grid (mostly free); use 'auto'")
                 if not grid:
                     return self._gauss_seidel(RowBlocks(self.matrix), CsrGaussSeidel)
                 offsets, data = grid_storage()
-                if self._grid[0].offsets.size == 13:
-                    return self._gauss_seidel(SymmetricDiagonalBlocks(offsets, data), SymmetricGaussSeidel)
+                if open_grid:
+                    blocks = SymmetricDiagonalBlocks(offsets, data)
+                    cols = int(offsets[10])
+                    shape = (data.shape[1] // cols, cols)
+                    coarse = np.prod([-(-(side - 1) // TWO_GRID_STRIDE) + 1 for side in shape])
+                    if two_grid and (self.preconditioner == "two-grid"
+                                     or (min(shape) > 4 * TWO_GRID_STRIDE and coarse <= TWO_GRID_COARSE_MAX)):
+                        try:
+                            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2]), None)
+                        except ValueError as exc:  # a grid too small for a coarse grid
+                            raise InputError(f"preconditioner='two-grid': {exc}") from exc
+                        return self._cg
+                    return self._gauss_seidel(blocks, SymmetricGaussSeidel)
                 return self._gauss_seidel(DiagonalBlocks(offsets, data), CsrGaussSeidel)
-            if self.preconditioner == "gauss-seidel":
-                raise InputError("preconditioner='gauss-seidel' needs the compiled kernels (Numba); use 'auto'")
+            if self.preconditioner in ("gauss-seidel", "two-grid"):
+                raise InputError(f"preconditioner={self.preconditioner!r} needs the compiled kernels (Numba); use 'auto'")
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto":
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = permuted(self.matrix, order)
@@ -879,6 +927,7 @@ class FairingSystem:
         return self._cg
 
     _cg: tuple | None = None
+    _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
 
     def _gauss_seidel(self, blocks: RowBlocks, kind: type) -> tuple:
         """``self._cg`` with symmetric Gauss–Seidel of ``kind`` on ``blocks``."""
@@ -930,9 +979,12 @@ class FairingSystem:
                     rhs_cg, a_cg = np.take(rhs, order, axis=0), np.take(a, order, axis=0)
                 shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
                 x0 = a_cg - c
-            rtol = self.rtol * (GAUSS_SEIDEL_RTOL if getattr(precond, "eisenstat", False) else 1.0)
+            rtol = self.rtol * (_gauss_seidel_rtol(self._contrast) if getattr(precond, "eisenstat", False)
+                                else TWO_GRID_RTOL if isinstance(precond, TwoGrid) else 1.0)
             y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS, precond=precond)
-            if res <= self.rtol:
+            # (at the cap a residual within rtol is not enough: at tiny weights it leaves smooth error far
+            # beyond it, 2e-6 of the extent at ω = 1e-7 on a 120² grid's 20,000 Gauss–Seidel steps)
+            if res <= self.rtol and its < MAX_CG_ITERATIONS:
                 self.iterations, self.residual = its, res
                 if isinstance(blocks, DiagonalBlocks):
                     y = np.take(y, self.free_index, axis=0)
@@ -944,7 +996,7 @@ class FairingSystem:
                 return y
             warnings.warn(
                 f"fairing: conjugate gradients reached a relative residual of {res:.1e} after {its} "
-                f"iterations; falling back to the direct solver",
+                f"iterations (the cap: {MAX_CG_ITERATIONS}); falling back to the direct solver",
                 UserWarning,
                 stacklevel=2,
             )

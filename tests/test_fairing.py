@@ -1140,7 +1140,7 @@ def test_curvature_windows_needs_two_consecutive_windows_above_every_level():
 def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
     """``preconditioner="gauss-seidel"`` loads the kernels and runs at any size: an open grid's fast sweeps, a
     torus grid's and an irregular mesh's compressed rows (shuffled numbering too); within 1e-8 of the mesh's size
-    of the direct solve at small, default and large weights; "auto" takes it on a mesh that is no grid once the
+    of the direct solve at tiny (its stop tightened), small, default and large weights; "auto" takes it on a mesh that is no grid once the
     kernels are at hand."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel
@@ -1160,7 +1160,7 @@ def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
     for m, kind, topology in ((g, SymmetricGaussSeidel, True), (t, CsrGaussSeidel, True), (e, CsrGaussSeidel, False),
                               (shuffled, CsrGaussSeidel, False)):
         free = m.topology.window_middle & (rng.random(m.n_vertices) > 0.1)
-        for weight in (0.003, 0.3, 10.0):
+        for weight in (1e-6, 0.003, 0.3, 10.0):
             w = weight / m.mean_edge_length**2
             s = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", preconditioner="gauss-seidel",
                               _topology=m.topology if topology else None)
@@ -1178,3 +1178,76 @@ def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
     fresh = FairingSystem(e.vertices, e.topology.windows, free, 0.3 / e.mean_edge_length**2, solver="cg")
     fresh._cg_setup()
     assert not getattr(fresh._cg[1], "eisenstat", False)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
+    """``preconditioner="two-grid"`` on an open grid: within 1e-8 of the mesh's size of the direct solve from
+    the default weight down to 1e-7, with steps that do not grow as the weight falls; the fixed vertices stay
+    put (identity rows); "auto" takes it below TWO_GRID_CONTRAST once the kernels are at hand, and keeps
+    Gauss–Seidel at the default weight. A torus grid is refused by name."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+    from quadnodes.linalg.multigrid import TwoGrid
+    from quadnodes.mesh import torus
+
+    if threads > 1:
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    rng = np.random.default_rng(6)
+    m = grid(48, 41, spacing=0.5)
+    m = m.with_vertices(m.vertices + rng.normal(scale=0.2 * 0.5, size=m.vertices.shape))
+    free = m.topology.window_middle & (rng.random(m.n_vertices) > 0.05)
+    steps = {}
+    for weight in (0.3, 1e-3, 1e-5, 1e-7):
+        w = weight / m.mean_edge_length**2
+        s = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", preconditioner="two-grid",
+                          _topology=m.topology)
+        x = s.solve(m.vertices[free])
+        assert isinstance(s._cg[1], TwoGrid) and s.residual <= 1e-9
+        steps[weight] = s.iterations
+        d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+        assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max(), weight
+    assert max(steps.values()) <= 2 * min(steps.values()) + 10, steps
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
+    for weight, kind in ((1e-6, TwoGrid), (0.3, SymmetricGaussSeidel)):
+        auto = FairingSystem(m.vertices, m.topology.windows, free, weight / m.mean_edge_length**2, solver="cg",
+                             _topology=m.topology)
+        auto._cg_setup()
+        assert isinstance(auto._cg[1], kind)
+    t = torus(24, 40, major=800.0, minor=200.0)
+    with pytest.raises(InputError, match="two-grid.*open vertex grid"):
+        FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-9, solver="cg",
+                      preconditioner="two-grid", _topology=t.topology)._cg_setup()
+
+
+def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):
+    """At tiny weights a residual within rtol leaves smooth error far beyond it: the stop tightens with the
+    contrast (the 120² bench sheet, ω = 1e-6: 2.0e-7 of the extent without, within 1e-8 with it), and a run that hits
+    the cap falls back to the direct solve with a warning, never returns the capped iterate."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.fairing import even_lengths
+    from quadnodes.zigzag import _window_geometry
+
+    rng = np.random.default_rng(0)  # (the bench sheet of benchmarks/_common.py, broadband noise)
+    y, x = np.meshgrid(np.linspace(0, 1, 120), np.linspace(0, 1, 120), indexing="ij")
+    m = grid(120, 120, spacing=1.0 / 119, height=0.3 * np.sin(3 * x) * np.cos(2 * y))
+    m = m.with_vertices(m.vertices + rng.normal(scale=0.2 / 119, size=m.vertices.shape))
+    free = detect(m, 0.0).free  # (fair()'s all-free set at deviation 0)
+    w = 1e-6 / m.mean_edge_length**2
+    t = m.topology  # fair()'s default line_spacing="fair": the windows' even lengths
+    even = {"_inverse_lengths": even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])}
+
+    def system(**kw) -> FairingSystem:
+        return FairingSystem(m.vertices, t.windows, free, w, **(kw or {"solver": "cg", "preconditioner": "gauss-seidel",
+                                                                      "_topology": t}), **even)
+
+    direct = system(solver="direct").solve(m.vertices[free])
+    s = system()
+    x = s.solve(m.vertices[free])
+    assert s.iterations > 0 and np.abs(x - direct).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    monkeypatch.setattr(fairing_module, "MAX_CG_ITERATIONS", 200)
+    s = system()
+    with pytest.warns(UserWarning, match=r"after 200 iterations \(the cap: 200\); falling back to the direct"):
+        x = s.solve(m.vertices[free])
+    assert s.iterations == 0 and np.abs(x - direct).max() <= 1e-10 * np.ptp(m.vertices, axis=0).max()

@@ -1,0 +1,266 @@
+"""Two-grid preconditioning on an open grid: conjugate-gradient steps that do not grow as the weight falls.
+
+At a small weight ω the slow modes of a fairing matrix ``M = AᵀA + ωI`` are smooth: a structure line's
+energy does not see a motion that is quadratic along it, so only ω holds the global biquadratic motions
+and their neighbours, and Gauss–Seidel's steps grow as 1/√ω (957 at ω = 10⁻⁴, 2,418 at 10⁻⁵ on the
+bench sheet). A coarse grid carries them: every ``stride``-th grid row and column (and the last), a
+prolongation ``P`` that interpolates along the grid's rows and columns by cubic Lagrange polynomials
+(exact on quadratics, so the coarse grid holds the motions the lines cannot see), the Galerkin coarse
+matrix ``C = PᵀMP`` factorized once. One application of :class:`TwoGrid` is the symmetric two-grid
+cycle
+
+    ``x = (D + L)⁻¹ r``,  ``x += P C⁻¹ Pᵀ (r − M x)``,  ``x += (D + U)⁻¹ (r − M x)``
+
+(a forward Gauss–Seidel sweep, the coarse correction, a backward sweep): symmetric positive definite,
+so CG may use it. Its steps stay flat from ω = 10⁻³ down (about 70 at stride 4 on the bench sheets,
+300² and 1000² alike); a step costs about three of Gauss–Seidel's in Eisenstat's form, so it pays only
+where Gauss–Seidel needs several hundred steps (``python benchmarks/studies/multigrid.py``;
+``docs/fairing.md``, "Multigrid").
+
+Examples
+--------
+>>> import numpy as np
+>>> cubic_interpolation(7, 2).toarray()[1].round(4).tolist()  # the fine node between coarse nodes 0 and 1
+[0.3125, 0.9375, -0.3125, 0.0625]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .direct import Factorization, factorize
+from .gauss_seidel import SymmetricGaussSeidel
+
+__all__ = ["TWO_GRID_STRIDE", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
+
+#: Coarse grid spacing, in grid rows and columns. 2 takes 16 steps at every weight but a coarse matrix of a
+#: quarter of the unknowns with ~70 couplings each (a factorization of 2 s at 300², out of reach at 1000²); 4 takes
+#: about 70 steps with a sixteenth of the unknowns; 8 about 380 (``benchmarks/studies/multigrid.py --strides``).
+TWO_GRID_STRIDE = 4
+
+
+def cubic_interpolation(n: int, stride: int) -> sp.csr_matrix:
+    """``(n, m)`` interpolation along a line of ``n`` nodes from nodes ``0, stride, 2·stride, …`` and ``n − 1``.
+
+    Each fine node takes the Lagrange polynomial of degree ``min(3, m − 1)`` through the
+    coarse nodes nearest it (two on each side where there are), so the interpolation is
+    exact on polynomials of that degree; a coarse node is copied.
+
+    Parameters
+    ----------
+    n : int
+        Fine nodes (≥ 2).
+    stride : int
+        Fine nodes per coarse interval (≥ 2).
+
+    Returns
+    -------
+    (n, m) scipy.sparse.csr_matrix
+        ``m = ⌈(n − 1) / stride⌉ + 1`` coarse nodes.
+
+    Raises
+    ------
+    ValueError
+        When ``n < 2`` or ``stride < 2``.
+
+    Examples
+    --------
+    >>> P = cubic_interpolation(10, 4)  # coarse nodes 0, 4, 8 and 9
+    >>> P.shape
+    (10, 4)
+    >>> t = np.arange(10.0)
+    >>> bool(np.allclose(P @ (t[[0, 4, 8, 9]] ** 3), t ** 3))
+    True
+    """
+    if n < 2 or stride < 2:
+        raise ValueError(f"cubic_interpolation: expected n >= 2 and stride >= 2, got n={n}, stride={stride}")
+    coarse = np.arange(0, n, stride)
+    if coarse[-1] != n - 1:
+        coarse = np.append(coarse, n - 1)
+    m = coarse.size
+    taps = min(4, m)
+    i = np.arange(n)
+    left = np.searchsorted(coarse, i, side="right") - 1  # the coarse node at or before each fine node
+    first = np.clip(left - (taps // 2 - 1), 0, m - taps)
+    cols = first[:, None] + np.arange(taps)  # (n, taps)
+    xs = coarse[cols].astype(np.float64)
+    t = i[:, None].astype(np.float64)
+    weights = np.ones((n, taps))
+    for a in range(taps):
+        for b in range(taps):
+            if b != a:
+                weights[:, a] *= (t[:, 0] - xs[:, b]) / (xs[:, a] - xs[:, b])
+    P = sp.csr_matrix((weights.ravel(), cols.ravel(), np.arange(0, n * taps + 1, taps)), shape=(n, m))
+    P.eliminate_zeros()  # (at a coarse node every other tap is an exact 0)
+    return P
+
+
+def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | None = None) -> sp.csr_matrix:
+    """The ``(rows·cols, m)`` tensor-product :func:`cubic_interpolation` of a grid numbered row after row.
+
+    Parameters
+    ----------
+    rows, cols : int
+        The fine grid's shape; vertex ``i·cols + j`` is at row ``i``, column ``j``.
+    stride : int
+    moving : (rows·cols,) bool, optional
+        The vertices a correction may move; the others' rows are zero (a fixed vertex stays put).
+
+    Returns
+    -------
+    (rows·cols, m) scipy.sparse.csr_matrix
+
+    Examples
+    --------
+    >>> grid_interpolation(5, 9, 4).shape  # coarse rows 0, 4; coarse columns 0, 4, 8
+    (45, 6)
+    """
+    P = sp.kron(cubic_interpolation(rows, stride), cubic_interpolation(cols, stride), format="csr")
+    if moving is not None:
+        P = (sp.diags(np.asarray(moving, dtype=np.float64)) @ P).tocsr()
+        P.eliminate_zeros()
+    return P
+
+
+class TwoGrid:
+    """The symmetric two-grid cycle of an open grid's matrix in diagonal storage, made once (see the module).
+
+    Passed to :func:`~quadnodes.linalg.cg.block_cg` as ``precond`` (applied to all rows at once);
+    the sweeps are :class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`'s, on the blocks'
+    threads, the coarse matrix a sparse Cholesky-like factorization
+    (:func:`~quadnodes.linalg.direct.factorize`).
+
+    Parameters
+    ----------
+    blocks : SymmetricDiagonalBlocks
+        ``M`` (symmetric positive definite) in the grid's numbering: an open grid's offsets
+        ``0, ±1, ±2, ±3, ±cols, ±2·cols, ±3·cols``; fixed vertices as identity rows.
+    shape : (int, int)
+        ``(rows, cols)`` of the grid.
+    moving : (rows·cols,) bool
+        The free vertices (the coarse correction moves no other).
+    stride : int
+        Coarse grid spacing (:data:`TWO_GRID_STRIDE`).
+
+    Attributes
+    ----------
+    P : (n, m) scipy.sparse.csr_matrix
+        The prolongation.
+    coarse : Factorization
+        ``PᵀMP`` factorized.
+
+    Raises
+    ------
+    ValueError
+        When ``shape`` does not match the matrix, or the grid has fewer than two coarse
+        nodes per direction (``rows`` or ``cols`` ≤ ``stride``).
+    numpy.linalg.LinAlgError
+        When a diagonal entry of ``M`` is not positive.
+
+    Examples
+    --------
+    >>> from quadnodes.linalg.cg import SymmetricDiagonalBlocks, block_cg
+    >>> rows = cols = 24
+    >>> offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
+    >>> stencil = np.array([-1.0, 6.0, -15.0, -1.0, 6.0, -15.0, 40.001, -15.0, 6.0, -1.0, -15.0, 6.0, -1.0])
+    >>> data = np.repeat(stencil[:, None], rows * cols, axis=1)
+    >>> blocks = SymmetricDiagonalBlocks(offsets, data, threads=1)
+    >>> M = blocks.M.tocsr()
+    >>> b = np.ones((rows * cols, 3))
+    >>> x, steps, res = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=500,
+    ...                          precond=TwoGrid(blocks, (rows, cols), np.ones(rows * cols, bool), stride=4))
+    >>> bool(np.abs(M @ x - b).max() < 1e-6), steps < 100
+    (True, True)
+    """
+
+    whole = True  # (block_cg applies it to all rows at once)
+
+    def __init__(self, blocks: object, shape: tuple[int, int], moving: np.ndarray,
+                 stride: int = TWO_GRID_STRIDE) -> None:
+        rows, cols = (int(v) for v in shape)
+        M = blocks.M.tocsr()  # type: ignore[attr-defined]
+        n = M.shape[0]
+        if rows * cols != n:
+            raise ValueError(f"shape: {rows} × {cols} grid does not match the matrix's {n} rows")
+        if min(rows, cols) <= stride:
+            raise ValueError(f"shape: a {rows} × {cols} grid has no coarse grid at stride {stride}")
+        self.sweeps = SymmetricGaussSeidel(blocks)
+        self._blocks = blocks
+        self.shape = (rows, cols)
+        self.moving = np.asarray(moving, dtype=np.float64)
+        self.lines = (cubic_interpolation(rows, stride), cubic_interpolation(cols, stride))
+        self.lines_t = tuple(L.T.tocsr() for L in self.lines)
+        self.P = grid_interpolation(rows, cols, stride, moving)
+        C = (self.P.T.tocsr() @ (M @ self.P)).tocsr()
+        idle = C.diagonal() <= 0  # a coarse node whose every fine node is fixed: an identity row
+        if idle.any():
+            C = (C + sp.diags(idle.astype(np.float64))).tocsr()
+        self.coarse: Factorization = factorize(C, kind="spd", what="two-grid coarse matrix")
+        self._n = n
+        self._buffers: dict = {}
+
+    def restrict(self, Y: np.ndarray) -> np.ndarray:
+        """``(m, c)`` ``Pᵀ y`` of every row ``y`` of ``Y`` (``(c, ≥ n)``), along the grid's columns, then its rows."""
+        (rows, cols), (Lr, Lc), n = self.shape, self.lines_t, self._n
+        out = np.empty((Lr.shape[0] * Lc.shape[0], Y.shape[0]))
+        for j, y in enumerate(Y):
+            along_columns = Lr @ (y[:n] * self.moving).reshape(rows, cols)  # (coarse rows, cols)
+            out[:, j] = (Lc @ along_columns.T).T.ravel()
+        return out
+
+    def prolong(self, E: np.ndarray, X: np.ndarray) -> None:
+        """``X[j] += P e_j`` for every column ``e_j`` of ``E`` (``(m, c)``): along the grid's rows, then its columns."""
+        (rows, cols), (Lr, Lc), n = self.shape, self.lines, self._n
+        for j in range(E.shape[1]):
+            coarse = E[:, j].reshape(Lr.shape[1], Lc.shape[1])
+            fine = Lr @ np.ascontiguousarray((Lc @ coarse.T).T)  # (rows, cols)
+            fine = fine.ravel()
+            fine *= self.moving
+            X[j, :n] += fine
+
+    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
+        """``Z = B⁻¹ R`` on all rows: the two-grid cycle of the module, on ``(c, kp)`` vectors (``columns``)."""
+        from .threads import run_tasks
+
+        if not columns:  # pragma: no cover - diagonal storage always takes (c, k) vectors
+            raise ValueError("TwoGrid: expected (c, k) vectors")
+        sw, n = self.sweeps, self._n
+        c, kp = R.shape
+        if self._buffers.get("shape") != R.shape:  # (one set per vector shape: CG applies it every step)
+            scale = np.zeros(kp)
+            scale[:n] = sw.scale
+            self._buffers = {"shape": R.shape, "scale": scale, "vectors": [np.zeros_like(R) for _ in range(5)],
+                             "scratch": [(np.empty((c, sw.row)), np.empty(c))
+                                         for _ in range(len(sw.interiors) + len(sw.separators))]}
+        s = self._buffers["scale"]
+        V, X, Y, T, nothing = self._buffers["vectors"]  # (nothing: never written, read as zeros)
+        scratch = self._buffers["scratch"]
+        tasks = list(enumerate(sw.interiors))
+        later = list(enumerate(sw.separators, len(sw.interiors)))
+        zero = np.zeros(c)
+
+        def forward(i: int, part: tuple) -> None:  # T = (I + L̃)⁻¹ V on the part's rows
+            sw.forward(V, nothing, T, scratch[i][0], part, scratch[i][1])
+
+        def backward(i: int, part: tuple) -> None:  # T = (I + Ũ)⁻¹ V on the part's rows
+            sw.backward(V, Y, T, zero, scratch[i][0], part)
+
+        def residual() -> None:  # Y = R − M X
+            sw.product(X, Y)
+            np.subtract(R, Y, out=Y)
+
+        np.multiply(R, s, out=V)  # x = (D + L)⁻¹ r = D^{-1/2} (I + L̃)⁻¹ D^{-1/2} r
+        run_tasks(forward, tasks)
+        for i, part in later:
+            forward(i, part)
+        np.multiply(T, s, out=X)
+        residual()
+        self.prolong(self.coarse.solve(self.restrict(Y)), X)
+        residual()
+        np.multiply(Y, s, out=V)  # x += (D + U)⁻¹ (r − M x)
+        for i, part in later:
+            backward(i, part)
+        run_tasks(backward, tasks)
+        np.multiply(T, s, out=Z)
+        Z += X

@@ -1,0 +1,171 @@
+"""quadnodes.linalg.multigrid: the interpolation against polynomials, the cycle against its dense formula, CG with it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import quadnodes.linalg.threads as linalg_threads
+from quadnodes.linalg import compiled
+from quadnodes.linalg.cg import SymmetricDiagonalBlocks, block_cg
+from quadnodes.linalg.multigrid import TwoGrid, cubic_interpolation, grid_interpolation
+
+pytestmark = pytest.mark.skipif(not compiled.wait(), reason="the compiled kernels (Numba) are not available")
+
+
+def line_matrix(rows: int, cols: int, weight: float, seed: int = 0) -> np.ndarray:
+    """``AᵀA + ω I`` of third differences along every row and column of a grid, each window scaled at random.
+
+    Like the fairing matrix, the line energy does not see a motion that is quadratic along the lines, so at
+    a small ω the smooth modes are slow."""
+    rng = np.random.default_rng(seed)
+    node = np.arange(rows * cols).reshape(rows, cols)
+    lines = [node[r] for r in range(rows)] + [node[:, c] for c in range(cols)]
+    A = np.zeros((sum(len(line) - 3 for line in lines), rows * cols))
+    i = 0
+    for line in lines:
+        for j in range(len(line) - 3):
+            A[i, line[j : j + 4]] = np.array([-1.0, 3.0, -3.0, 1.0]) * rng.uniform(0.5, 2.0)
+            i += 1
+    return A.T @ A + weight * np.eye(rows * cols)
+
+
+def with_fixed(M: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """``M`` with the ``fixed`` vertices as identity rows and columns (the grid path's numbering)."""
+    M = M.copy()
+    M[fixed] = 0.0
+    M[:, fixed] = 0.0
+    M[fixed, fixed] = 1.0
+    return M
+
+
+def blocks_of(M: np.ndarray, threads: int) -> SymmetricDiagonalBlocks:
+    D = sp.dia_matrix(M)
+    return SymmetricDiagonalBlocks(D.offsets, D.data, threads=threads)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(2, 40), st.integers(2, 6), st.integers(0, 3))
+def test_cubic_interpolation_is_exact_on_polynomials_up_to_its_degree(n, stride, degree):
+    P = cubic_interpolation(n, stride)
+    coarse = np.unique(np.r_[np.arange(0, n, stride), n - 1])
+    assert P.shape == (n, coarse.size)
+    t = np.linspace(-1.0, 1.0, n)
+    if degree <= min(3, coarse.size - 1):
+        assert np.allclose(P @ t[coarse] ** degree, t**degree, atol=1e-12)
+    assert np.array_equal(P[coarse].toarray(), np.eye(coarse.size))  # a coarse node is copied
+    assert np.allclose(np.asarray(P.sum(axis=1)).ravel(), 1.0)
+
+
+def test_cubic_interpolation_refuses_a_line_or_stride_too_short():
+    with pytest.raises(ValueError, match="stride"):
+        cubic_interpolation(10, 1)
+    with pytest.raises(ValueError, match="n >= 2"):
+        cubic_interpolation(1, 4)
+
+
+def test_grid_interpolation_is_the_tensor_product_with_fixed_rows_zero():
+    moving = np.ones(9 * 14, bool)
+    moving[[0, 13, 50]] = False
+    P = grid_interpolation(9, 14, 4, moving).toarray()
+    full = np.kron(cubic_interpolation(9, 4).toarray(), cubic_interpolation(14, 4).toarray())
+    assert np.array_equal(P[moving], full[moving]) and not P[~moving].any()
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_transfers_equal_the_prolongation_matrix(monkeypatch, threads):
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 8)
+    rows, cols = 13, 17
+    M = line_matrix(rows, cols, 0.01)
+    moving = np.ones(rows * cols, bool)
+    moving[[0, cols - 1, rows * cols - 1]] = False
+    tg = TwoGrid(blocks_of(with_fixed(M, ~moving), threads), (rows, cols), moving, stride=4)
+    rng = np.random.default_rng(1)
+    Y = rng.normal(size=(3, rows * cols + 11))  # (padded past the matrix's rows, as block_cg's vectors)
+    assert np.allclose(tg.restrict(Y), tg.P.T @ Y[:, : rows * cols].T, atol=1e-12)
+    E, X = rng.normal(size=(tg.P.shape[1], 3)), np.zeros((3, rows * cols + 11))
+    tg.prolong(E, X)
+    assert np.allclose(X[:, : rows * cols].T, tg.P @ E, atol=1e-12) and not X[:, rows * cols :].any()
+
+
+def test_one_cycle_equals_its_dense_formula():
+    """One thread (the sweeps in the grid's order): ``x = (D+L)⁻¹r``, ``x += P C⁻¹ Pᵀ(r − Mx)``,
+    ``x += (D+U)⁻¹(r − Mx)`` with dense matrices."""
+    rows, cols = 14, 19
+    moving = np.ones(rows * cols, bool)
+    moving[[0, cols - 1, (rows - 1) * cols, rows * cols - 1]] = False  # the corners, as fair's all-free grid
+    M = with_fixed(line_matrix(rows, cols, 0.002, seed=2), ~moving)
+    tg = TwoGrid(blocks_of(M, 1), (rows, cols), moving, stride=4)
+    R = np.random.default_rng(3).normal(size=(3, rows * cols))
+    R[:, ~moving] = 0.0
+    Z = np.zeros_like(R)
+    tg.apply(R, Z, 0, rows * cols, True)
+    P = tg.P.toarray()
+    C = P.T @ M @ P
+    C[np.diag(C) <= 0, np.diag(C) <= 0] = 1.0
+    r = R.T
+    x = np.linalg.solve(np.tril(M), r)
+    x += P @ np.linalg.solve(C, P.T @ (r - M @ x))
+    x += np.linalg.solve(np.triu(M), r - M @ x)
+    assert np.allclose(Z.T, x, rtol=1e-9, atol=1e-9 * np.abs(x).max())
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_the_cycle_is_symmetric_positive_definite_on_threads(monkeypatch, threads):
+    """CG needs ``B⁻¹`` symmetric positive definite, whatever the threads' order of the sweeps."""
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 8)
+    rows, cols = 16, 21
+    M = line_matrix(rows, cols, 1e-3, seed=5)
+    tg = TwoGrid(blocks_of(M, threads), (rows, cols), np.ones(rows * cols, bool), stride=4)
+    n = rows * cols
+    kp = -(-n // linalg_threads.RANGE_ALIGN) * linalg_threads.RANGE_ALIGN
+    B = np.zeros((n, n))
+    for start in range(0, n, 3):  # B⁻¹ column by column, three at a time
+        R = np.zeros((3, kp))
+        for j in range(3):
+            if start + j < n:
+                R[j, start + j] = 1.0
+        Z = np.zeros_like(R)
+        tg.apply(R, Z, 0, kp, True)
+        assert not Z[:, n:].any()
+        for j in range(3):
+            if start + j < n:
+                B[:, start + j] = Z[j, :n]
+    assert np.allclose(B, B.T, atol=1e-10 * np.abs(B).max())
+    assert np.linalg.eigvalsh(0.5 * (B + B.T)).min() > 0
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_cg_steps_do_not_grow_as_the_weight_falls(monkeypatch, threads):
+    """CG with the cycle solves to the dense solution; from ω = 1e-2 down to 1e-8 its steps stay within a few,
+    where symmetric Gauss–Seidel's grow many times."""
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 100)
+    rows, cols = 40, 36
+    steps = {}
+    for weight in (1e-2, 1e-5, 1e-8):
+        M = line_matrix(rows, cols, weight, seed=7)
+        blocks = blocks_of(M, threads)
+        b = M @ np.random.default_rng(8).normal(size=(rows * cols, 3))
+        x, steps[weight], res = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=5000,
+                                         precond=TwoGrid(blocks, (rows, cols), np.ones(rows * cols, bool)))
+        assert res <= 1e-10
+        assert np.abs(x - np.linalg.solve(M, b)).max() <= 1e-6 * np.abs(b).max() / weight
+        if weight == 1e-8:
+            gs = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=20000,
+                          precond=SymmetricGaussSeidel(blocks))[1]
+            assert gs > 5 * steps[weight]
+    assert max(steps.values()) <= 1.5 * min(steps.values()) + 5, steps
+
+
+def test_refuses_a_grid_of_the_wrong_shape_or_without_a_coarse_grid():
+    M = line_matrix(6, 8, 0.1)
+    blocks = blocks_of(M, 1)
+    with pytest.raises(ValueError, match="does not match"):
+        TwoGrid(blocks, (7, 8), np.ones(48, bool))
+    with pytest.raises(ValueError, match="no coarse grid"):
+        TwoGrid(blocks, (6, 8), np.ones(48, bool), stride=6)
