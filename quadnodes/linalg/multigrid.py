@@ -211,7 +211,7 @@ class TwoGrid:
 
     def prolong(self, E: np.ndarray, X: np.ndarray) -> None:
         """``X[j] += P e_j`` for every column ``e_j`` of ``E`` (``(m, c)``): along the grid's rows, then its columns."""
-        (rows, cols), (Lr, Lc), n = self.shape, self.lines, self._n
+        (Lr, Lc), n = self.lines, self._n
         for j in range(E.shape[1]):
             coarse = E[:, j].reshape(Lr.shape[1], Lc.shape[1])
             fine = Lr @ np.ascontiguousarray((Lc @ coarse.T).T)  # (rows, cols)
