@@ -87,9 +87,11 @@ GRID_BLOCK_JACOBI_RATIO = 500.0
 #: ω = 0.003–3, for 13–18 % more steps (``python benchmarks/studies/gauss_seidel.py --accuracy``).
 GAUSS_SEIDEL_RTOL = 0.1
 #: Below the weights measured there the smooth error a residual leaves grows as the weight falls (κ ≈ 64/ω): at
-#: a Gershgorin bound above this many times ω (a weight below about 10⁻³) the stop tightens further, as
-#: (this / contrast)^GAUSS_SEIDEL_TIGHTEN_POWER (the 300² sheet at ω = 10⁻⁵ and 10⁻⁶: 2.0e-8 and 1.0e-7 of the
-#: extent from the direct solve without it; ``python benchmarks/studies/gauss_seidel.py --accuracy --tiny``).
+#: a Gershgorin bound above this many times ω (a weight below about 10⁻³) the stop tightens further, by
+#: (this / contrast)^GAUSS_SEIDEL_TIGHTEN_POWER. Without it the 120² bench sheet at ω = 10⁻⁶ ended 2.0e-7 of its
+#: extent from the direct solve (``tests/test_fairing.py::test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve``);
+#: with it the 300² sheet ends within 1.1e-9 – 2.6e-9 from ω = 10⁻⁴ to 10⁻⁶
+#: (``python benchmarks/studies/multigrid.py --solver --size 300``, the Gauss–Seidel column).
 GAUSS_SEIDEL_TIGHTEN_CONTRAST = 5e4
 GAUSS_SEIDEL_TIGHTEN_POWER = 0.5
 #: With the compiled kernels at hand, "auto" takes symmetric Gauss–Seidel where the largest Gershgorin
@@ -99,14 +101,16 @@ GAUSS_SEIDEL_TIGHTEN_POWER = 0.5
 #: (``python benchmarks/studies/gauss_seidel.py``, also ``--mesh cube-sphere`` and ``--mesh torus``).
 GAUSS_SEIDEL_CONTRAST = 30.0
 #: Below a weight of about 3·10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
-#: (about 70 at every smaller weight, each some six Gauss–Seidel steps' work plus a coarse factorization once):
+#: (about 80 at every smaller weight, each some eight Gauss–Seidel steps' time, plus a coarse factorization once):
 #: "auto" takes :class:`~quadnodes.linalg.multigrid.TwoGrid` on an open grid where the Gershgorin bound exceeds
-#: this many times ω (``python benchmarks/studies/multigrid.py --solver``).
+#: this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet; 300²: 1.6 s against 1.6 s at 3·10⁻⁴, 1.6 s against
+#: 2.4 s at 10⁻⁴, ``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
-#: 400 × 400): SciPy's SuperLU factorizes and solves the coarse matrix, whose fill grows faster than its size
-#: (at 1000², 63,001 coarse vertices: a 14 s factorization and 0.35 s per solve, 50–63 M entries), so larger grids
-#: keep Gauss–Seidel until a deeper cycle replaces the coarse factorization.
+#: 430 × 430). The coarse matrix (cubic interpolation's Galerkin product, up to 81 couplings a row) is
+#: factorized, and its fill grows faster than its size: at 1000² (63,001 coarse vertices) the two-grid path took
+#: 41.3 s at ω = 10⁻⁴ against Gauss–Seidel's 26.8 s (``python benchmarks/studies/multigrid.py --solver --size 1000
+#: --weights 0.0001``), so larger grids keep Gauss–Seidel until a deeper cycle replaces the coarse factorization.
 TWO_GRID_COARSE_MAX = 12_000
 #: The two-grid path stops at this fraction of ``rtol`` (its residual, like Gauss–Seidel's, leaves smooth error).
 TWO_GRID_RTOL = 0.1
@@ -982,8 +986,8 @@ class FairingSystem:
             rtol = self.rtol * (_gauss_seidel_rtol(self._contrast) if getattr(precond, "eisenstat", False)
                                 else TWO_GRID_RTOL if isinstance(precond, TwoGrid) else 1.0)
             y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS, precond=precond)
-            # (at the cap a residual within rtol is not enough: at tiny weights it leaves smooth error far
-            # beyond it, 2e-6 of the extent at ω = 1e-7 on a 120² grid's 20,000 Gauss–Seidel steps)
+            # (at the cap a residual within rtol is not enough: at tiny weights the smooth error it leaves may be
+            # far beyond rtol, see GAUSS_SEIDEL_TIGHTEN_CONTRAST)
             if res <= self.rtol and its < MAX_CG_ITERATIONS:
                 self.iterations, self.residual = its, res
                 if isinstance(blocks, DiagonalBlocks):

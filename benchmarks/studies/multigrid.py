@@ -29,7 +29,15 @@ the operator complexity (all levels' nonzeros over the fine matrix's). Wall time
 prototype are printed too, one thread, but say less than the work: the multigrid's transfers and coarse
 products are SciPy's, the sweeps small Numba loops.
 
+``--solver`` measures the solver's own paths instead (``docs/fairing.md``, "The two-grid path"): fair()'s
+first-iteration system (``FairingSystem``, all window middles free, ``line_spacing="fair"``, anchor = the noisy
+vertices, the compiled kernels loaded before the clock), solved by symmetric Gauss–Seidel (``preconditioner=
+"gauss-seidel"``, its stop tightened at tiny weights) and by :class:`quadnodes.linalg.multigrid.TwoGrid`
+(``"two-grid"``, at each ``--strides``), each against the direct solve (``--size`` ≤ 450; above, Gauss–Seidel to
+rtol 1e-12): steps, seconds (set-up and solve, one run), and the largest difference over the sheet's extent.
+
 Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [--weights 0.001 0.01 0.1 0.3 3]
+      python benchmarks/studies/multigrid.py --solver --size 300 --weights 0.3 0.001 0.0001 0.00001 0.000001
 """
 
 from __future__ import annotations
@@ -186,7 +194,11 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=100)
     ap.add_argument("--noise", choices=_common.NOISES, default="broadband")
     ap.add_argument("--weights", type=float, nargs="+", default=[0.001, 0.01, 0.1, 0.3, 3.0])
+    ap.add_argument("--solver", action="store_true", help="the solver's Gauss-Seidel and two-grid paths")
+    ap.add_argument("--strides", type=int, nargs="+", default=[4], help="two-grid coarse spacings (--solver)")
     args = ap.parse_args()
+    if args.solver:
+        return solver_table(args)
     n = args.size
     m = _common.noisy_grid(n, args.noise)
     t = m.topology
@@ -218,6 +230,52 @@ def main() -> None:
             assert np.abs(M @ x - B).max() <= 1e-6 * np.abs(B).max()
             cells.append(f"{steps} · {per_step:.1f} · {steps * per_step:.0f} · {complexity:.2f} · {seconds:.2f}")
         print(f"| {w:g} | " + " | ".join(cells) + " |", flush=True)
+
+
+def solver_table(args: argparse.Namespace) -> None:
+    """The ``--solver`` table (see the module)."""
+    import quadnodes.fairing as fairing
+    from quadnodes.linalg import compiled
+    from quadnodes.linalg.multigrid import TwoGrid
+
+    compiled.wait()
+    n = args.size
+    m = _common.noisy_grid(n, args.noise)
+    t = m.topology
+    free = detect(m, 0.0).free
+    inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
+    extent = float(np.ptp(m.vertices))
+    kinds = [("Gauss–Seidel", "gauss-seidel", None)] + [(f"two-grid, stride {s}", "two-grid", s) for s in args.strides]
+    print(f"{n}×{n} sheet, {args.noise} noise, fair()'s first-iteration system; steps · seconds · max difference "
+          f"from the {'direct solve' if n <= 450 else 'Gauss–Seidel solve to rtol 1e-12'} / extent\n")
+    print("| ω | " + " | ".join(k for k, _, _ in kinds) + " |")
+    print("|---:|" + "---:|" * len(kinds))
+    for w in args.weights:
+        def system(**kw):  # type: ignore[no-untyped-def]
+            return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, _inverse_lengths=inverse,
+                                 _topology=t, **kw)
+
+        exact = system(solver="direct") if n <= 450 else system(solver="cg", preconditioner="gauss-seidel", rtol=1e-12)
+        anchor = m.vertices[exact.free_index]
+        ref = exact.solve(anchor)
+        cells = []
+        for _, kind, stride in kinds:
+            fairing.TwoGrid = TwoGrid if stride is None else _strided(TwoGrid, stride)
+            t0 = time.perf_counter()
+            s = system(solver="cg", preconditioner=kind)
+            x = s.solve(anchor)
+            seconds = time.perf_counter() - t0
+            cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
+        fairing.TwoGrid = TwoGrid
+        print(f"| {w:g} | " + " | ".join(cells) + " |", flush=True)
+
+
+def _strided(base: type, stride: int) -> type:
+    """``base`` (TwoGrid) at ``stride``, as fair() constructs it (a subclass, so fair's type checks still hold)."""
+    class Strided(base):  # type: ignore[valid-type, misc]
+        def __init__(self, blocks, shape, moving):  # type: ignore[no-untyped-def]
+            super().__init__(blocks, shape, moving, stride=stride)
+    return Strided
 
 
 def _mg(M: sp.csr_matrix, n: int, free: np.ndarray, degree: int, levels: int = 99):  # type: ignore[no-untyped-def]

@@ -12,10 +12,10 @@ cycle
     ``x = (D + L)⁻¹ r``,  ``x += P C⁻¹ Pᵀ (r − M x)``,  ``x += (D + U)⁻¹ (r − M x)``
 
 (a forward Gauss–Seidel sweep, the coarse correction, a backward sweep): symmetric positive definite,
-so CG may use it. Its steps stay flat from ω = 10⁻³ down (about 70 at stride 4 on the bench sheets,
-300² and 1000² alike); a step costs about three of Gauss–Seidel's in Eisenstat's form, so it pays only
-where Gauss–Seidel needs several hundred steps (``python benchmarks/studies/multigrid.py``;
-``docs/fairing.md``, "Multigrid").
+so CG may use it. On the 300² bench sheet its steps stay at 77–79 from ω = 10⁻³ down to 10⁻⁶, where
+Gauss–Seidel's go from 380 to 10,864; a step costs about eight of Gauss–Seidel's in Eisenstat's form
+(most of it the coarse solve), so it pays below ω ≈ 3·10⁻⁴
+(``python benchmarks/studies/multigrid.py --solver --size 300``; ``docs/fairing.md``, "The two-grid path").
 
 Examples
 --------
@@ -34,9 +34,9 @@ from .gauss_seidel import SymmetricGaussSeidel
 
 __all__ = ["TWO_GRID_STRIDE", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
 
-#: Coarse grid spacing, in grid rows and columns. 2 takes 16 steps at every weight but a coarse matrix of a
-#: quarter of the unknowns with ~70 couplings each (a factorization of 2 s at 300², out of reach at 1000²); 4 takes
-#: about 70 steps with a sixteenth of the unknowns; 8 about 380 (``benchmarks/studies/multigrid.py --strides``).
+#: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 16–18 steps but
+#: factorizes a quarter of the unknowns (3.4–4.1 s in all); 4 takes 77–79 steps (1.4–1.7 s); 8 takes 289–451
+#: (3.1–4.7 s) (``python benchmarks/studies/multigrid.py --solver --size 300 --strides 2 4 8``).
 TWO_GRID_STRIDE = 4
 
 
