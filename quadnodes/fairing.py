@@ -870,13 +870,16 @@ class FairingSystem:
                 return storage[0], storage[1]
 
             contrast = 0.0  # the largest Gershgorin bound against ω: how many steps plain CG would need
-            if (self.preconditioner == "auto" and wanted) or self.preconditioner in ("gauss-seidel", "two-grid"):
+            if self.preconditioner in ("auto", "gauss-seidel", "two-grid"):
                 bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
                 contrast = bound / self.weight
             self._contrast = contrast
+            # at a tiny weight the kernels pay at any size (plain CG and block Jacobi need thousands of steps)
+            wanted = wanted or contrast > TWO_GRID_CONTRAST
             two_grid = self.preconditioner == "two-grid" or (
                 self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST)
-            if (self.preconditioner in ("gauss-seidel", "two-grid") or contrast > GAUSS_SEIDEL_CONTRAST) and kernels.wait():
+            if (self.preconditioner in ("gauss-seidel", "two-grid") or (wanted and contrast > GAUSS_SEIDEL_CONTRAST)) \
+                    and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
                 # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights on
                 # an open grid, the two-grid cycle around the grid's sweeps.

@@ -1184,8 +1184,9 @@ def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
 def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
     """``preconditioner="two-grid"`` on an open grid: within 1e-8 of the mesh's size of the direct solve from
     the default weight down to 1e-7, with steps that do not grow as the weight falls; the fixed vertices stay
-    put (identity rows); "auto" takes it below TWO_GRID_CONTRAST once the kernels are at hand, and keeps
-    Gauss–Seidel at the default weight. A torus grid is refused by name."""
+    put (identity rows); "auto" takes it below TWO_GRID_CONTRAST, loading the kernels for it in a fresh process
+    too, and keeps Gauss–Seidel (or, fresh and small, plain CG) at the default weight. A torus grid is refused
+    by name."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
     from quadnodes.linalg.multigrid import TwoGrid
@@ -1209,12 +1210,13 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
         d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
         assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max(), weight
     assert max(steps.values()) <= 2 * min(steps.values()) + 10, steps
-    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
-    for weight, kind in ((1e-6, TwoGrid), (0.3, SymmetricGaussSeidel)):
+    for ready, weight, kind in ((True, 1e-6, TwoGrid), (True, 0.3, SymmetricGaussSeidel),
+                                (False, 1e-6, TwoGrid), (False, 0.3, type(None))):  # (False: a fresh process)
+        monkeypatch.setattr(fairing_module.kernels, "ready", lambda: ready)
         auto = FairingSystem(m.vertices, m.topology.windows, free, weight / m.mean_edge_length**2, solver="cg",
                              _topology=m.topology)
         auto._cg_setup()
-        assert isinstance(auto._cg[1], kind)
+        assert isinstance(auto._cg[1], kind), (ready, weight)
     t = torus(24, 40, major=800.0, minor=200.0)
     with pytest.raises(InputError, match="two-grid.*open vertex grid"):
         FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-9, solver="cg",

@@ -278,7 +278,9 @@ def test_kkt_and_scipy_reference(monkeypatch, energy, closeness, path):
     start = own_projection(c, c, n, rf, hf)
     ref = minimize(fun, start.ravel(), jac=True, method="SLSQP", constraints={"type": "ineq", "fun": cons},
                    options={"ftol": 1e-12, "maxiter": 2000})
-    assert ref.success, ref.message
+    # SciPy 1.17's SLSQP may stop at the optimum with status 8 ("positive directional derivative for linesearch")
+    # when ftol asks more than its line search resolves; its point, if feasible, is checked below like any other
+    assert ref.success or (ref.status == 8 and cons(ref.x).min() >= -1e-9), ref.message
     assert fun(x.ravel())[0] <= ref.fun + 1e-9 * abs(ref.fun)
     np.testing.assert_allclose(x, ref.x.reshape(-1, 3), atol=1e-4 * h)
 
