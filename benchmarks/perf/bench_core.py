@@ -34,7 +34,8 @@ Rows
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
 Run:  python benchmarks/perf/bench_core.py [--sizes 100 300 1000] [--noise zigzag broadband]
-            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--warm] [--against PATH]
+            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--warm] [--weight W]
+            [--against PATH]
 """
 
 from __future__ import annotations
@@ -88,7 +89,8 @@ def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
         w = windows(m.topology.structure_lines)
         extra = f"{len(w)} windows"
     elif kind in ("fair", "fair_hold"):
-        _, rep = fair(m, iterations=1, threshold=0.0, line_spacing="hold" if kind == "fair_hold" else "fair")
+        weight = {"weight": float(os.environ["QUADNODES_BENCH_WEIGHT"])} if os.environ.get("QUADNODES_BENCH_WEIGHT") else {}
+        _, rep = fair(m, iterations=1, threshold=0.0, line_spacing="hold" if kind == "fair_hold" else "fair", **weight)
         r = rep.iterations[0]
         extra = f"{r.n_free} free, {r.solver} {r.cg_iterations} steps, residual {r.residual:.0e}"
     elif kind in ("superlu", "superlu_mmd", "pyamg", "plain", "cholmod"):
@@ -170,6 +172,8 @@ def main() -> None:
     ap.add_argument("--warm", action="store_true",
                     help="load the compiled kernels before the clock, as `quadnodes serve`/`watch` and a second "
                          "run in one process have them (the rows say 'kernels loaded')")
+    ap.add_argument("--weight", type=float,
+                    help="fair rows: this weight (normalized) instead of fair's default; the rows say so")
     ap.add_argument("--slow", action="store_true", help="also run SuperLU at sizes above 300")
     ap.add_argument("--only", nargs="+", choices=list(LABELS), help="run only these rows")
     ap.add_argument("--repeat", type=int, default=3,
@@ -184,6 +188,8 @@ def main() -> None:
         return
     if args.warm:
         os.environ["QUADNODES_BENCH_WARM"] = "1"
+    if args.weight is not None:
+        os.environ["QUADNODES_BENCH_WEIGHT"] = repr(args.weight)
     print("| mesh | noise | operation | wall time (s), median (range) | peak memory above baseline (MB) | note |")
     print("|---|---|---|---:|---:|---|")
     have = {}
@@ -213,6 +219,7 @@ def main() -> None:
                 mesh = {"torus": f"torus {n}×{n}", "cube-sphere": f"cube-sphere ~{n}²"}.get(noise, f"{n}×{n}")
                 label = "broadband" if noise in ("torus", "cube-sphere") else noise
                 label += ", kernels loaded" if args.warm else ""
+                label += f", weight {args.weight:g}" if args.weight is not None else ""
                 for (r, walls), who in zip(results, ("", f" [{args.against}]")):
                     print(f"| {mesh} | {label} | {LABELS[kind]}{who} | {r['wall_s']:.3f}{_common.spread(walls)} | "
                           f"{r['peak_mb']:.0f} | {r['note']} |", flush=True)
