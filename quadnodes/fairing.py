@@ -36,7 +36,7 @@ from .linalg import compiled as kernels
 from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel
 from .linalg.grid import GridPattern
 from .linalg.heap import reused_heap
-from .linalg.multigrid import TWO_GRID_STRIDE, TwoGrid
+from .linalg.multigrid import TWO_GRID_STRIDE, TwoGrid, coarse_nodes
 from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
@@ -114,6 +114,17 @@ TWO_GRID_CONTRAST = 2e5
 TWO_GRID_COARSE_MAX = 12_000
 #: The two-grid path stops at this fraction of ``rtol`` (its residual, like Gauss–Seidel's, leaves smooth error).
 TWO_GRID_RTOL = 0.1
+#: Where "auto" may take the two-grid path it runs Gauss–Seidel first and switches (from Gauss–Seidel's iterate)
+#: only after this many steps without converging. The Gershgorin bound does not see fixed vertices, and fixed
+#: vertices scattered over the free ones hold the smooth modes as ω would: on a 200² sheet at ω = 10⁻⁶ with 10 %
+#: of the vertices fixed at random Gauss–Seidel converges in 439 steps (0.29 s), with 30 % in 83 (0.08 s), where
+#: the two-grid path takes 0.5 s; all free it needs 11,857 (6.8 s against 0.66 s)
+#: (``python benchmarks/studies/multigrid.py --solver --size 200 --fixed 0 0.1 0.3``).
+TWO_GRID_AFTER = 300
+#: After the switch the two-grid path reduces Gauss–Seidel's residual by at least this factor more: that residual
+#: sits in the smooth modes, where it means a large error (200² sheet, 10 % fixed, ω = 10⁻⁴: 6.3e-8 of the extent
+#: when the switch stopped at the two-grid's own stop, which the iterate already met).
+TWO_GRID_SWITCH_RTOL = 0.01
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -842,7 +853,10 @@ class FairingSystem:
         symmetric Gauss–Seidel, the fast sweeps on a mostly free open vertex grid
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), compressed rows on a
         cylinder or torus grid and any other mesh (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
-        Otherwise:
+        On such an open grid, where the bound exceeds :data:`TWO_GRID_CONTRAST` ω and the coarse grid
+        has at most :data:`TWO_GRID_COARSE_MAX` vertices, the two-grid cycle
+        (:class:`~quadnodes.linalg.multigrid.TwoGrid`); at such a weight the kernels are loaded
+        at any size. Otherwise:
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
@@ -893,14 +907,11 @@ class FairingSystem:
                     blocks = SymmetricDiagonalBlocks(offsets, data)
                     cols = int(offsets[10])
                     shape = (data.shape[1] // cols, cols)
-                    coarse = np.prod([-(-(side - 1) // TWO_GRID_STRIDE) + 1 for side in shape])
-                    if two_grid and (self.preconditioner == "two-grid"
-                                     or (min(shape) > 4 * TWO_GRID_STRIDE and coarse <= TWO_GRID_COARSE_MAX)):
-                        try:
-                            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2]), None)
-                        except ValueError as exc:  # a grid too small for a coarse grid
-                            raise InputError(f"preconditioner='two-grid': {exc}") from exc
-                        return self._cg
+                    coarse = np.prod([coarse_nodes(side, TWO_GRID_STRIDE).size for side in shape])
+                    if self.preconditioner == "two-grid":
+                        return self._two_grid(blocks, shape)
+                    if two_grid and min(shape) > 4 * TWO_GRID_STRIDE and coarse <= TWO_GRID_COARSE_MAX:
+                        self._two_grid_shape = shape  # Gauss–Seidel first; the two-grid cycle if it is slow
                     return self._gauss_seidel(blocks, SymmetricGaussSeidel)
                 return self._gauss_seidel(DiagonalBlocks(offsets, data), CsrGaussSeidel)
             if self.preconditioner in ("gauss-seidel", "two-grid"):
@@ -935,6 +946,18 @@ class FairingSystem:
 
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
+    _two_grid_shape: tuple[int, int] | None = None  # (set by _cg_setup where "auto" may switch to the two-grid cycle)
+
+    def _two_grid(self, blocks: SymmetricDiagonalBlocks, shape: tuple[int, int]) -> tuple:
+        """``self._cg`` with the two-grid cycle on ``blocks`` (an open grid of ``shape``)."""
+        try:
+            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2]), None)
+        except ValueError as exc:  # a grid too small for a coarse grid
+            raise InputError(f"preconditioner='two-grid': {exc}") from exc
+        except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
+            raise InputError(f"preconditioner: {exc}") from exc
+        self._two_grid_shape = None
+        return self._cg
 
     def _gauss_seidel(self, blocks: RowBlocks, kind: type) -> tuple:
         """``self._cg`` with symmetric Gauss–Seidel of ``kind`` on ``blocks``."""
@@ -988,7 +1011,16 @@ class FairingSystem:
                 x0 = a_cg - c
             rtol = self.rtol * (_gauss_seidel_rtol(self._contrast) if getattr(precond, "eisenstat", False)
                                 else TWO_GRID_RTOL if isinstance(precond, TwoGrid) else 1.0)
-            y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS, precond=precond)
+            switch = self._two_grid_shape is not None
+            y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=TWO_GRID_AFTER if switch else
+                                   MAX_CG_ITERATIONS, precond=precond)
+            if switch and its >= TWO_GRID_AFTER and res > rtol:  # slow: smooth modes that only ω holds
+                # (on from Gauss–Seidel's iterate, whose residual is small but left in the smooth modes, where it
+                # means a large error: at least TWO_GRID_SWITCH_RTOL of it more, or the two-grid stop)
+                blocks, precond, _ = self._two_grid(blocks, self._two_grid_shape)
+                y, more, res = block_cg(blocks, shifted, y, rtol=min(self.rtol * TWO_GRID_RTOL, TWO_GRID_SWITCH_RTOL * res),
+                                        maxiter=MAX_CG_ITERATIONS - its, precond=precond)
+                its += more
             # (at the cap a residual within rtol is not enough: at tiny weights the smooth error it leaves may be
             # far beyond rtol, see GAUSS_SEIDEL_TIGHTEN_CONTRAST)
             if res <= self.rtol and its < MAX_CG_ITERATIONS:
@@ -1002,8 +1034,9 @@ class FairingSystem:
                     y = out
                 return y
             warnings.warn(
-                f"fairing: conjugate gradients reached a relative residual of {res:.1e} after {its} "
-                f"iterations (the cap: {MAX_CG_ITERATIONS}); falling back to the direct solver",
+                f"fairing: conjugate gradients reached a relative residual of {res:.1e} after {its} iterations"
+                f"{f' (the cap: {MAX_CG_ITERATIONS})' if its >= MAX_CG_ITERATIONS else ''}; falling back to the "
+                f"direct solver",
                 UserWarning,
                 stacklevel=2,
             )

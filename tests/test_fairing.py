@@ -1184,9 +1184,10 @@ def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
 def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
     """``preconditioner="two-grid"`` on an open grid: within 1e-8 of the mesh's size of the direct solve from
     the default weight down to 1e-7, with steps that do not grow as the weight falls; the fixed vertices stay
-    put (identity rows); "auto" takes it below TWO_GRID_CONTRAST, loading the kernels for it in a fresh process
-    too, and keeps Gauss–Seidel (or, fresh and small, plain CG) at the default weight. A torus grid is refused
-    by name."""
+    put (identity rows). "auto" below TWO_GRID_CONTRAST (loading the kernels for it in a fresh process too) runs
+    Gauss–Seidel and switches to it after TWO_GRID_AFTER steps, and not where scattered fixed vertices make
+    Gauss–Seidel fast; at the default weight it keeps Gauss–Seidel (or, fresh and small, plain CG). A torus grid
+    is refused by name."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
     from quadnodes.linalg.multigrid import TwoGrid
@@ -1213,10 +1214,19 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
     for ready, weight, kind in ((True, 1e-6, TwoGrid), (True, 0.3, SymmetricGaussSeidel),
                                 (False, 1e-6, TwoGrid), (False, 0.3, type(None))):  # (False: a fresh process)
         monkeypatch.setattr(fairing_module.kernels, "ready", lambda: ready)
-        auto = FairingSystem(m.vertices, m.topology.windows, free, weight / m.mean_edge_length**2, solver="cg",
-                             _topology=m.topology)
-        auto._cg_setup()
+        w = weight / m.mean_edge_length**2
+        auto = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", _topology=m.topology)
+        x = auto.solve(m.vertices[free])  # (at 1e-6: Gauss–Seidel's TWO_GRID_AFTER steps, then the two-grid cycle)
         assert isinstance(auto._cg[1], kind), (ready, weight)
+        assert (auto.iterations > fairing_module.TWO_GRID_AFTER) == (kind is TwoGrid)
+        d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+        assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    # a third of the vertices fixed at random hold the smooth modes: Gauss-Seidel converges, no switch
+    held = free & (rng.random(m.n_vertices) > 0.3)
+    auto = FairingSystem(m.vertices, m.topology.windows, held, 1e-6 / m.mean_edge_length**2, solver="cg",
+                         _topology=m.topology)
+    auto.solve(m.vertices[held])
+    assert isinstance(auto._cg[1], SymmetricGaussSeidel) and auto.iterations < fairing_module.TWO_GRID_AFTER
     t = torus(24, 40, major=800.0, minor=200.0)
     with pytest.raises(InputError, match="two-grid.*open vertex grid"):
         FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-9, solver="cg",

@@ -33,11 +33,14 @@ products are SciPy's, the sweeps small Numba loops.
 first-iteration system (``FairingSystem``, all window middles free, ``line_spacing="fair"``, anchor = the noisy
 vertices, the compiled kernels loaded before the clock), solved by symmetric Gauss–Seidel (``preconditioner=
 "gauss-seidel"``, its stop tightened at tiny weights) and by :class:`quadnodes.linalg.multigrid.TwoGrid`
-(``"two-grid"``, at each ``--strides``), each against the direct solve (``--size`` ≤ 450; above, Gauss–Seidel to
-rtol 1e-12): steps, seconds (set-up and solve, one run), and the largest difference over the sheet's extent.
+(``"two-grid"``, at each ``--strides``) and by ``"auto"`` (Gauss–Seidel, switching to the two-grid cycle where it is
+slow), each against the direct solve (``--size`` ≤ 450; above, Gauss–Seidel to rtol 1e-12): steps, seconds
+(set-up and solve, one run), and the largest difference over the sheet's extent. ``--fixed`` also fixes a share
+of the vertices at random (as a zigzag detection leaves some fixed), one block of rows each.
 
 Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [--weights 0.001 0.01 0.1 0.3 3]
       python benchmarks/studies/multigrid.py --solver --size 300 --weights 0.3 0.001 0.0001 0.00001 0.000001
+      python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3
 """
 
 from __future__ import annotations
@@ -196,6 +199,8 @@ def main() -> None:
     ap.add_argument("--weights", type=float, nargs="+", default=[0.001, 0.01, 0.1, 0.3, 3.0])
     ap.add_argument("--solver", action="store_true", help="the solver's Gauss-Seidel and two-grid paths")
     ap.add_argument("--strides", type=int, nargs="+", default=[4], help="two-grid coarse spacings (--solver)")
+    ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
+                    help="--solver: shares of the vertices fixed at random (seeded), one table block each")
     args = ap.parse_args()
     if args.solver:
         return solver_table(args)
@@ -229,7 +234,7 @@ def main() -> None:
             seconds = time.perf_counter() - t0
             assert np.abs(M @ x - B).max() <= 1e-6 * np.abs(B).max()
             cells.append(f"{steps} · {per_step:.1f} · {steps * per_step:.0f} · {complexity:.2f} · {seconds:.2f}")
-        print(f"| {w:g} | " + " | ".join(cells) + " |", flush=True)
+        print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
 
 
 def solver_table(args: argparse.Namespace) -> None:
@@ -242,15 +247,16 @@ def solver_table(args: argparse.Namespace) -> None:
     n = args.size
     m = _common.noisy_grid(n, args.noise)
     t = m.topology
-    free = detect(m, 0.0).free
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
     extent = float(np.ptp(m.vertices))
-    kinds = [("Gauss–Seidel", "gauss-seidel", None)] + [(f"two-grid, stride {s}", "two-grid", s) for s in args.strides]
+    kinds = ([("Gauss–Seidel", "gauss-seidel", None)] + [(f"two-grid, stride {s}", "two-grid", s) for s in args.strides]
+             + [("auto", "auto", None)])
     print(f"{n}×{n} sheet, {args.noise} noise, fair()'s first-iteration system; steps · seconds · max difference "
           f"from the {'direct solve' if n <= 450 else 'Gauss–Seidel solve to rtol 1e-12'} / extent\n")
-    print("| ω | " + " | ".join(k for k, _, _ in kinds) + " |")
-    print("|---:|" + "---:|" * len(kinds))
-    for w in args.weights:
+    print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
+    print("|---:|---:|" + "---:|" * len(kinds))
+    for share, w in ((share, w) for share in args.fixed for w in args.weights):
+        free = detect(m, 0.0).free & (np.random.default_rng(0).random(m.n_vertices) >= share)
         def system(**kw):  # type: ignore[no-untyped-def]
             return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, _inverse_lengths=inverse,
                                  _topology=t, **kw)
@@ -267,7 +273,7 @@ def solver_table(args: argparse.Namespace) -> None:
             seconds = time.perf_counter() - t0
             cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
         fairing.TwoGrid = TwoGrid
-        print(f"| {w:g} | " + " | ".join(cells) + " |", flush=True)
+        print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
 
 
 def _strided(base: type, stride: int) -> type:

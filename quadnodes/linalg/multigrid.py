@@ -32,12 +32,24 @@ import scipy.sparse as sp
 from .direct import Factorization, factorize
 from .gauss_seidel import SymmetricGaussSeidel
 
-__all__ = ["TWO_GRID_STRIDE", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
+__all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
 
 #: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 16–18 steps but
 #: factorizes a quarter of the unknowns (3.4–4.1 s in all); 4 takes 77–79 steps (1.4–1.7 s); 8 takes 289–451
 #: (3.1–4.7 s) (``python benchmarks/studies/multigrid.py --solver --size 300 --strides 2 4 8``).
 TWO_GRID_STRIDE = 4
+
+
+def coarse_nodes(n: int, stride: int) -> np.ndarray:
+    """The coarse nodes of a line of ``n`` nodes: ``0, stride, 2·stride, …`` and ``n − 1``.
+
+    Examples
+    --------
+    >>> coarse_nodes(10, 4).tolist()
+    [0, 4, 8, 9]
+    """
+    coarse = np.arange(0, n, stride)
+    return coarse if coarse[-1] == n - 1 else np.append(coarse, n - 1)
 
 
 def cubic_interpolation(n: int, stride: int) -> sp.csr_matrix:
@@ -75,9 +87,7 @@ def cubic_interpolation(n: int, stride: int) -> sp.csr_matrix:
     """
     if n < 2 or stride < 2:
         raise ValueError(f"cubic_interpolation: expected n >= 2 and stride >= 2, got n={n}, stride={stride}")
-    coarse = np.arange(0, n, stride)
-    if coarse[-1] != n - 1:
-        coarse = np.append(coarse, n - 1)
+    coarse = coarse_nodes(n, stride)
     m = coarse.size
     taps = min(4, m)
     i = np.arange(n)
