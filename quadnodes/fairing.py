@@ -100,11 +100,12 @@ GAUSS_SEIDEL_TIGHTEN_POWER = 0.5
 #: plain CG's 84; at ω = 3 (about 17 ω) the two tie on the grid, at ω = 10 plain CG is 10 % faster
 #: (``python benchmarks/studies/gauss_seidel.py``, also ``--mesh cube-sphere`` and ``--mesh torus``).
 GAUSS_SEIDEL_CONTRAST = 30.0
-#: Below a weight of about 3·10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
-#: (about 80 at every smaller weight, each some eight Gauss–Seidel steps' time, plus a coarse factorization once):
-#: "auto" takes :class:`~quadnodes.linalg.multigrid.TwoGrid` on an open grid where the Gershgorin bound exceeds
-#: this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet; 300²: 1.6 s against 1.6 s at 3·10⁻⁴, 1.6 s against
-#: 2.4 s at 10⁻⁴, ``python benchmarks/studies/multigrid.py --solver --size 300``).
+#: Below a weight of about 10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
+#: (about 80 at every smaller weight, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
+#: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on an open grid where the Gershgorin bound exceeds
+#: this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet), after :data:`TWO_GRID_AFTER` Gauss–Seidel steps. On
+#: the 300² sheet: 1.45 s Gauss–Seidel against 1.94 s two-grid at 3·10⁻⁴, 2.08 against 2.05 s at 10⁻⁴, 6.59 against
+#: 1.96 s at 10⁻⁵ (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
 #: 430 × 430). The coarse matrix (cubic interpolation's Galerkin product, up to 81 couplings a row) is
@@ -117,13 +118,14 @@ TWO_GRID_RTOL = 0.1
 #: Where "auto" may take the two-grid path it runs Gauss–Seidel first and switches (from Gauss–Seidel's iterate)
 #: only after this many steps without converging. The Gershgorin bound does not see fixed vertices, and fixed
 #: vertices scattered over the free ones hold the smooth modes as ω would: on a 200² sheet at ω = 10⁻⁶ with 10 %
-#: of the vertices fixed at random Gauss–Seidel converges in 439 steps (0.29 s), with 30 % in 83 (0.08 s), where
-#: the two-grid path takes 0.5 s; all free it needs 11,857 (6.8 s against 0.66 s)
-#: (``python benchmarks/studies/multigrid.py --solver --size 200 --fixed 0 0.1 0.3``).
+#: of the vertices fixed at random Gauss–Seidel converges in 384 steps (0.38 s), with 30 % in 83 (0.11 s), where
+#: the two-grid path takes 0.75 and 0.46 s; all free it needs 11,857 (8.85 s against 0.67 s; "auto" 0.84 s)
+#: (``python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3``).
 TWO_GRID_AFTER = 300
 #: After the switch the two-grid path reduces Gauss–Seidel's residual by at least this factor more: that residual
-#: sits in the smooth modes, where it means a large error (200² sheet, 10 % fixed, ω = 10⁻⁴: 6.3e-8 of the extent
-#: when the switch stopped at the two-grid's own stop, which the iterate already met).
+#: sits in the smooth modes, where it means a large error (200² sheet, 10 % fixed, ω = 10⁻⁴: 2.7e-11 of the extent
+#: from the direct solve; 6.3e-8 with this set to 1, when the switch stops at the two-grid's own stop, which the
+#: iterate already met: ``python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 --fixed 0.1``).
 TWO_GRID_SWITCH_RTOL = 0.01
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
@@ -688,9 +690,9 @@ class FairingSystem:
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
         grid and any other mesh sweep compressed rows
         (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). On an open grid where the bound
-        exceeds :data:`TWO_GRID_CONTRAST` ω (a weight below about 3·10⁻⁴), the two-grid cycle
-        around the grid's sweeps (:class:`~quadnodes.linalg.multigrid.TwoGrid`), whose steps do not
-        grow as the weight falls. Elsewhere: block Jacobi at small weights, else none.
+        exceeds :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and Gauss–Seidel has not
+        converged in :data:`TWO_GRID_AFTER` steps, the two-grid cycle around the grid's sweeps
+        (:class:`~quadnodes.linalg.multigrid.TwoGrid`), whose steps do not grow as the weight falls. Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (an open, mostly free vertex grid only).
         ``"lines"``:
