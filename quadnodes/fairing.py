@@ -86,14 +86,17 @@ GRID_BLOCK_JACOBI_RATIO = 500.0
 #: fraction of ``rtol`` instead: at most 1.9e-9 over both noises, both spacings, both meshes and
 #: ω = 0.003–3, for 13–18 % more steps (``python benchmarks/studies/gauss_seidel.py --accuracy``).
 GAUSS_SEIDEL_RTOL = 0.1
-#: Below the weights measured there the smooth error a residual leaves grows as the weight falls (κ ≈ 64/ω): at
-#: a Gershgorin bound above this many times ω (a weight below about 10⁻³) the stop tightens further, by
-#: (this / contrast)^GAUSS_SEIDEL_TIGHTEN_POWER. Without it the 120² bench sheet at ω = 10⁻⁶ ended 2.0e-7 of its
-#: extent from the direct solve (``tests/test_fairing.py::test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve``);
-#: with it the 300² sheet ends within 1.1e-9 – 2.6e-9 from ω = 10⁻⁴ to 10⁻⁶
-#: (``python benchmarks/studies/multigrid.py --solver --size 300``, the Gauss–Seidel column).
-GAUSS_SEIDEL_TIGHTEN_CONTRAST = 5e4
-GAUSS_SEIDEL_TIGHTEN_POWER = 0.5
+#: Below the weights measured there a residual within rtol may leave an error beyond the solver's 1e-8 of the
+#: extent: at a small ω (κ ≈ 64/ω) the residual's smooth part is amplified up to 1/ω, the more so where fixed
+#: vertices' couplings make the right-hand side large. Above a Gershgorin bound of this many times ω (a weight
+#: below about 10⁻³) every CG path also stops no earlier than ``‖r‖₂ ≤ ERROR_RMS · extent · ω · √k`` per
+#: coordinate, which bounds the root-mean-square error by ERROR_RMS of the extent (``‖e‖₂ ≤ ‖r‖₂ / ω``, as
+#: ``λ_min ≥ ω``). Without it: 2.0e-7 of the extent on the 120² bench sheet at ω = 10⁻⁶
+#: (``tests/test_fairing.py::test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve``) and 1.5e-8 with 10 %
+#: of the vertices fixed on 200² at 10⁻⁴ (``python benchmarks/studies/multigrid.py --solver --size 200 --weights
+#: 0.0001 --fixed 0.1`` with ``ERROR_GUARD_CONTRAST = inf``).
+ERROR_GUARD_CONTRAST = 5e4
+ERROR_RMS = 1e-8
 #: With the compiled kernels at hand, "auto" takes symmetric Gauss–Seidel where the largest Gershgorin
 #: bound of ``AᵀA + ωI`` exceeds this many times ω (plain CG's steps grow with its square root): at the
 #: default weight (about 170 ω on broadband noise) it solves a 1000² grid in 38 steps and half the time of
@@ -519,13 +522,6 @@ def grid_pattern(topology: object) -> GridPattern | None:
         pattern = None
     _GRID_PATTERNS[topology] = pattern
     return pattern
-
-
-def _gauss_seidel_rtol(contrast: float) -> float:
-    """Gauss–Seidel's stop as a fraction of ``rtol`` at a Gershgorin bound ``contrast`` times ω (0: unknown)."""
-    if contrast <= GAUSS_SEIDEL_TIGHTEN_CONTRAST:
-        return GAUSS_SEIDEL_RTOL
-    return GAUSS_SEIDEL_RTOL * (GAUSS_SEIDEL_TIGHTEN_CONTRAST / contrast) ** GAUSS_SEIDEL_TIGHTEN_POWER
 
 
 def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
@@ -1011,8 +1007,15 @@ class FairingSystem:
                     rhs_cg, a_cg = np.take(rhs, order, axis=0), np.take(a, order, axis=0)
                 shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
                 x0 = a_cg - c
-            rtol = self.rtol * (_gauss_seidel_rtol(self._contrast) if getattr(precond, "eisenstat", False)
+            rtol = self.rtol * (GAUSS_SEIDEL_RTOL if getattr(precond, "eisenstat", False)
                                 else TWO_GRID_RTOL if isinstance(precond, TwoGrid) else 1.0)
+            guard = np.inf  # ‖e‖₂ ≤ ‖r‖₂ / ω: at tiny weights keep the RMS error within ERROR_RMS of the extent
+            if self._contrast > ERROR_GUARD_CONTRAST:
+                extent = float(np.ptp(a, axis=0).max())
+                worst = float(np.sqrt(np.einsum("ij,ij->j", shifted, shifted).max()))
+                if worst > 0 and extent > 0:
+                    guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
+                    rtol = min(rtol, guard)
             switch = self._two_grid_shape is not None
             y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=TWO_GRID_AFTER if switch else
                                    MAX_CG_ITERATIONS, precond=precond)
@@ -1020,11 +1023,11 @@ class FairingSystem:
                 # (on from Gauss–Seidel's iterate, whose residual is small but left in the smooth modes, where it
                 # means a large error: at least TWO_GRID_SWITCH_RTOL of it more, or the two-grid stop)
                 blocks, precond, _ = self._two_grid(blocks, self._two_grid_shape)
-                y, more, res = block_cg(blocks, shifted, y, rtol=min(self.rtol * TWO_GRID_RTOL, TWO_GRID_SWITCH_RTOL * res),
+                y, more, res = block_cg(blocks, shifted, y, rtol=min(self.rtol * TWO_GRID_RTOL, guard, TWO_GRID_SWITCH_RTOL * res),
                                         maxiter=MAX_CG_ITERATIONS - its, precond=precond)
                 its += more
             # (at the cap a residual within rtol is not enough: at tiny weights the smooth error it leaves may be
-            # far beyond rtol, see GAUSS_SEIDEL_TIGHTEN_CONTRAST)
+            # far beyond rtol, see ERROR_GUARD_CONTRAST)
             if res <= self.rtol and its < MAX_CG_ITERATIONS:
                 self.iterations, self.residual = its, res
                 if isinstance(blocks, DiagonalBlocks):
