@@ -1140,7 +1140,7 @@ def test_curvature_windows_needs_two_consecutive_windows_above_every_level():
 def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
     """``preconditioner="gauss-seidel"`` loads the kernels and runs at any size: an open grid's fast sweeps, a
     torus grid's and an irregular mesh's compressed rows (shuffled numbering too); within 1e-8 of the mesh's size
-    of the direct solve at tiny (its stop tightened), small, default and large weights; "auto" takes it on a mesh that is no grid once the
+    of the direct solve at tiny (the error guard), small, default and large weights; "auto" takes it on a mesh that is no grid once the
     kernels are at hand."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel
@@ -1235,9 +1235,9 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
 
 
 def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):
-    """At tiny weights a residual within rtol leaves smooth error far beyond it: the stop tightens with the
-    contrast (the 120² bench sheet, ω = 1e-6: 2.0e-7 of the extent without, within 1e-8 with it), and a run that hits
-    the cap falls back to the direct solve with a warning, never returns the capped iterate."""
+    """At tiny weights a residual within rtol leaves smooth error far beyond it: the error guard (‖r‖₂ ≤ 1e-8 ·
+    extent · ω · √k) keeps it (the 120² bench sheet, ω = 1e-6: 2.0e-7 of the extent without, within 1e-8 with it),
+    and a run that hits the cap falls back to the direct solve with a warning, never returns the capped iterate."""
     import quadnodes.fairing as fairing_module
     from quadnodes.fairing import even_lengths
     from quadnodes.zigzag import _window_geometry

@@ -12,8 +12,9 @@ cycle
     ``x = (D + L)⁻¹ r``,  ``x += P C⁻¹ Pᵀ (r − M x)``,  ``x += (D + U)⁻¹ (r − M x)``
 
 (a forward Gauss–Seidel sweep, the coarse correction, a backward sweep): symmetric positive definite,
-so CG may use it. On the 300² bench sheet its steps stay at 77–79 from ω = 10⁻³ down to 10⁻⁶, where
-Gauss–Seidel's go from 380 to 10,864; a step costs about ten of Gauss–Seidel's in Eisenstat's form
+so CG may use it. On the 300² bench sheet fair's solve takes 77–107 steps with it from ω = 10⁻³ down to 10⁻⁶
+(only the solver's error target moves with ω), where Gauss–Seidel's go from 380 to 13,074; a step costs about
+ten of Gauss–Seidel's in Eisenstat's form
 (about half of it the coarse solve), so it pays below ω ≈ 10⁻⁴
 (``python benchmarks/studies/multigrid.py --solver --size 300``; ``docs/fairing.md``, "The two-grid path").
 
@@ -34,9 +35,9 @@ from .gauss_seidel import SymmetricGaussSeidel
 
 __all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
 
-#: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 16–18 steps but
-#: factorizes a quarter of the unknowns (4.8–5.9 s in all); 4 takes 77–79 steps (1.7–2.1 s); 8 takes 289–451
-#: (3.1–4.7 s) (``python benchmarks/studies/multigrid.py --solver --size 300 --strides 2 4 8``).
+#: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 18–23 steps but
+#: factorizes a quarter of the unknowns (4.9–6.2 s in all); 4 takes 77–107 steps (1.8–2.4 s); 8 takes 289–650
+#: (3.4–8.4 s) (``python benchmarks/studies/multigrid.py --solver --size 300 --strides 2 4 8``).
 TWO_GRID_STRIDE = 4
 
 
