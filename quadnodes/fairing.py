@@ -118,6 +118,8 @@ TWO_GRID_CONTRAST = 2e5
 #: --solver --size 1000 --weights 0.0001``), so larger grids keep Gauss–Seidel until a deeper cycle replaces the
 #: coarse factorization.
 TWO_GRID_COARSE_MAX = 12_000
+#: ... and only where the grid has more than this many rows and columns (four coarse intervals each way).
+TWO_GRID_MIN_SIDE = 16
 #: The two-grid path stops at this fraction of ``rtol`` (its residual, like Gauss–Seidel's, leaves smooth error).
 TWO_GRID_RTOL = 0.1
 #: Where "auto" may take the two-grid path it runs Gauss–Seidel first and switches (from Gauss–Seidel's iterate)
@@ -848,10 +850,11 @@ class FairingSystem:
         symmetric Gauss–Seidel, the fast sweeps on a mostly free open vertex grid
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), compressed rows on a
         cylinder or torus grid and any other mesh (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
-        On such an open grid, where the bound exceeds :data:`TWO_GRID_CONTRAST` ω and the coarse grid
-        has at most :data:`TWO_GRID_COARSE_MAX` vertices, the two-grid cycle
-        (:class:`~quadnodes.linalg.multigrid.TwoGrid`); at such a weight the kernels are loaded
-        at any size. Otherwise:
+        On such an open grid, where the bound exceeds :data:`TWO_GRID_CONTRAST` ω, the grid has more than
+        :data:`TWO_GRID_MIN_SIDE` rows and columns and the coarse grid at most :data:`TWO_GRID_COARSE_MAX`
+        vertices, Gauss–Seidel is marked to switch to the two-grid cycle
+        (:class:`~quadnodes.linalg.multigrid.TwoGrid`) in :meth:`solve` after :data:`TWO_GRID_AFTER`
+        steps without converging; there the kernels are loaded at any size. Otherwise:
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
@@ -878,21 +881,27 @@ class FairingSystem:
                     storage.extend(pattern.normal_matrix(coef, free, self.weight))
                 return storage[0], storage[1]
 
-            contrast = 0.0  # the largest Gershgorin bound against ω: how many steps plain CG would need
-            if self.preconditioner in ("auto", "gauss-seidel", "two-grid"):
-                bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
-                contrast = bound / self.weight
-            self._contrast = contrast
-            # at a tiny weight the kernels pay at any size (plain CG and block Jacobi need thousands of steps)
-            wanted = wanted or contrast > TWO_GRID_CONTRAST
-            two_grid = self.preconditioner == "two-grid" or (
-                self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST)
-            if (self.preconditioner in ("gauss-seidel", "two-grid") or (wanted and contrast > GAUSS_SEIDEL_CONTRAST)) \
+            # the largest Gershgorin bound against ω: how many steps plain CG would need (and the error guard's cue)
+            bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
+            contrast = self._contrast = bound / self.weight
+            open_grid = grid and self._grid[0].offsets.size == 13
+            shape = None  # an open grid's (rows, cols)
+            if open_grid:
+                cols = int(grid_storage()[0][10])
+                shape = (grid_storage()[1].shape[1] // cols, cols)
+            # "auto" at a tiny weight on an open grid with a small enough coarse grid: Gauss–Seidel first, the
+            # two-grid cycle if it is slow; the kernels pay for that at any size
+            may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None
+                          and min(shape) > TWO_GRID_MIN_SIDE
+                          and np.prod([coarse_nodes(side, TWO_GRID_STRIDE).size for side in shape])
+                          <= TWO_GRID_COARSE_MAX)
+            wanted = wanted or may_switch
+            chosen = self.preconditioner in ("gauss-seidel", "two-grid")
+            if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST)) \
                     and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
                 # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights on
                 # an open grid, the two-grid cycle around the grid's sweeps.
-                open_grid = grid and self._grid[0].offsets.size == 13
                 if self.preconditioner == "two-grid" and not open_grid:
                     raise InputError("preconditioner='two-grid' needs an open vertex grid (mostly free); use 'auto'")
                 if not grid:
@@ -900,13 +909,10 @@ class FairingSystem:
                 offsets, data = grid_storage()
                 if open_grid:
                     blocks = SymmetricDiagonalBlocks(offsets, data)
-                    cols = int(offsets[10])
-                    shape = (data.shape[1] // cols, cols)
-                    coarse = np.prod([coarse_nodes(side, TWO_GRID_STRIDE).size for side in shape])
                     if self.preconditioner == "two-grid":
                         return self._two_grid(blocks, shape)
-                    if two_grid and min(shape) > 4 * TWO_GRID_STRIDE and coarse <= TWO_GRID_COARSE_MAX:
-                        self._two_grid_shape = shape  # Gauss–Seidel first; the two-grid cycle if it is slow
+                    if may_switch:
+                        self._two_grid_shape = shape
                     return self._gauss_seidel(blocks, SymmetricGaussSeidel)
                 return self._gauss_seidel(DiagonalBlocks(offsets, data), CsrGaussSeidel)
             if self.preconditioner in ("gauss-seidel", "two-grid"):
@@ -950,7 +956,7 @@ class FairingSystem:
         except ValueError as exc:  # a grid too small for a coarse grid
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
-            raise InputError(f"preconditioner: {exc}") from exc
+            raise InputError(f"preconditioner='two-grid': {exc}") from exc
         self._two_grid_shape = None
         return self._cg
 
@@ -1019,9 +1025,13 @@ class FairingSystem:
             if switch and its >= TWO_GRID_AFTER and res > rtol:  # slow: smooth modes that only ω holds
                 # (on from Gauss–Seidel's iterate, which has not met the error guard: the guard is what keeps the
                 # residual it leaves in the smooth modes from meaning a large error)
-                blocks, precond, _ = self._two_grid(blocks, self._two_grid_shape)
-                y, more, res = block_cg(blocks, shifted, y, rtol=min(self.rtol * TWO_GRID_RTOL, guard),
-                                        maxiter=MAX_CG_ITERATIONS - its, precond=precond)
+                try:
+                    blocks, precond, _ = self._two_grid(blocks, self._two_grid_shape)
+                    rtol = min(self.rtol * TWO_GRID_RTOL, guard)
+                except InputError:  # pragma: no cover - (the coarse matrix is made definite) Gauss–Seidel goes on
+                    self._two_grid_shape = None
+                y, more, res = block_cg(blocks, shifted, y, rtol=rtol, maxiter=MAX_CG_ITERATIONS - its,
+                                        precond=precond)
                 its += more
             # (at the cap a residual within rtol is not enough: at tiny weights the smooth error it leaves may be
             # far beyond rtol, see ERROR_GUARD_CONTRAST)

@@ -1229,6 +1229,11 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
     auto.solve(m.vertices[held])
     assert isinstance(auto._cg[1], SymmetricGaussSeidel) and auto.iterations < fairing_module.TWO_GRID_AFTER
     t = torus(24, 40, major=800.0, minor=200.0)
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # a fresh process, a small torus, tiny ω:
+    fresh = FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-6 / t.mean_edge_length**2,
+                          solver="cg", _topology=t.topology)  # no two-grid path there, so no kernels loaded for it
+    fresh._cg_setup()
+    assert not getattr(fresh._cg[1], "eisenstat", False) and fresh._two_grid_shape is None
     with pytest.raises(InputError, match="two-grid.*open vertex grid"):
         FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-9, solver="cg",
                       preconditioner="two-grid", _topology=t.topology)._cg_setup()
@@ -1264,3 +1269,25 @@ def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):
     with pytest.warns(UserWarning, match=r"after 200 iterations \(the cap: 200\); falling back to the direct"):
         x = s.solve(m.vertices[free])
     assert s.iterations == 0 and np.abs(x - direct).max() <= 1e-10 * np.ptp(m.vertices, axis=0).max()
+
+
+def test_two_grid_with_a_held_patch_holding_one_free_vertex():
+    """A 29 × 29 held patch with one free vertex in it: several coarse nodes see only that vertex, so the coarse
+    matrix is only semidefinite. The cycle is made definite (1e-10 of its diagonal), "auto" switches to it and
+    "two-grid" takes it, both within 1e-8 of the extent of the direct solve (this raised "not positive definite")."""
+    from quadnodes.linalg.multigrid import TwoGrid
+
+    rng = np.random.default_rng(0)
+    m = grid(120, 120, spacing=1.0)
+    m = m.with_vertices(m.vertices + rng.normal(scale=0.2, size=m.vertices.shape))
+    keep = np.ones((120, 120), bool)
+    keep[46:75, 46:75] = False
+    keep[61, 61] = True
+    free = m.topology.window_middle & keep.ravel()
+    d = FairingSystem(m.vertices, m.topology.windows, free, 1e-6, solver="direct").solve(m.vertices[free])
+    for kind in ("auto", "two-grid"):
+        s = FairingSystem(m.vertices, m.topology.windows, free, 1e-6, solver="cg", preconditioner=kind,
+                          _topology=m.topology)
+        x = s.solve(m.vertices[free])
+        assert isinstance(s._cg[1], TwoGrid), kind
+        assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max(), kind

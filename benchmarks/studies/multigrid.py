@@ -36,7 +36,8 @@ vertices, the compiled kernels loaded before the clock), solved by symmetric Gau
 (``"two-grid"``, at each ``--strides``) and by ``"auto"`` (Gauss–Seidel, switching to the two-grid cycle where it is
 slow), each against the direct solve (``--size`` ≤ 450; above, Gauss–Seidel to rtol 1e-12): steps, seconds
 (set-up and solve, one run), and the largest difference over the sheet's extent. ``--fixed`` also fixes a share
-of the vertices at random (as a zigzag detection leaves some fixed), one block of rows each.
+of the vertices at random (as a zigzag detection leaves some fixed), one block of rows each; ``--no-guard`` turns
+fair's error guard at tiny weights off (``ERROR_GUARD_CONTRAST = inf``: the residual stop alone).
 
 Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [--weights 0.001 0.01 0.1 0.3 3]
       python benchmarks/studies/multigrid.py --solver --size 300 --weights 0.3 0.001 0.0001 0.00001 0.000001
@@ -199,6 +200,8 @@ def main() -> None:
     ap.add_argument("--weights", type=float, nargs="+", default=[0.001, 0.01, 0.1, 0.3, 3.0])
     ap.add_argument("--solver", action="store_true", help="the solver's Gauss-Seidel and two-grid paths")
     ap.add_argument("--strides", type=int, nargs="+", default=[4], help="two-grid coarse spacings (--solver)")
+    ap.add_argument("--no-guard", action="store_true",
+                    help="--solver: without fair's error guard at tiny weights (the residual stop alone)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
     args = ap.parse_args()
@@ -248,7 +251,9 @@ def solver_table(args: argparse.Namespace) -> None:
     m = _common.noisy_grid(n, args.noise)
     t = m.topology
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
-    extent = float(np.ptp(m.vertices))
+    extent = float(np.ptp(m.vertices, axis=0).max())  # (the solver's and the tests' extent: the widest axis)
+    if args.no_guard:
+        fairing.ERROR_GUARD_CONTRAST = float("inf")
     kinds = ([("Gauss–Seidel", "gauss-seidel", None)] + [(f"two-grid, stride {s}", "two-grid", s) for s in args.strides]
              + [("auto", "auto", None)])
     print(f"{n}×{n} sheet, {args.noise} noise, fair()'s first-iteration system; steps · seconds · max difference "

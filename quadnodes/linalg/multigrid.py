@@ -2,8 +2,8 @@
 
 At a small weight ω the slow modes of a fairing matrix ``M = AᵀA + ωI`` are smooth: a structure line's
 energy does not see a motion that is quadratic along it, so only ω holds the global biquadratic motions
-and their neighbours, and Gauss–Seidel's steps grow as 1/√ω (957 at ω = 10⁻⁴, 2,418 at 10⁻⁵ on the
-bench sheet). A coarse grid carries them: every ``stride``-th grid row and column (and the last), a
+and their neighbours, and Gauss–Seidel's steps grow as 1/√ω (1,168 at ω = 10⁻⁴, 3,910 at 10⁻⁵ on the
+300² bench sheet). A coarse grid carries them: every ``stride``-th grid row and column (and the last), a
 prolongation ``P`` that interpolates along the grid's rows and columns by cubic Lagrange polynomials
 (exact on quadratics, so the coarse grid holds the motions the lines cannot see), the Galerkin coarse
 matrix ``C = PᵀMP`` factorized once. One application of :class:`TwoGrid` is the symmetric two-grid
@@ -43,6 +43,18 @@ TWO_GRID_STRIDE = 4
 
 def coarse_nodes(n: int, stride: int) -> np.ndarray:
     """The coarse nodes of a line of ``n`` nodes: ``0, stride, 2·stride, …`` and ``n − 1``.
+
+    Parameters
+    ----------
+    n : int
+        Fine nodes (≥ 1).
+    stride : int
+        Fine nodes per coarse interval (≥ 1).
+
+    Returns
+    -------
+    (m,) int64
+        The coarse nodes' indices on the fine line, ascending.
 
     Examples
     --------
@@ -115,12 +127,18 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
     rows, cols : int
         The fine grid's shape; vertex ``i·cols + j`` is at row ``i``, column ``j``.
     stride : int
+        Fine rows and columns per coarse interval (≥ 2).
     moving : (rows·cols,) bool, optional
         The vertices a correction may move; the others' rows are zero (a fixed vertex stays put).
 
     Returns
     -------
     (rows·cols, m) scipy.sparse.csr_matrix
+
+    Raises
+    ------
+    ValueError
+        When ``rows`` or ``cols`` is below 2 or ``stride`` below 2 (:func:`cubic_interpolation`).
 
     Examples
     --------
@@ -158,8 +176,16 @@ class TwoGrid:
     ----------
     P : (n, m) scipy.sparse.csr_matrix
         The prolongation.
+    lines, lines_t : tuple of scipy.sparse.csr_matrix
+        ``P``'s factors along the grid's columns and rows (``P = lines[0] ⊗ lines[1]`` at the moving
+        vertices) and their transposes: the transfers apply these.
     coarse : Factorization
-        ``PᵀMP`` factorized.
+        ``PᵀMP`` (plus 1e-10 of its diagonal) factorized.
+    sweeps : SymmetricGaussSeidel
+        The smoother.
+    shape : (int, int)
+    moving : (n,) float64
+        1 at the free vertices, 0 at the fixed ones.
 
     Raises
     ------
@@ -168,6 +194,8 @@ class TwoGrid:
         nodes per direction (``rows`` or ``cols`` ≤ ``stride``).
     numpy.linalg.LinAlgError
         When a diagonal entry of ``M`` is not positive.
+    quadnodes.errors.InputError
+        When the coarse matrix cannot be factorized (it is made definite: not expected).
 
     Examples
     --------
@@ -197,22 +225,33 @@ class TwoGrid:
         if min(rows, cols) <= stride:
             raise ValueError(f"shape: a {rows} × {cols} grid has no coarse grid at stride {stride}")
         self.sweeps = SymmetricGaussSeidel(blocks)
-        self._blocks = blocks
         self.shape = (rows, cols)
         self.moving = np.asarray(moving, dtype=np.float64)
         self.lines = (cubic_interpolation(rows, stride), cubic_interpolation(cols, stride))
         self.lines_t = tuple(L.T.tocsr() for L in self.lines)
         self.P = grid_interpolation(rows, cols, stride, moving)
         C = (self.P.T.tocsr() @ (M @ self.P)).tocsr()
-        idle = C.diagonal() <= 0  # a coarse node whose every fine node is fixed: an identity row
-        if idle.any():
-            C = (C + sp.diags(idle.astype(np.float64))).tocsr()
+        # a coarse node whose every fine node is fixed: an identity row; and 1e-10 of the diagonal on all, for
+        # coarse nodes that see the same few free vertices (dependent columns of P: C only semidefinite; a
+        # residual restricted by Pᵀ has no part along them, so the shift changes nothing that P brings back)
+        diagonal = C.diagonal()
+        C = (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
         self.coarse: Factorization = factorize(C, kind="spd", what="two-grid coarse matrix")
         self._n = n
         self._buffers: dict = {}
 
     def restrict(self, Y: np.ndarray) -> np.ndarray:
-        """``(m, c)`` ``Pᵀ y`` of every row ``y`` of ``Y`` (``(c, ≥ n)``), along the grid's columns, then its rows."""
+        """``Pᵀ y`` of every row ``y`` of ``Y``, along the grid's columns, then its rows.
+
+        Parameters
+        ----------
+        Y : (c, ≥ n) float64
+            Fine vectors, one per row (rows past ``n``, padding, are not read).
+
+        Returns
+        -------
+        (m, c) float64
+        """
         (rows, cols), (Lr, Lc), n = self.shape, self.lines_t, self._n
         out = np.empty((Lr.shape[0] * Lc.shape[0], Y.shape[0]))
         for j, y in enumerate(Y):
@@ -221,7 +260,15 @@ class TwoGrid:
         return out
 
     def prolong(self, E: np.ndarray, X: np.ndarray) -> None:
-        """``X[j] += P e_j`` for every column ``e_j`` of ``E`` (``(m, c)``): along the grid's rows, then its columns."""
+        """``X[j] += P e_j`` for every column ``e_j`` of ``E``: along the grid's rows, then its columns.
+
+        Parameters
+        ----------
+        E : (m, c) float64
+            Coarse vectors, one per column.
+        X : (c, ≥ n) float64
+            Fine vectors, added to in place (rows past ``n`` untouched).
+        """
         (Lr, Lc), n = self.lines, self._n
         for j in range(E.shape[1]):
             coarse = E[:, j].reshape(Lr.shape[1], Lc.shape[1])
@@ -231,7 +278,19 @@ class TwoGrid:
             X[j, :n] += fine
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
-        """``Z = B⁻¹ R`` on all rows: the two-grid cycle of the module, on ``(c, kp)`` vectors (``columns``)."""
+        """``Z = B⁻¹ R`` on all rows: the two-grid cycle of the module.
+
+        Parameters
+        ----------
+        R : (c, kp) float64
+            Residuals, one per row, zero-padded past ``n`` (``block_cg``'s layout).
+        Z : (c, kp) float64
+            Out: the preconditioned residuals (padding stays zero).
+        lo, hi : int
+            Ignored: applied to all rows at once (``whole``).
+        columns : bool
+            Must be True (diagonal storage's ``(c, k)`` vectors).
+        """
         from .threads import run_tasks
 
         if not columns:  # pragma: no cover - diagonal storage always takes (c, k) vectors
