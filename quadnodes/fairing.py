@@ -93,9 +93,9 @@ GAUSS_SEIDEL_RTOL = 0.1
 #: coordinate, which bounds the root-mean-square error by ERROR_RMS of the extent (``‖e‖₂ ≤ ‖r‖₂ / ω``, as
 #: ``λ_min ≥ ω``). Without it Gauss–Seidel ended 2.0e-7 of the extent from the direct solve on the 120² bench
 #: sheet at ω = 10⁻⁶ (``tests/test_fairing.py::test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve``), and
-#: 7.0e-8 and 4.1e-8 with 10 % of the vertices fixed on 200² at 10⁻⁴ and 10⁻⁶ (3.7e-10 and 2.5e-12 with it:
+#: 7.8e-8 and 4.7e-8 with 10 % of the vertices fixed on 200² at 10⁻⁴ and 10⁻⁶ (4.2e-10 and 2.8e-12 with it:
 #: ``python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0.1``, and the
-#: same with ``ERROR_GUARD_CONTRAST = inf``).
+#: same with ``--no-guard``).
 ERROR_GUARD_CONTRAST = 5e4
 ERROR_RMS = 1e-8
 #: With the compiled kernels at hand, "auto" takes symmetric Gauss–Seidel where the largest Gershgorin
@@ -105,11 +105,11 @@ ERROR_RMS = 1e-8
 #: (``python benchmarks/studies/gauss_seidel.py``, also ``--mesh cube-sphere`` and ``--mesh torus``).
 GAUSS_SEIDEL_CONTRAST = 30.0
 #: Below a weight of about 10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
-#: (about 80 at every smaller weight, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
+#: (77–107 from 10⁻³ to 10⁻⁶, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
 #: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on an open grid where the Gershgorin bound exceeds
 #: this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet), after :data:`TWO_GRID_AFTER` Gauss–Seidel steps. On
-#: the 300² sheet: 1.29 s Gauss–Seidel against 2.09 s two-grid at 3·10⁻⁴, 2.68 against 1.84 s at 10⁻⁴, 8.35 against
-#: 2.17 s at 10⁻⁵ (``python benchmarks/studies/multigrid.py --solver --size 300``).
+#: the 300² sheet: 1.31 s Gauss–Seidel against 1.88 s two-grid at 3·10⁻⁴, 1.60 against 1.70 s at 10⁻⁴, 9.38 against
+#: 2.24 s at 10⁻⁵ (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
 #: 430 × 430). The coarse matrix (cubic interpolation's Galerkin product, up to 81 couplings a row) is
@@ -125,8 +125,8 @@ TWO_GRID_RTOL = 0.1
 #: Where "auto" may take the two-grid path it runs Gauss–Seidel first and switches (from Gauss–Seidel's iterate)
 #: only after this many steps without converging. The Gershgorin bound does not see fixed vertices, and fixed
 #: vertices scattered over the free ones hold the smooth modes as ω would: on a 200² sheet at ω = 10⁻⁶ with 10 %
-#: of the vertices fixed at random Gauss–Seidel converges in 467 steps (0.42 s), with 30 % in 106 (0.11 s), where
-#: the two-grid path takes 0.89 and 0.72 s; all free it needs 14,083 (11.46 s against 0.79 s; "auto" 0.88 s)
+#: of the vertices fixed at random Gauss–Seidel converges in 467 steps (0.28 s), with 30 % in 106 (0.10 s), where
+#: the two-grid path takes 0.73 and 0.56 s; all free it needs 14,083 (10.43 s against 1.00 s; "auto" 0.89 s)
 #: (``python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3``).
 TWO_GRID_AFTER = 300
 #: ``FairingSystem(preconditioner=...)``'s choices.

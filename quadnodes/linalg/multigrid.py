@@ -36,8 +36,8 @@ from .gauss_seidel import SymmetricGaussSeidel
 __all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
 
 #: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 18–23 steps but
-#: factorizes a quarter of the unknowns (4.9–6.2 s in all); 4 takes 77–107 steps (1.8–2.4 s); 8 takes 289–650
-#: (3.4–8.4 s) (``python benchmarks/studies/multigrid.py --solver --size 300 --strides 2 4 8``).
+#: factorizes a quarter of the unknowns (4.2–6.5 s in all); 4 takes 77–107 steps (1.7–2.4 s); 8 takes 289–650
+#: (3.0–5.9 s) (``python benchmarks/studies/multigrid.py --solver --size 300 --strides 2 4 8``).
 TWO_GRID_STRIDE = 4
 
 
