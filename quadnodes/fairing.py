@@ -887,8 +887,8 @@ class FairingSystem:
             open_grid = grid and self._grid[0].offsets.size == 13
             shape = None  # an open grid's (rows, cols)
             if open_grid:
-                cols = int(grid_storage()[0][10])
-                shape = (grid_storage()[1].shape[1] // cols, cols)
+                offsets, data = grid_storage()
+                shape = (data.shape[1] // int(offsets[10]), int(offsets[10]))
             # "auto" at a tiny weight on an open grid with a small enough coarse grid: Gauss–Seidel first, the
             # two-grid cycle if it is slow; the kernels pay for that at any size
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None

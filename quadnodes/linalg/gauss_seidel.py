@@ -41,7 +41,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SymmetricGaussSeidel", "CsrGaussSeidel", "gauss_seidel_cg"]
+__all__ = ["SymmetricGaussSeidel", "CsrGaussSeidel", "gauss_seidel_cg", "sweep_scratch", "forward_solve",
+           "backward_solve"]
 
 
 def _unit_scale(diagonal: np.ndarray) -> np.ndarray:
@@ -232,6 +233,46 @@ class CsrGaussSeidel:
         run_tasks(lambda lo, hi: prod.matvec(X, Y, lo, hi), self._ranges)
 
 
+def sweep_scratch(sweeps: SymmetricGaussSeidel | CsrGaussSeidel, c: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """One ``(S, dots)`` scratch pair per part of ``sweeps`` (interiors, then separators) for ``c`` vectors."""
+    return [(np.empty((c, sweeps.row)), np.empty(c)) for _ in range(len(sweeps.interiors) + len(sweeps.separators))]
+
+
+def forward_solve(sweeps: SymmetricGaussSeidel | CsrGaussSeidel, V: np.ndarray, T: np.ndarray, W: np.ndarray,
+                  scratch: list) -> None:
+    """``W = (I + L̃)⁻¹ (V − T)`` on every row, in the sweeps' order: the interiors side by side, then the separators.
+
+    Vectors in the sweeps' layout (``(c, kp)`` with ``columns``, else ``(kp, c)``); ``scratch`` from
+    :func:`sweep_scratch` (each part's ``dots`` gets ``V·(T + W)`` on its rows).
+    """
+    from .threads import run_tasks
+
+    def part(i: int, p: tuple) -> None:
+        sweeps.forward(V, T, W, scratch[i][0], p, scratch[i][1])
+
+    run_tasks(part, list(enumerate(sweeps.interiors)))
+    for i, p in enumerate(sweeps.separators, len(sweeps.interiors)):
+        part(i, p)
+
+
+def backward_solve(sweeps: SymmetricGaussSeidel | CsrGaussSeidel, R: np.ndarray, P: np.ndarray, T: np.ndarray,
+                   scratch: list) -> None:
+    """``P = R``, then ``T = (I + Ũ)⁻¹ P`` on every row, in the sweeps' order: the separators, then the interiors.
+
+    As :func:`forward_solve`.
+    """
+    from .threads import run_tasks
+
+    zero = np.zeros(scratch[0][1].size)
+
+    def part(i: int, p: tuple) -> None:
+        sweeps.backward(R, P, T, zero, scratch[i][0], p)
+
+    for i, p in enumerate(sweeps.separators, len(sweeps.interiors)):
+        part(i, p)
+    run_tasks(part, list(enumerate(sweeps.interiors)))
+
+
 def gauss_seidel_cg(
     blocks: object,
     B: np.ndarray,
@@ -292,7 +333,7 @@ def gauss_seidel_cg(
     kp = -(-k // RANGE_ALIGN) * RANGE_ALIGN  # (padded as block_cg's vectors)
 
     interiors, separators = sw.interiors, sw.separators  # (the padding rows stay zero: no sweep touches them)
-    scratch = [(np.empty((c, sw.row)), np.empty(c)) for _ in range(len(interiors) + len(separators))]
+    scratch = sweep_scratch(sw, c)
     tasks = list(enumerate(interiors))
 
     def run(fn) -> list:  # type: ignore[no-untyped-def]  # fn(lo, hi) on every range, the last to kp
@@ -316,13 +357,8 @@ def gauss_seidel_cg(
     zero = np.zeros(c)
     nothing = padded()  # (never written: zero pages, read as T = 0 by the forward solves)
 
-    def forward_solve(V: np.ndarray, out: np.ndarray) -> np.ndarray:  # out = (I + L)⁻¹ V; its squared norms
-        def part(i: int, p: tuple) -> None:
-            sw.forward(V, nothing, out, scratch[i][0], p, scratch[i][1])
-
-        run_tasks(part, tasks)
-        for i, p in enumerate(separators, len(interiors)):
-            part(i, p)
+    def lower_norms(V: np.ndarray, out: np.ndarray) -> np.ndarray:  # out = (I + L)⁻¹ V; its squared norms
+        forward_solve(sw, V, nothing, out, scratch)
         return norms2(out)
 
     def interior(i: int, p: tuple) -> np.ndarray:  # both sweeps of a thread's interior; its dots
@@ -336,7 +372,7 @@ def gauss_seidel_cg(
         sw.update(Xs, Rh, T, W, alpha, lo, hi, out)
         return out
 
-    bh = np.sqrt(forward_solve(Bp * s, W))  # ‖(I + L)⁻¹ D^{-1/2} B‖: the preconditioned residual's scale
+    bh = np.sqrt(lower_norms(Bp * s, W))  # ‖(I + L)⁻¹ D^{-1/2} B‖: the preconditioned residual's scale
     steps = 0
     inner = rtol  # the preconditioned residual's target, tightened when the true residual misses rtol
     while True:
@@ -346,7 +382,7 @@ def gauss_seidel_cg(
         if (true <= rtol).all() or steps >= maxiter or inner < 1e-17:
             return result(float(true.max()))
         Y *= s  # D^{-1/2} (B − M X), then CG's preconditioned residual
-        rr = forward_solve(Y, Rh)
+        rr = lower_norms(Y, Rh)
         tol2 = (inner * np.maximum(bh, 1e-300)) ** 2
         if steps:  # (a later round: the first starts from fresh zeros)
             Xs.fill(0.0)

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .direct import Factorization, factorize
-from .gauss_seidel import SymmetricGaussSeidel
+from .gauss_seidel import SymmetricGaussSeidel, backward_solve, forward_solve, sweep_scratch
 
 __all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
 
@@ -291,8 +291,6 @@ class TwoGrid:
         columns : bool
             Must be True (diagonal storage's ``(c, k)`` vectors).
         """
-        from .threads import run_tasks
-
         if not columns:  # pragma: no cover - diagonal storage always takes (c, k) vectors
             raise ValueError("TwoGrid: expected (c, k) vectors")
         sw, n = self.sweeps, self._n
@@ -301,36 +299,22 @@ class TwoGrid:
             scale = np.zeros(kp)
             scale[:n] = sw.scale
             self._buffers = {"shape": R.shape, "scale": scale, "vectors": [np.zeros_like(R) for _ in range(5)],
-                             "scratch": [(np.empty((c, sw.row)), np.empty(c))
-                                         for _ in range(len(sw.interiors) + len(sw.separators))]}
+                             "scratch": sweep_scratch(sw, c)}
         s = self._buffers["scale"]
         V, X, Y, T, nothing = self._buffers["vectors"]  # (nothing: never written, read as zeros)
         scratch = self._buffers["scratch"]
-        tasks = list(enumerate(sw.interiors))
-        later = list(enumerate(sw.separators, len(sw.interiors)))
-        zero = np.zeros(c)
-
-        def forward(i: int, part: tuple) -> None:  # T = (I + L̃)⁻¹ V on the part's rows
-            sw.forward(V, nothing, T, scratch[i][0], part, scratch[i][1])
-
-        def backward(i: int, part: tuple) -> None:  # T = (I + Ũ)⁻¹ V on the part's rows
-            sw.backward(V, Y, T, zero, scratch[i][0], part)
 
         def residual() -> None:  # Y = R − M X
             sw.product(X, Y)
             np.subtract(R, Y, out=Y)
 
         np.multiply(R, s, out=V)  # x = (D + L)⁻¹ r = D^{-1/2} (I + L̃)⁻¹ D^{-1/2} r
-        run_tasks(forward, tasks)
-        for i, part in later:
-            forward(i, part)
+        forward_solve(sw, V, nothing, T, scratch)
         np.multiply(T, s, out=X)
         residual()
         self.prolong(self.coarse.solve(self.restrict(Y)), X)
         residual()
         np.multiply(Y, s, out=V)  # x += (D + U)⁻¹ (r − M x)
-        for i, part in later:
-            backward(i, part)
-        run_tasks(backward, tasks)
+        backward_solve(sw, V, Y, T, scratch)  # (Y, spent, takes a copy of V)
         np.multiply(T, s, out=Z)
         Z += X
