@@ -62,6 +62,17 @@ def noisy_torus(rings: int, segments: int, seed: int = 0):
     return t.with_vertices(t.vertices + rng.normal(scale=0.2 * h, size=t.vertices.shape))
 
 
+def noisy_cylinder(rows: int, segments: int, seed: int = 0):
+    """An open cylinder (its rows closed around, its columns open; radius 1, height 2) with broadband noise of
+    0.2 edge lengths."""
+    from quadnodes.mesh import cylinder
+
+    c = cylinder(rows, segments, radius=1.0, height=2.0)
+    h = c.mean_edge_length
+    rng = np.random.default_rng(seed)
+    return c.with_vertices(c.vertices + rng.normal(scale=0.2 * h, size=c.vertices.shape))
+
+
 def cube_sphere(k: int):
     """A cube-sphere: the six faces of a cube, each a ``k × k`` grid of quads, on the unit sphere.
 

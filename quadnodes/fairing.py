@@ -106,8 +106,9 @@ ERROR_RMS = 1e-8
 GAUSS_SEIDEL_CONTRAST = 30.0
 #: Below a weight of about 10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
 #: (77–107 from 10⁻³ to 10⁻⁶, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
-#: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on an open grid where the Gershgorin bound exceeds
-#: this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet), after :data:`TWO_GRID_AFTER` Gauss–Seidel steps. On
+#: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on a grid (open, a cylinder or a torus) where the
+#: Gershgorin bound exceeds this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet), after
+#: :data:`TWO_GRID_AFTER` Gauss–Seidel steps. On
 #: the 300² sheet: 1.31 s Gauss–Seidel against 1.88 s two-grid at 3·10⁻⁴, 1.60 against 1.70 s at 10⁻⁴, 9.38 against
 #: 2.24 s at 10⁻⁵ (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
@@ -684,12 +685,14 @@ class FairingSystem:
         threads, each step two sweeps and no product. An open grid takes the grid's fast sweeps
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
         grid and any other mesh sweep compressed rows
-        (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). On an open grid where the bound
-        exceeds :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and Gauss–Seidel has not
-        converged in :data:`TWO_GRID_AFTER` steps, the two-grid cycle around the grid's sweeps
-        (:class:`~quadnodes.linalg.multigrid.TwoGrid`), whose steps do not grow as the weight falls. Elsewhere: block Jacobi at small weights, else none.
+        (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). On a grid (open, a cylinder or a
+        torus) where the bound exceeds :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and
+        Gauss–Seidel has not converged in :data:`TWO_GRID_AFTER` steps, the two-grid cycle around those
+        sweeps (:class:`~quadnodes.linalg.multigrid.TwoGrid`), whose steps do not grow as the weight falls.
+        Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
-        ``"two-grid"``: the two-grid cycle at any weight (an open, mostly free vertex grid only).
+        ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid only: open, a
+        cylinder or a torus).
         ``"lines"``:
         the line preconditioner at any size — on a grid's diagonal storage the additive
         row-line + column-line blocks (:class:`~quadnodes.linalg.cg.LinePreconditioner`),
@@ -850,7 +853,7 @@ class FairingSystem:
         symmetric Gauss–Seidel, the fast sweeps on a mostly free open vertex grid
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), compressed rows on a
         cylinder or torus grid and any other mesh (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
-        On such an open grid, where the bound exceeds :data:`TWO_GRID_CONTRAST` ω, the grid has more than
+        On such a grid (open or closed around), where the bound exceeds :data:`TWO_GRID_CONTRAST` ω, the grid has more than
         :data:`TWO_GRID_MIN_SIDE` rows and columns and the coarse grid at most :data:`TWO_GRID_COARSE_MAX`
         vertices, Gauss–Seidel is marked to switch to the two-grid cycle
         (:class:`~quadnodes.linalg.multigrid.TwoGrid`) in :meth:`solve` after :data:`TWO_GRID_AFTER`
@@ -885,15 +888,17 @@ class FairingSystem:
             bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
             contrast = self._contrast = bound / self.weight
             open_grid = grid and self._grid[0].offsets.size == 13
-            shape = None  # an open grid's (rows, cols)
-            if open_grid:
+            shape = closed = None  # a grid's (rows, cols), and whether its columns and rows are closed around
+            if grid:
                 offsets, data = grid_storage()
-                shape = (data.shape[1] // int(offsets[10]), int(offsets[10]))
-            # "auto" at a tiny weight on an open grid with a small enough coarse grid: Gauss–Seidel first, the
-            # two-grid cycle if it is slow; the kernels pay for that at any size
+                cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
+                shape = (data.shape[1] // cols, cols)
+                closed = (bool(np.any(offsets == cols - data.shape[1])), bool(np.any(offsets == 1 - cols)))
+            # "auto" at a tiny weight on a grid with a small enough coarse grid: Gauss–Seidel first, the two-grid
+            # cycle if it is slow; the kernels pay for that at any size
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None
                           and min(shape) > TWO_GRID_MIN_SIDE
-                          and np.prod([coarse_nodes(side, TWO_GRID_STRIDE).size for side in shape])
+                          and np.prod([coarse_nodes(side, TWO_GRID_STRIDE, c).size for side, c in zip(shape, closed)])
                           <= TWO_GRID_COARSE_MAX)
             wanted = wanted or may_switch
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
@@ -901,20 +906,20 @@ class FairingSystem:
                     and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
                 # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights on
-                # an open grid, the two-grid cycle around the grid's sweeps.
-                if self.preconditioner == "two-grid" and not open_grid:
-                    raise InputError("preconditioner='two-grid' needs an open vertex grid (mostly free); use 'auto'")
+                # a grid, the two-grid cycle around those sweeps.
+                if self.preconditioner == "two-grid" and not grid:
+                    raise InputError("preconditioner='two-grid' needs a vertex grid (mostly free; open, a cylinder "
+                                     "or a torus); use 'auto'")
                 if not grid:
                     return self._gauss_seidel(RowBlocks(self.matrix), CsrGaussSeidel)
                 offsets, data = grid_storage()
-                if open_grid:
-                    blocks = SymmetricDiagonalBlocks(offsets, data)
-                    if self.preconditioner == "two-grid":
-                        return self._two_grid(blocks, shape)
-                    if may_switch:
-                        self._two_grid_shape = shape
-                    return self._gauss_seidel(blocks, SymmetricGaussSeidel)
-                return self._gauss_seidel(DiagonalBlocks(offsets, data), CsrGaussSeidel)
+                blocks = SymmetricDiagonalBlocks(offsets, data) if open_grid else DiagonalBlocks(offsets, data)
+                self._closed = closed
+                if self.preconditioner == "two-grid":
+                    return self._two_grid(blocks, shape)
+                if may_switch:
+                    self._two_grid_shape = shape
+                return self._gauss_seidel(blocks, SymmetricGaussSeidel if open_grid else CsrGaussSeidel)
             if self.preconditioner in ("gauss-seidel", "two-grid"):
                 raise InputError(f"preconditioner={self.preconditioner!r} needs the compiled kernels (Numba); use 'auto'")
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto":
@@ -924,7 +929,6 @@ class FairingSystem:
             elif grid:  # a mostly free vertex grid: diagonal storage in the grid's numbering
                 offsets, data = grid_storage()
                 compiled = wanted and kernels.wait()
-                cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
                 precond = None
                 if self.preconditioner == "lines":  # (on request: "auto" took Gauss–Seidel where these would pay)
                     try:
@@ -948,11 +952,12 @@ class FairingSystem:
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
     _two_grid_shape: tuple[int, int] | None = None  # (set by _cg_setup where "auto" may switch to the two-grid cycle)
+    _closed = (False, False)  # (set by _cg_setup on a grid: whether its columns and rows are closed around)
 
-    def _two_grid(self, blocks: SymmetricDiagonalBlocks, shape: tuple[int, int]) -> tuple:
-        """``self._cg`` with the two-grid cycle on ``blocks`` (an open grid of ``shape``)."""
+    def _two_grid(self, blocks: DiagonalBlocks, shape: tuple[int, int]) -> tuple:
+        """``self._cg`` with the two-grid cycle on ``blocks`` (a grid of ``shape``, closed as ``self._closed``)."""
         try:
-            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2]), None)
+            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], closed=self._closed), None)
         except ValueError as exc:  # a grid too small for a coarse grid
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive

@@ -1186,8 +1186,8 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
     the default weight down to 1e-7, with steps that do not grow as the weight falls; the fixed vertices stay
     put (identity rows). "auto" below TWO_GRID_CONTRAST (loading the kernels for it in a fresh process too) runs
     Gauss–Seidel and switches to it after TWO_GRID_AFTER steps, and not where scattered fixed vertices make
-    Gauss–Seidel fast; at the default weight it keeps Gauss–Seidel (or, fresh and small, plain CG). A torus grid
-    is refused by name."""
+    Gauss–Seidel fast; at the default weight it keeps Gauss–Seidel (or, fresh and small, plain CG). A mesh
+    without a grid is refused by name."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
     from quadnodes.linalg.multigrid import TwoGrid
@@ -1228,15 +1228,51 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
                          _topology=m.topology)
     auto.solve(m.vertices[held])
     assert isinstance(auto._cg[1], SymmetricGaussSeidel) and auto.iterations < fairing_module.TWO_GRID_AFTER
-    t = torus(24, 40, major=800.0, minor=200.0)
-    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # a fresh process, a small torus, tiny ω:
-    fresh = FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-6 / t.mean_edge_length**2,
-                          solver="cg", _topology=t.topology)  # no two-grid path there, so no kernels loaded for it
-    fresh._cg_setup()
-    assert not getattr(fresh._cg[1], "eisenstat", False) and fresh._two_grid_shape is None
-    with pytest.raises(InputError, match="two-grid.*open vertex grid"):
+    t = torus(24, 40, major=800.0, minor=200.0)  # renumbered, not the grid's numbering: no grid path, refused
+    with pytest.raises(InputError, match="two-grid.*needs a vertex grid"):
         FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-9, solver="cg",
-                      preconditioner="two-grid", _topology=t.topology)._cg_setup()
+                      preconditioner="two-grid")._cg_setup()
+
+
+@pytest.mark.parametrize("kind", ["cylinder", "torus"])
+def test_two_grid_on_cylinders_and_tori(monkeypatch, kind):
+    """A cylinder's or torus's grid (the seams' diagonals, compressed-row sweeps) takes the two-grid cycle with
+    coarse lines closed around: within 1e-8 of the mesh's size of the direct solve from 1e-3 down to 1e-7, steps
+    that do not grow as Gauss–Seidel's; "auto" at 1e-6 switches to it after TWO_GRID_AFTER steps, and in a
+    fresh process loads the kernels for it (it used to keep block Jacobi there)."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.multigrid import TwoGrid
+    from quadnodes.mesh import torus
+
+    rng = np.random.default_rng(11)
+    base = cylinder(30, 40, radius=500.0, height=900.0) if kind == "cylinder" else torus(24, 40, major=800.0,
+                                                                                         minor=200.0)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
+    free = m.topology.window_middle
+    extent = np.ptp(m.vertices, axis=0).max()
+    steps = {}
+    for weight in (1e-3, 1e-5, 1e-7):
+        w = weight / m.mean_edge_length**2
+        d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+        s = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", preconditioner="two-grid",
+                          _topology=m.topology)
+        x = s.solve(m.vertices[free])
+        assert isinstance(s._cg[1], TwoGrid) and s._cg[1].sweeps.columns is False and s.residual <= 1e-9
+        assert np.abs(x - d).max() <= 1e-8 * extent, weight
+        steps[weight] = s.iterations
+        if weight == 1e-5:
+            gs = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", preconditioner="gauss-seidel",
+                               _topology=m.topology)
+            gs.solve(m.vertices[free])
+            assert gs.iterations > 2 * s.iterations, (gs.iterations, s.iterations)
+    assert steps[1e-7] <= 1.5 * steps[1e-3], steps
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # a fresh process
+    w = 1e-6 / m.mean_edge_length**2
+    auto = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", _topology=m.topology)
+    x = auto.solve(m.vertices[free])
+    assert isinstance(auto._cg[1], TwoGrid) and auto.iterations > fairing_module.TWO_GRID_AFTER
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * extent
 
 
 def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):

@@ -37,11 +37,15 @@ vertices, the compiled kernels loaded before the clock), solved by symmetric Gau
 slow), each against the direct solve (``--size`` ≤ 450; above, Gauss–Seidel to rtol 1e-12): steps, seconds
 (set-up and solve, one run), and the largest difference over the sheet's extent. ``--fixed`` also fixes a share
 of the vertices at random (as a zigzag detection leaves some fixed), one block of rows each; ``--no-guard`` turns
-fair's error guard at tiny weights off (``ERROR_GUARD_CONTRAST = inf``: the residual stop alone).
+fair's error guard at tiny weights off (``ERROR_GUARD_CONTRAST = inf``: the residual stop alone). ``--mesh cylinder``
+(``--size`` rows of ``--size`` vertices around, radius 1, height 2) and ``--mesh torus`` (``--size`` × ``--size``)
+take the closed grids' path instead (compressed-row sweeps; the coarse lines closed around), with broadband
+noise of 0.2 edge lengths.
 
 Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [--weights 0.001 0.01 0.1 0.3 3]
       python benchmarks/studies/multigrid.py --solver --size 300 --weights 0.3 0.001 0.0001 0.00001 0.000001
       python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3
+      python benchmarks/studies/multigrid.py --solver --mesh torus --size 300 --weights 0.3 0.001 0.0001 0.000001
 """
 
 from __future__ import annotations
@@ -202,6 +206,8 @@ def main() -> None:
     ap.add_argument("--strides", type=int, nargs="+", default=[4], help="two-grid coarse spacings (--solver)")
     ap.add_argument("--no-guard", action="store_true",
                     help="--solver: without fair's error guard at tiny weights (the residual stop alone)")
+    ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus"], default="sheet",
+                    help="--solver: the bench sheet (open grid), a cylinder or a torus (closed grids)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
     args = ap.parse_args()
@@ -248,7 +254,8 @@ def solver_table(args: argparse.Namespace) -> None:
 
     compiled.wait()
     n = args.size
-    m = _common.noisy_grid(n, args.noise)
+    m = {"sheet": lambda: _common.noisy_grid(n, args.noise), "cylinder": lambda: _common.noisy_cylinder(n, n),
+         "torus": lambda: _common.noisy_torus(n, n)}[args.mesh]()
     t = m.topology
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
     extent = float(np.ptp(m.vertices, axis=0).max())  # (the solver's and the tests' extent: the widest axis)
@@ -256,7 +263,8 @@ def solver_table(args: argparse.Namespace) -> None:
         fairing.ERROR_GUARD_CONTRAST = float("inf")
     kinds = ([("Gauss–Seidel", "gauss-seidel", None)] + [(f"two-grid, stride {s}", "two-grid", s) for s in args.strides]
              + [("auto", "auto", None)])
-    print(f"{n}×{n} sheet, {args.noise} noise, fair()'s first-iteration system; steps · seconds · max difference "
+    what = f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet" else f"{n}×{n} {args.mesh}, broadband noise"
+    print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
           f"from the {'direct solve' if n <= 450 else 'Gauss–Seidel solve to rtol 1e-12'} / extent\n")
     print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
     print("|---:|---:|" + "---:|" * len(kinds))
@@ -284,8 +292,8 @@ def solver_table(args: argparse.Namespace) -> None:
 def _strided(base: type, stride: int) -> type:
     """``base`` (TwoGrid) at ``stride``, as fair() constructs it (a subclass, so fair's type checks still hold)."""
     class Strided(base):  # type: ignore[valid-type, misc]
-        def __init__(self, blocks, shape, moving):  # type: ignore[no-untyped-def]
-            super().__init__(blocks, shape, moving, stride=stride)
+        def __init__(self, blocks, shape, moving, closed=(False, False)):  # type: ignore[no-untyped-def]
+            super().__init__(blocks, shape, moving, stride=stride, closed=closed)
     return Strided
 
 

@@ -13,8 +13,8 @@ right-hand sides at once, with block-Jacobi preconditioning and diagonal storage
 ``grid``: diagonal storage for line operators on structured grids.
 ``gauss_seidel``: conjugate gradients preconditioned by symmetric Gauss–Seidel in Eisenstat's
 form (two compiled sweeps per step, no product), on a grid's diagonal storage or compressed rows.
-``multigrid``: the two-grid cycle of an open grid (Gauss–Seidel sweeps around a coarse grid of every 4th
-row and column, cubic interpolation, the Galerkin coarse matrix factorized once): steps that stop growing
+``multigrid``: the two-grid cycle of a grid, open or closed around (Gauss–Seidel sweeps around a coarse grid
+of every 4th row and column, cubic interpolation, the Galerkin coarse matrix factorized once): steps that stop growing
 as the weight falls.
 ``quadratic``: :class:`QuadraticProblem`, "minimize a quadratic energy with some
 unknowns fixed (and linear equality constraints), set up once, solve many

@@ -1,4 +1,4 @@
-"""Two-grid preconditioning on an open grid: conjugate-gradient steps that do not grow as the weight falls.
+"""Two-grid preconditioning on a grid: conjugate-gradient steps that do not grow as the weight falls.
 
 At a small weight ω the slow modes of a fairing matrix ``M = AᵀA + ωI`` are smooth: a structure line's
 energy does not see a motion that is quadratic along it, so only ω holds the global biquadratic motions
@@ -18,6 +18,11 @@ ten of Gauss–Seidel's in Eisenstat's form
 (about half of it the coarse solve), so it pays below ω ≈ 10⁻⁴
 (``python benchmarks/studies/multigrid.py --solver --size 300``; ``docs/fairing.md``, "The two-grid path").
 
+On a cylinder or torus grid (closed lines, the seams' diagonals) the coarse lines close around too: every
+``stride``-th node of a closed line (the last interval, across the seam, may be shorter), each fine node
+interpolated from the two coarse nodes on each side counted across the seam; the sweeps are then the
+compressed rows' (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
+
 Examples
 --------
 >>> import numpy as np
@@ -31,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .direct import Factorization, factorize
-from .gauss_seidel import SymmetricGaussSeidel, backward_solve, forward_solve, sweep_scratch
+from .gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, backward_solve, forward_solve, sweep_scratch
 
 __all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
 
@@ -41,7 +46,7 @@ __all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_inter
 TWO_GRID_STRIDE = 4
 
 
-def coarse_nodes(n: int, stride: int) -> np.ndarray:
+def coarse_nodes(n: int, stride: int, closed: bool = False) -> np.ndarray:
     """The coarse nodes of a line of ``n`` nodes: ``0, stride, 2·stride, …`` and ``n − 1``.
 
     Parameters
@@ -50,6 +55,9 @@ def coarse_nodes(n: int, stride: int) -> np.ndarray:
         Fine nodes (≥ 1).
     stride : int
         Fine nodes per coarse interval (≥ 1).
+    closed : bool
+        A closed line (node ``n − 1`` beside node 0): no extra last node, the last interval
+        wraps around to node 0 (it may be shorter than ``stride``).
 
     Returns
     -------
@@ -60,17 +68,21 @@ def coarse_nodes(n: int, stride: int) -> np.ndarray:
     --------
     >>> coarse_nodes(10, 4).tolist()
     [0, 4, 8, 9]
+    >>> coarse_nodes(10, 4, closed=True).tolist()
+    [0, 4, 8]
     """
     coarse = np.arange(0, n, stride)
-    return coarse if coarse[-1] == n - 1 else np.append(coarse, n - 1)
+    return coarse if closed or coarse[-1] == n - 1 else np.append(coarse, n - 1)
 
 
-def cubic_interpolation(n: int, stride: int) -> sp.csr_matrix:
-    """``(n, m)`` interpolation along a line of ``n`` nodes from nodes ``0, stride, 2·stride, …`` and ``n − 1``.
+def cubic_interpolation(n: int, stride: int, closed: bool = False) -> sp.csr_matrix:
+    """``(n, m)`` interpolation along a line of ``n`` nodes from its :func:`coarse_nodes`.
 
     Each fine node takes the Lagrange polynomial of degree ``min(3, m − 1)`` through the
     coarse nodes nearest it (two on each side where there are), so the interpolation is
-    exact on polynomials of that degree; a coarse node is copied.
+    exact on polynomials of that degree; a coarse node is copied. On a closed line the
+    four nearest coarse nodes are taken around the seam (positions unwrapped), so a
+    polynomial in the distance along the line is exact wherever its four nodes are.
 
     Parameters
     ----------
@@ -78,16 +90,18 @@ def cubic_interpolation(n: int, stride: int) -> sp.csr_matrix:
         Fine nodes (≥ 2).
     stride : int
         Fine nodes per coarse interval (≥ 2).
+    closed : bool
+        A closed line (:func:`coarse_nodes`); it needs at least 4 coarse nodes.
 
     Returns
     -------
     (n, m) scipy.sparse.csr_matrix
-        ``m = ⌈(n − 1) / stride⌉ + 1`` coarse nodes.
+        ``m = ⌈(n − 1) / stride⌉ + 1`` coarse nodes (closed: ``⌈n / stride⌉``).
 
     Raises
     ------
     ValueError
-        When ``n < 2`` or ``stride < 2``.
+        When ``n < 2`` or ``stride < 2``, or a closed line has fewer than 4 coarse nodes.
 
     Examples
     --------
@@ -97,17 +111,29 @@ def cubic_interpolation(n: int, stride: int) -> sp.csr_matrix:
     >>> t = np.arange(10.0)
     >>> bool(np.allclose(P @ (t[[0, 4, 8, 9]] ** 3), t ** 3))
     True
+    >>> Q = cubic_interpolation(20, 4, closed=True)  # coarse nodes 0, 4, …, 16; node 18 from 12, 16, 20 ≡ 0, 24 ≡ 4
+    >>> Q[18].indices.tolist(), bool(np.isclose(Q[18].sum(), 1.0))
+    ([0, 1, 3, 4], True)
     """
     if n < 2 or stride < 2:
         raise ValueError(f"cubic_interpolation: expected n >= 2 and stride >= 2, got n={n}, stride={stride}")
-    coarse = coarse_nodes(n, stride)
+    coarse = coarse_nodes(n, stride, closed)
     m = coarse.size
-    taps = min(4, m)
     i = np.arange(n)
     left = np.searchsorted(coarse, i, side="right") - 1  # the coarse node at or before each fine node
-    first = np.clip(left - (taps // 2 - 1), 0, m - taps)
-    cols = first[:, None] + np.arange(taps)  # (n, taps)
-    xs = coarse[cols].astype(np.float64)
+    if closed:
+        if m < 4:
+            raise ValueError(f"cubic_interpolation: a closed line of {n} nodes has {m} coarse nodes at stride "
+                             f"{stride}; at least 4 are needed")
+        taps = 4
+        around = left[:, None] - 1 + np.arange(taps)  # two coarse nodes on each side, counted past the seam
+        cols = around % m
+        xs = (coarse[cols] + n * np.floor_divide(around, m)).astype(np.float64)  # (unwrapped positions)
+    else:
+        taps = min(4, m)
+        first = np.clip(left - (taps // 2 - 1), 0, m - taps)
+        cols = first[:, None] + np.arange(taps)  # (n, taps)
+        xs = coarse[cols].astype(np.float64)
     t = i[:, None].astype(np.float64)
     weights = np.ones((n, taps))
     for a in range(taps):
@@ -115,11 +141,13 @@ def cubic_interpolation(n: int, stride: int) -> sp.csr_matrix:
             if b != a:
                 weights[:, a] *= (t[:, 0] - xs[:, b]) / (xs[:, a] - xs[:, b])
     P = sp.csr_matrix((weights.ravel(), cols.ravel(), np.arange(0, n * taps + 1, taps)), shape=(n, m))
+    P.sum_duplicates()
     P.eliminate_zeros()  # (at a coarse node every other tap is an exact 0)
     return P
 
 
-def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | None = None) -> sp.csr_matrix:
+def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | None = None,
+                       closed: tuple[bool, bool] = (False, False)) -> sp.csr_matrix:
     """The ``(rows·cols, m)`` tensor-product :func:`cubic_interpolation` of a grid numbered row after row.
 
     Parameters
@@ -130,6 +158,9 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
         Fine rows and columns per coarse interval (≥ 2).
     moving : (rows·cols,) bool, optional
         The vertices a correction may move; the others' rows are zero (a fixed vertex stays put).
+    closed : (bool, bool)
+        Whether the grid's columns (row ``rows − 1`` beside row 0) and its rows (column ``cols − 1``
+        beside column 0) are closed around: a cylinder has one, a torus both.
 
     Returns
     -------
@@ -138,14 +169,16 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
     Raises
     ------
     ValueError
-        When ``rows`` or ``cols`` is below 2 or ``stride`` below 2 (:func:`cubic_interpolation`).
+        When ``rows`` or ``cols`` is below 2 or ``stride`` below 2, or a closed direction has fewer
+        than 4 coarse nodes (:func:`cubic_interpolation`).
 
     Examples
     --------
     >>> grid_interpolation(5, 9, 4).shape  # coarse rows 0, 4; coarse columns 0, 4, 8
     (45, 6)
     """
-    P = sp.kron(cubic_interpolation(rows, stride), cubic_interpolation(cols, stride), format="csr")
+    P = sp.kron(cubic_interpolation(rows, stride, closed[0]), cubic_interpolation(cols, stride, closed[1]),
+                format="csr")
     if moving is not None:
         P = (sp.diags(np.asarray(moving, dtype=np.float64)) @ P).tocsr()
         P.eliminate_zeros()
@@ -153,24 +186,29 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
 
 
 class TwoGrid:
-    """The symmetric two-grid cycle of an open grid's matrix in diagonal storage, made once (see the module).
+    """The symmetric two-grid cycle of a grid's matrix in diagonal storage, made once (see the module).
 
     Passed to :func:`~quadnodes.linalg.cg.block_cg` as ``precond`` (applied to all rows at once);
-    the sweeps are :class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`'s, on the blocks'
-    threads, the coarse matrix a sparse Cholesky-like factorization
-    (:func:`~quadnodes.linalg.direct.factorize`).
+    the sweeps are :class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`'s on an open grid,
+    :class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`'s (compressed rows, in the grid's numbering)
+    on a cylinder or torus, on the blocks' threads; the coarse matrix a sparse Cholesky-like
+    factorization (:func:`~quadnodes.linalg.direct.factorize`).
 
     Parameters
     ----------
-    blocks : SymmetricDiagonalBlocks
+    blocks : SymmetricDiagonalBlocks or DiagonalBlocks
         ``M`` (symmetric positive definite) in the grid's numbering: an open grid's offsets
-        ``0, ±1, ±2, ±3, ±cols, ±2·cols, ±3·cols``; fixed vertices as identity rows.
+        ``0, ±1, ±2, ±3, ±cols, ±2·cols, ±3·cols`` (``SymmetricDiagonalBlocks``), a closed grid's with
+        the seams' diagonals too (:class:`~quadnodes.linalg.grid.GridPattern`); fixed vertices as
+        identity rows.
     shape : (int, int)
         ``(rows, cols)`` of the grid.
     moving : (rows·cols,) bool
         The free vertices (the coarse correction moves no other).
     stride : int
         Coarse grid spacing (:data:`TWO_GRID_STRIDE`).
+    closed : (bool, bool)
+        Whether the grid's columns and its rows are closed around (:func:`grid_interpolation`).
 
     Attributes
     ----------
@@ -181,7 +219,7 @@ class TwoGrid:
         vertices) and their transposes: the transfers apply these.
     coarse : Factorization
         ``PᵀMP`` (plus 1e-10 of its diagonal) factorized.
-    sweeps : SymmetricGaussSeidel
+    sweeps : SymmetricGaussSeidel or CsrGaussSeidel
         The smoother.
     shape : (int, int)
     moving : (n,) float64
@@ -191,7 +229,7 @@ class TwoGrid:
     ------
     ValueError
         When ``shape`` does not match the matrix, or the grid has fewer than two coarse
-        nodes per direction (``rows`` or ``cols`` ≤ ``stride``).
+        nodes per direction (``rows`` or ``cols`` ≤ ``stride``; a closed direction needs 4).
     numpy.linalg.LinAlgError
         When a diagonal entry of ``M`` is not positive.
     quadnodes.errors.InputError
@@ -216,7 +254,7 @@ class TwoGrid:
     whole = True  # (block_cg applies it to all rows at once)
 
     def __init__(self, blocks: object, shape: tuple[int, int], moving: np.ndarray,
-                 stride: int = TWO_GRID_STRIDE) -> None:
+                 stride: int = TWO_GRID_STRIDE, closed: tuple[bool, bool] = (False, False)) -> None:
         rows, cols = (int(v) for v in shape)
         M = blocks.M.tocsr()  # type: ignore[attr-defined]
         n = M.shape[0]
@@ -224,12 +262,13 @@ class TwoGrid:
             raise ValueError(f"shape: {rows} × {cols} grid does not match the matrix's {n} rows")
         if min(rows, cols) <= stride:
             raise ValueError(f"shape: a {rows} × {cols} grid has no coarse grid at stride {stride}")
-        self.sweeps = SymmetricGaussSeidel(blocks)
+        closed = (bool(closed[0]), bool(closed[1]))
+        self.lines = (cubic_interpolation(rows, stride, closed[0]), cubic_interpolation(cols, stride, closed[1]))
+        self.lines_t = tuple(L.T.tocsr() for L in self.lines)
+        self.P = grid_interpolation(rows, cols, stride, moving, closed)
+        self.sweeps = CsrGaussSeidel(blocks) if any(closed) else SymmetricGaussSeidel(blocks)
         self.shape = (rows, cols)
         self.moving = np.asarray(moving, dtype=np.float64)
-        self.lines = (cubic_interpolation(rows, stride), cubic_interpolation(cols, stride))
-        self.lines_t = tuple(L.T.tocsr() for L in self.lines)
-        self.P = grid_interpolation(rows, cols, stride, moving)
         C = (self.P.T.tocsr() @ (M @ self.P)).tocsr()
         # a coarse node whose every fine node is fixed: an identity row; and 1e-10 of the diagonal on all, for
         # coarse nodes that see the same few free vertices (dependent columns of P: C only semidefinite; a
@@ -293,16 +332,33 @@ class TwoGrid:
         """
         if not columns:  # pragma: no cover - diagonal storage always takes (c, k) vectors
             raise ValueError("TwoGrid: expected (c, k) vectors")
+        if self.sweeps.columns:  # the grid's sweeps take CG's (c, kp) vectors
+            self._cycle(R, Z, R.shape)
+            return
+        n = self._n  # compressed rows' sweeps take (n, c) vectors
+        Zt = self._cycle(np.ascontiguousarray(R[:, :n].T), None, (n, R.shape[0]))
+        Z[:, :n] = Zt.T
+        Z[:, n:] = 0.0
+
+    def _cycle(self, R: np.ndarray, Z: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray:
+        """The cycle on vectors in the sweeps' layout (``Z`` None: into a buffer of its own, returned)."""
         sw, n = self.sweeps, self._n
-        c, kp = R.shape
-        if self._buffers.get("shape") != R.shape:  # (one set per vector shape: CG applies it every step)
-            scale = np.zeros(kp)
-            scale[:n] = sw.scale
-            self._buffers = {"shape": R.shape, "scale": scale, "vectors": [np.zeros_like(R) for _ in range(5)],
+        if self._buffers.get("shape") != shape:  # (one set per vector shape: CG applies it every step)
+            if sw.columns:  # (c, kp)
+                scale = np.zeros(shape[1])
+                scale[:n] = sw.scale
+                c = shape[0]
+            else:  # (n, c)
+                scale, c = sw.scale[:, None], shape[1]
+            self._buffers = {"shape": shape, "scale": scale, "vectors": [np.zeros(shape) for _ in range(6)],
                              "scratch": sweep_scratch(sw, c)}
         s = self._buffers["scale"]
-        V, X, Y, T, nothing = self._buffers["vectors"]  # (nothing: never written, read as zeros)
+        V, X, Y, T, nothing, out = self._buffers["vectors"]  # (nothing: never written, read as zeros)
+        Z = out if Z is None else Z
         scratch = self._buffers["scratch"]
+
+        def fine(A: np.ndarray) -> np.ndarray:  # (c, ≥ n) rows of fine vectors: restrict's and prolong's view
+            return A if sw.columns else A.T
 
         def residual() -> None:  # Y = R − M X
             sw.product(X, Y)
@@ -312,9 +368,10 @@ class TwoGrid:
         forward_solve(sw, V, nothing, T, scratch)
         np.multiply(T, s, out=X)
         residual()
-        self.prolong(self.coarse.solve(self.restrict(Y)), X)
+        self.prolong(self.coarse.solve(self.restrict(fine(Y))), fine(X))
         residual()
         np.multiply(Y, s, out=V)  # x += (D + U)⁻¹ (r − M x)
         backward_solve(sw, V, Y, T, scratch)  # (Y, spent, takes a copy of V)
         np.multiply(T, s, out=Z)
         Z += X
+        return Z

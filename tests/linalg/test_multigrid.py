@@ -10,26 +10,27 @@ from hypothesis import strategies as st
 
 import quadnodes.linalg.threads as linalg_threads
 from quadnodes.linalg import compiled
-from quadnodes.linalg.cg import SymmetricDiagonalBlocks, block_cg
+from quadnodes.linalg.cg import DiagonalBlocks, SymmetricDiagonalBlocks, block_cg
 from quadnodes.linalg.multigrid import TwoGrid, cubic_interpolation, grid_interpolation
 
 pytestmark = pytest.mark.skipif(not compiled.wait(), reason="the compiled kernels (Numba) are not available")
 
 
-def line_matrix(rows: int, cols: int, weight: float, seed: int = 0) -> np.ndarray:
+def line_matrix(rows: int, cols: int, weight: float, seed: int = 0,
+                closed: tuple[bool, bool] = (False, False)) -> np.ndarray:
     """``AᵀA + ω I`` of third differences along every row and column of a grid, each window scaled at random.
 
     Like the fairing matrix, the line energy does not see a motion that is quadratic along the lines, so at
-    a small ω the smooth modes are slow."""
+    a small ω the smooth modes are slow. ``closed``: the columns' and the rows' windows wrap around (a
+    cylinder's or a torus's lines)."""
     rng = np.random.default_rng(seed)
     node = np.arange(rows * cols).reshape(rows, cols)
-    lines = [node[r] for r in range(rows)] + [node[:, c] for c in range(cols)]
-    A = np.zeros((sum(len(line) - 3 for line in lines), rows * cols))
-    i = 0
-    for line in lines:
-        for j in range(len(line) - 3):
-            A[i, line[j : j + 4]] = np.array([-1.0, 3.0, -3.0, 1.0]) * rng.uniform(0.5, 2.0)
-            i += 1
+    lines = [(node[r], closed[1]) for r in range(rows)] + [(node[:, c], closed[0]) for c in range(cols)]
+    windows = [np.take(line, np.arange(j, j + 4), mode="wrap") for line, wrap in lines
+               for j in range(len(line) if wrap else len(line) - 3)]
+    A = np.zeros((len(windows), rows * cols))
+    for i, window in enumerate(windows):
+        A[i, window] = np.array([-1.0, 3.0, -3.0, 1.0]) * rng.uniform(0.5, 2.0)
     return A.T @ A + weight * np.eye(rows * cols)
 
 
@@ -42,9 +43,10 @@ def with_fixed(M: np.ndarray, fixed: np.ndarray) -> np.ndarray:
     return M
 
 
-def blocks_of(M: np.ndarray, threads: int) -> SymmetricDiagonalBlocks:
+def blocks_of(M: np.ndarray, threads: int, closed: tuple[bool, bool] = (False, False)) -> DiagonalBlocks:
+    """The grid path's storage: symmetric diagonals on an open grid, plain ones (the seams') on a closed one."""
     D = sp.dia_matrix(M)
-    return SymmetricDiagonalBlocks(D.offsets, D.data, threads=threads)
+    return (DiagonalBlocks if any(closed) else SymmetricDiagonalBlocks)(D.offsets, D.data, threads=threads)
 
 
 @settings(max_examples=60, deadline=None)
@@ -60,11 +62,34 @@ def test_cubic_interpolation_is_exact_on_polynomials_up_to_its_degree(n, stride,
     assert np.allclose(np.asarray(P.sum(axis=1)).ravel(), 1.0)
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 30), st.integers(2, 5), st.integers(0, 3))
+def test_closed_cubic_interpolation_is_exact_on_polynomials_around_each_node(extra, stride, degree):
+    """On a closed line every fine node takes the cubic through the two coarse nodes on each side, counted
+    across the seam: a polynomial in the distance along the line, centred at the node, is reproduced there
+    (on lines of 8 coarse intervals or more, where those four nodes lie within half the line)."""
+    n = 8 * stride + extra
+    P = cubic_interpolation(n, stride, closed=True)
+    coarse = np.arange(0, n, stride)
+    assert P.shape == (n, coarse.size)
+    assert np.array_equal(P[coarse].toarray(), np.eye(coarse.size))  # a coarse node is copied
+    assert np.allclose(np.asarray(P.sum(axis=1)).ravel(), 1.0)
+    for i in range(n):
+        # each coarse node's signed distance to i around the closed line, in (-n/2, n/2]
+        d = (coarse - i + n // 2) % n - n // 2
+        assert np.isclose(P[i] @ (d / n) ** degree, 0.0 ** degree, atol=1e-12), i
+    if n % stride == 0:  # turning the line by a coarse interval turns the interpolation with it
+        c = np.random.default_rng(n).normal(size=coarse.size)
+        assert np.allclose(P @ np.roll(c, 1), np.roll(P @ c, stride), atol=1e-12)
+
+
 def test_cubic_interpolation_refuses_a_line_or_stride_too_short():
     with pytest.raises(ValueError, match="stride"):
         cubic_interpolation(10, 1)
     with pytest.raises(ValueError, match="n >= 2"):
         cubic_interpolation(1, 4)
+    with pytest.raises(ValueError, match="3 coarse nodes.*at least 4"):
+        cubic_interpolation(12, 4, closed=True)
 
 
 def test_grid_interpolation_is_the_tensor_product_with_fixed_rows_zero():
@@ -73,6 +98,9 @@ def test_grid_interpolation_is_the_tensor_product_with_fixed_rows_zero():
     P = grid_interpolation(9, 14, 4, moving).toarray()
     full = np.kron(cubic_interpolation(9, 4).toarray(), cubic_interpolation(14, 4).toarray())
     assert np.array_equal(P[moving], full[moving]) and not P[~moving].any()
+    torus = grid_interpolation(16, 20, 4, closed=(True, True)).toarray()
+    assert np.array_equal(torus, np.kron(cubic_interpolation(16, 4, True).toarray(),
+                                         cubic_interpolation(20, 4, True).toarray()))
 
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
@@ -91,14 +119,17 @@ def test_transfers_equal_the_prolongation_matrix(monkeypatch, threads):
     assert np.allclose(X[:, : rows * cols].T, tg.P @ E, atol=1e-12) and not X[:, rows * cols :].any()
 
 
-def test_one_cycle_equals_its_dense_formula():
+@pytest.mark.parametrize("closed", [(False, False), (False, True), (True, True)])
+def test_one_cycle_equals_its_dense_formula(closed):
     """One thread (the sweeps in the grid's order): ``x = (D+L)⁻¹r``, ``x += P C⁻¹ Pᵀ(r − Mx)``,
-    ``x += (D+U)⁻¹(r − Mx)`` with dense matrices (``C = PᵀMP`` plus 1e-10 of its diagonal)."""
-    rows, cols = 14, 19
+    ``x += (D+U)⁻¹(r − Mx)`` with dense matrices (``C = PᵀMP`` plus 1e-10 of its diagonal); on an open grid
+    (the grid's sweeps), a cylinder and a torus (compressed rows, the seams' diagonals)."""
+    rows, cols = 17, 19
     moving = np.ones(rows * cols, bool)
     moving[[0, cols - 1, (rows - 1) * cols, rows * cols - 1]] = False  # the corners, as fair's all-free grid
-    M = with_fixed(line_matrix(rows, cols, 0.002, seed=2), ~moving)
-    tg = TwoGrid(blocks_of(M, 1), (rows, cols), moving, stride=4)
+    M = with_fixed(line_matrix(rows, cols, 0.002, seed=2, closed=closed), ~moving)
+    tg = TwoGrid(blocks_of(M, 1, closed), (rows, cols), moving, stride=4, closed=closed)
+    assert type(tg.sweeps).__name__ == ("CsrGaussSeidel" if any(closed) else "SymmetricGaussSeidel")
     R = np.random.default_rng(3).normal(size=(3, rows * cols))
     R[:, ~moving] = 0.0
     Z = np.zeros_like(R)
@@ -115,12 +146,14 @@ def test_one_cycle_equals_its_dense_formula():
 
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
-def test_the_cycle_is_symmetric_positive_definite_on_threads(monkeypatch, threads):
-    """CG needs ``B⁻¹`` symmetric positive definite, whatever the threads' order of the sweeps."""
+@pytest.mark.parametrize("closed", [(False, False), (True, True)])
+def test_the_cycle_is_symmetric_positive_definite_on_threads(monkeypatch, threads, closed):
+    """CG needs ``B⁻¹`` symmetric positive definite, whatever the threads' order of the sweeps (the grid's
+    sweeps on an open grid, compressed rows with separators on a torus)."""
     monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 8)
     rows, cols = 16, 21
-    M = line_matrix(rows, cols, 1e-3, seed=5)
-    tg = TwoGrid(blocks_of(M, threads), (rows, cols), np.ones(rows * cols, bool), stride=4)
+    M = line_matrix(rows, cols, 1e-3, seed=5, closed=closed)
+    tg = TwoGrid(blocks_of(M, threads, closed), (rows, cols), np.ones(rows * cols, bool), stride=4, closed=closed)
     n = rows * cols
     kp = -(-n // linalg_threads.RANGE_ALIGN) * linalg_threads.RANGE_ALIGN
     B = np.zeros((n, n))
@@ -140,25 +173,27 @@ def test_the_cycle_is_symmetric_positive_definite_on_threads(monkeypatch, thread
 
 
 @pytest.mark.parametrize("threads", [1, 2])
-def test_cg_steps_do_not_grow_as_the_weight_falls(monkeypatch, threads):
+@pytest.mark.parametrize("closed", [(False, False), (True, False)])
+def test_cg_steps_do_not_grow_as_the_weight_falls(monkeypatch, threads, closed):
     """CG with the cycle solves to the dense solution; from ω = 1e-2 down to 1e-8 its steps stay within a few,
-    where symmetric Gauss–Seidel's grow many times."""
-    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+    where symmetric Gauss–Seidel's grow many times (an open grid and a cylinder)."""
+    from quadnodes.linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel
 
     monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 100)
     rows, cols = 40, 36
     steps = {}
     for weight in (1e-2, 1e-5, 1e-8):
-        M = line_matrix(rows, cols, weight, seed=7)
-        blocks = blocks_of(M, threads)
+        M = line_matrix(rows, cols, weight, seed=7, closed=closed)
+        blocks = blocks_of(M, threads, closed)
         b = M @ np.random.default_rng(8).normal(size=(rows * cols, 3))
         x, steps[weight], res = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=5000,
-                                         precond=TwoGrid(blocks, (rows, cols), np.ones(rows * cols, bool)))
+                                         precond=TwoGrid(blocks, (rows, cols), np.ones(rows * cols, bool),
+                                                         closed=closed))
         assert res <= 1e-10
         assert np.abs(x - np.linalg.solve(M, b)).max() <= 1e-6 * np.abs(b).max() / weight
         if weight == 1e-8:
             gs = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=20000,
-                          precond=SymmetricGaussSeidel(blocks))[1]
+                          precond=(CsrGaussSeidel if any(closed) else SymmetricGaussSeidel)(blocks))[1]
             assert gs > 5 * steps[weight]
     assert max(steps.values()) <= 1.5 * min(steps.values()) + 5, steps
 
