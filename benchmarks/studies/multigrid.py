@@ -14,6 +14,8 @@ rtol 1e-9 with conjugate gradients preconditioned by:
   backward after), vertex-centred coarsening by 2 in both directions down to at most 400 vertices (solved
   directly), Galerkin coarse matrices ``PᵀMP``, and a prolongation ``P`` that interpolates along the grid's
   rows and columns with Lagrange polynomials of degree 1 or 3 (``P`` zero at fixed vertices);
+- ``MG cubic, K-cycle``: the same levels, each coarse level but the coarsest solved by two steps of flexible CG
+  preconditioned by the next level (Notay and Vassilevski's K-cycle; the outer CG flexible too);
 - ``two-grid cubic``: the cubic cycle with one coarse level solved exactly (the bound any deeper cycle
   approaches).
 
@@ -108,11 +110,14 @@ def prolongation_1d(n: int, degree: int) -> tuple[sp.csr_matrix, int]:
 
 
 class Multigrid:
-    """V(ν, ν) cycles on the grid's matrix: Gauss–Seidel smoothing, Galerkin coarse levels, a direct coarsest."""
+    """V(ν, ν) or K-cycles on the grid's matrix: Gauss–Seidel smoothing, Galerkin coarse levels, a direct coarsest.
+
+    ``cycle="K"`` (Notay and Vassilevski's K-cycle): each coarse level but the coarsest is solved by two steps
+    of flexible CG preconditioned by the next level's cycle, not by one cycle."""
 
     def __init__(self, M: sp.csr_matrix, size: int, free: np.ndarray, degree: int, levels: int = 99,
-                 sweeps: int = 1) -> None:
-        self.M, self.P, self.sweeps = [M], [], sweeps
+                 sweeps: int = 1, cycle: str = "V") -> None:
+        self.M, self.P, self.sweeps, self.cycle = [M], [], sweeps, cycle
         side = size
         while side * side > COARSEST and len(self.M) < levels:
             P1, nc = prolongation_1d(side, degree)
@@ -139,17 +144,40 @@ class Multigrid:
         x = np.zeros_like(r)
         for _ in range(self.sweeps):
             _sweep(A.indptr, A.indices, A.data, d, r, x, True)
-        x += P @ self._cycle(level + 1, np.ascontiguousarray(P.T @ (r - A @ x)))
+        coarse = np.ascontiguousarray(P.T @ (r - A @ x))
+        inner = self.cycle == "K" and level + 1 < len(self.M) - 1
+        x += P @ (self._two_steps(level + 1, coarse) if inner else self._cycle(level + 1, coarse))
         for _ in range(self.sweeps):
             _sweep(A.indptr, A.indices, A.data, d, r, x, False)
         return x
 
+    def _two_steps(self, level: int, r: np.ndarray) -> np.ndarray:
+        """Two steps of flexible CG on ``M[level] x = r`` from zero, preconditioned by this level's cycle."""
+        A = self.M[level]
+
+        def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+            return np.einsum("ij,ij->j", u, v)
+
+        c1 = self._cycle(level, r)
+        v1 = A @ c1
+        rho1, a1 = dot(c1, v1), dot(c1, r)
+        r1 = r - (a1 / rho1) * v1
+        c2 = self._cycle(level, r1)
+        v2 = A @ c2
+        gamma, a2 = dot(c2, v1), dot(c2, r1)
+        beta = dot(c2, v2) - gamma * gamma / rho1
+        return (a1 / rho1 - gamma * a2 / (rho1 * beta)) * c1 + (a2 / beta) * c2
+
     def work(self) -> float:
-        """Nonzeros one cycle reads, in fine-matrix products (see the module's docstring)."""
-        total = 0.0
-        for A, P in zip(self.M[:-1], self.P):
-            total += A.nnz * (2 * self.sweeps + 1) + 2 * P.nnz  # 2ν sweeps, 2 products; the first two at half
-        total += self.lu.L.nnz + self.lu.U.nnz
+        """Nonzeros one cycle reads, in fine-matrix products (see the module's docstring; a K-cycle's coarse
+        levels twice per visit, plus a product each)."""
+        total, visits = 0.0, 1.0
+        for level, (A, P) in enumerate(zip(self.M[:-1], self.P)):
+            total += visits * (A.nnz * (2 * self.sweeps + 1) + 2 * P.nnz)  # 2ν sweeps, 2 products; two at half
+            if self.cycle == "K" and level + 1 < len(self.M) - 1:
+                visits *= 2
+                total += visits * self.M[level + 1].nnz  # (the inner steps' products)
+        total += visits * (self.lu.L.nnz + self.lu.U.nnz)
         return total / self.M[0].nnz
 
     def complexity(self) -> float:
@@ -168,8 +196,10 @@ def symmetric_gauss_seidel(M: sp.csr_matrix):  # type: ignore[no-untyped-def]
     return apply
 
 
-def pcg(M: sp.csr_matrix, b: np.ndarray, precond, rtol: float = 1e-9, maxiter: int = 5000) -> tuple[np.ndarray, int]:  # type: ignore[no-untyped-def]
-    """Preconditioned CG on the columns of ``b`` together (per-column scalars), from zero."""
+def pcg(M: sp.csr_matrix, b: np.ndarray, precond, rtol: float = 1e-9, maxiter: int = 5000,  # type: ignore[no-untyped-def]
+        flexible: bool = False) -> tuple[np.ndarray, int]:
+    """Preconditioned CG on the columns of ``b`` together (per-column scalars), from zero; ``flexible``: the
+    Polak–Ribière ``β`` (a preconditioner that is not a fixed linear map, as the K-cycle)."""
     x, r = np.zeros_like(b), b.copy()
     z = precond(r)
     p, rz = z.copy(), np.einsum("ij,ij->j", r, z)
@@ -178,12 +208,14 @@ def pcg(M: sp.csr_matrix, b: np.ndarray, precond, rtol: float = 1e-9, maxiter: i
         q = M @ p
         a = rz / np.einsum("ij,ij->j", p, q)
         x += a * p
+        r_old = r.copy() if flexible else r
         r -= a * q
         if (np.sqrt(np.einsum("ij,ij->j", r, r)) <= tol).all():
             return x, step
         z = precond(r)
         rz, old = np.einsum("ij,ij->j", r, z), rz
-        p = z + (rz / old) * p
+        beta = (rz - np.einsum("ij,ij->j", r_old, z)) / old if flexible else rz / old
+        p = z + beta * p
     return x, maxiter
 
 
@@ -223,6 +255,7 @@ def main() -> None:
         "SGS": lambda M: (symmetric_gauss_seidel(M), 1.0, 1.0),
         "MG linear": lambda M: _mg(M, n, free, 1),
         "MG cubic": lambda M: _mg(M, n, free, 3),
+        "MG cubic, K-cycle": lambda M: _mg(M, n, free, 3, cycle="K"),
         "two-grid cubic": lambda M: _mg(M, n, free, 3, levels=2),
     }
     print(f"{n}×{n} sheet, {args.noise} noise, all window middles free; steps to rtol 1e-9 · work per step · "
@@ -239,11 +272,11 @@ def main() -> None:
         for make in kinds.values():
             t0 = time.perf_counter()
             precond, per_step, complexity = make(M)
-            x, steps = pcg(M, B, precond)
+            x, steps = pcg(M, B, precond, flexible=getattr(precond, "cycle", "V") == "K")
             seconds = time.perf_counter() - t0
             assert np.abs(M @ x - B).max() <= 1e-6 * np.abs(B).max()
             cells.append(f"{steps} · {per_step:.1f} · {steps * per_step:.0f} · {complexity:.2f} · {seconds:.2f}")
-        print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
+        print(f"| {w:g} | " + " | ".join(cells) + " |", flush=True)
 
 
 def solver_table(args: argparse.Namespace) -> None:
@@ -297,8 +330,8 @@ def _strided(base: type, stride: int) -> type:
     return Strided
 
 
-def _mg(M: sp.csr_matrix, n: int, free: np.ndarray, degree: int, levels: int = 99):  # type: ignore[no-untyped-def]
-    mg = Multigrid(M, n, free, degree, levels)
+def _mg(M: sp.csr_matrix, n: int, free: np.ndarray, degree: int, levels: int = 99, cycle: str = "V"):  # type: ignore[no-untyped-def]
+    mg = Multigrid(M, n, free, degree, levels, cycle=cycle)
     return mg, 1.0 + mg.work(), mg.complexity()
 
 
