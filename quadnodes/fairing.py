@@ -33,7 +33,7 @@ from .linalg import factorize
 from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner,
                         PathLinePreconditioner, SymmetricDiagonalBlocks, block_cg, permuted)
 from .linalg import compiled as kernels
-from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel
+from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, gauss_seidel_cg
 from .linalg.grid import GridPattern
 from .linalg.heap import reused_heap
 from .linalg.multigrid import TWO_GRID_STRIDE, TwoGrid, coarse_nodes
@@ -124,12 +124,19 @@ TWO_GRID_MIN_SIDE = 16
 #: The two-grid path stops at this fraction of ``rtol`` (its residual, like Gauss–Seidel's, leaves smooth error).
 TWO_GRID_RTOL = 0.1
 #: Where "auto" may take the two-grid path it runs Gauss–Seidel first and switches (from Gauss–Seidel's iterate)
-#: only after this many steps without converging. The Gershgorin bound does not see fixed vertices, and fixed
+#: no earlier than after this many steps. The Gershgorin bound does not see fixed vertices, and fixed
 #: vertices scattered over the free ones hold the smooth modes as ω would: on a 200² sheet at ω = 10⁻⁶ with 10 %
 #: of the vertices fixed at random Gauss–Seidel converges in 467 steps (0.28 s), with 30 % in 106 (0.10 s), where
 #: the two-grid path takes 0.73 and 0.56 s; all free it needs 14,083 (10.43 s against 1.00 s; "auto" 0.89 s)
 #: (``python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3``).
 TWO_GRID_AFTER = 300
+#: ... and then only where Gauss–Seidel's own rate says it needs more than this many steps still (the
+#: residual's decay over its last 100 steps, extrapolated to the target; checked every :data:`TWO_GRID_AFTER`
+#: steps). What the switch costs — the coarse factorization and 50–150 steps of the cycle, each about ten
+#: Gauss–Seidel steps — matched about 1,000 steps of Gauss–Seidel on the 300² sheet, cylinder and torus; with a
+#: count of steps alone "auto" switched and lost where Gauss–Seidel needed 380–650 steps in all
+#: (``python benchmarks/studies/multigrid.py --solver --size 300``, ``--mesh torus``, ``--mesh cylinder``).
+TWO_GRID_REMAINING = 1000
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -650,6 +657,29 @@ def _patch_order(windows: np.ndarray, free_index: np.ndarray, side: int = 4) -> 
     return np.argsort(key, kind="stable")
 
 
+class _SwitchCheck:
+    """Gauss–Seidel's monitor where "auto" may switch to the two-grid cycle (:data:`TWO_GRID_REMAINING`).
+
+    Every :data:`TWO_GRID_AFTER` steps it extrapolates the residual's decay over the last 100 steps (means of
+    its logarithm over 10 steps at each end) to the target ``rtol``; it stops the solve (``switch`` True)
+    where that needs more than :data:`TWO_GRID_REMAINING` steps more, or the residual no longer falls.
+    """
+
+    def __init__(self, rtol: float) -> None:
+        self.target = float(np.log(rtol))
+        self.logs: list[float] = []
+        self.switch = False
+
+    def __call__(self, step: int, residual: float) -> bool:
+        self.logs.append(float(np.log(max(residual, 1e-300))))
+        if step < TWO_GRID_AFTER or step % TWO_GRID_AFTER or len(self.logs) < 110:
+            return False
+        now, before = np.mean(self.logs[-10:]), np.mean(self.logs[-110:-100])
+        rate = (now - before) / 100.0  # (log of the residual per step: negative while it falls)
+        self.switch = bool(rate >= 0.0 or (self.target - now) / rate > TWO_GRID_REMAINING)
+        return self.switch
+
+
 class FairingSystem:
     """One fairing iteration's least-squares system.
 
@@ -687,7 +717,8 @@ class FairingSystem:
         grid and any other mesh sweep compressed rows
         (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). On a grid (open, a cylinder or a
         torus) where the bound exceeds :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and
-        Gauss–Seidel has not converged in :data:`TWO_GRID_AFTER` steps, the two-grid cycle around those
+        Gauss–Seidel's rate after :data:`TWO_GRID_AFTER` steps says it needs more than
+        :data:`TWO_GRID_REMAINING` more, the two-grid cycle around those
         sweeps (:class:`~quadnodes.linalg.multigrid.TwoGrid`), whose steps do not grow as the weight falls.
         Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
@@ -856,8 +887,9 @@ class FairingSystem:
         On such a grid (open or closed around), where the bound exceeds :data:`TWO_GRID_CONTRAST` ω, the grid has more than
         :data:`TWO_GRID_MIN_SIDE` rows and columns and the coarse grid at most :data:`TWO_GRID_COARSE_MAX`
         vertices, Gauss–Seidel is marked to switch to the two-grid cycle
-        (:class:`~quadnodes.linalg.multigrid.TwoGrid`) in :meth:`solve` after :data:`TWO_GRID_AFTER`
-        steps without converging; there the kernels are loaded at any size. Otherwise:
+        (:class:`~quadnodes.linalg.multigrid.TwoGrid`) in :meth:`solve` where its rate after
+        :data:`TWO_GRID_AFTER` steps says it needs more than :data:`TWO_GRID_REMAINING` more; there the
+        kernels are loaded at any size. Otherwise:
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
@@ -1024,10 +1056,13 @@ class FairingSystem:
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
                     rtol = min(rtol, guard)
-            switch = self._two_grid_shape is not None
-            y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=TWO_GRID_AFTER if switch else
-                                   MAX_CG_ITERATIONS, precond=precond)
-            if switch and its >= TWO_GRID_AFTER and res > rtol:  # slow: smooth modes that only ω holds
+            check = _SwitchCheck(rtol) if self._two_grid_shape is not None else None
+            if check is not None:  # Gauss–Seidel, watched: it stops where the two-grid cycle would be faster
+                y, its, res = gauss_seidel_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS,
+                                              sweeps=precond, monitor=check)
+            else:
+                y, its, res = block_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS, precond=precond)
+            if check is not None and check.switch:  # slow: smooth modes that only ω holds
                 # (on from Gauss–Seidel's iterate, which has not met the error guard: the guard is what keeps the
                 # residual it leaves in the smooth modes from meaning a large error)
                 try:

@@ -1212,16 +1212,24 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
         assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max(), weight
     # (from 1e-3 down only the error guard's target moves, ∝ ω: a few steps per decade, not Gauss–Seidel's 1/√ω)
     assert steps[1e-7] <= 1.5 * steps[1e-3] and steps[1e-3] <= 2.5 * steps[0.3], steps
+    every = m.topology.window_middle  # (all free: Gauss–Seidel needs 1,201 steps at 1e-6, the cycle 130)
     for ready, weight, kind in ((True, 1e-6, TwoGrid), (True, 0.3, SymmetricGaussSeidel),
                                 (False, 1e-6, TwoGrid), (False, 0.3, type(None))):  # (False: a fresh process)
         monkeypatch.setattr(fairing_module.kernels, "ready", lambda: ready)
         w = weight / m.mean_edge_length**2
-        auto = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", _topology=m.topology)
-        x = auto.solve(m.vertices[free])  # (at 1e-6: Gauss–Seidel's TWO_GRID_AFTER steps, then the two-grid cycle)
+        auto = FairingSystem(m.vertices, m.topology.windows, every, w, solver="cg", _topology=m.topology)
+        x = auto.solve(m.vertices[every])  # (at 1e-6: Gauss–Seidel's TWO_GRID_AFTER steps, then the two-grid cycle)
         assert isinstance(auto._cg[1], kind), (ready, weight)
         assert (auto.iterations > fairing_module.TWO_GRID_AFTER) == (kind is TwoGrid)
-        d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+        d = FairingSystem(m.vertices, m.topology.windows, every, w, solver="direct").solve(m.vertices[every])
         assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    # 5 % fixed at random: Gauss–Seidel needs some 500 steps, past TWO_GRID_AFTER, but its rate says it is nearly
+    # done (fewer than TWO_GRID_REMAINING to go), so it goes on: no switch
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
+    auto = FairingSystem(m.vertices, m.topology.windows, free, 1e-6 / m.mean_edge_length**2, solver="cg",
+                         _topology=m.topology)
+    auto.solve(m.vertices[free])
+    assert isinstance(auto._cg[1], SymmetricGaussSeidel) and auto.iterations > fairing_module.TWO_GRID_AFTER
     # a third of the vertices fixed at random hold the smooth modes: Gauss-Seidel converges, no switch
     held = free & (rng.random(m.n_vertices) > 0.3)
     auto = FairingSystem(m.vertices, m.topology.windows, held, 1e-6 / m.mean_edge_length**2, solver="cg",
@@ -1273,6 +1281,30 @@ def test_two_grid_on_cylinders_and_tori(monkeypatch, kind):
     assert isinstance(auto._cg[1], TwoGrid) and auto.iterations > fairing_module.TWO_GRID_AFTER
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
     assert np.abs(x - d).max() <= 1e-8 * extent
+
+
+def test_switch_check_extrapolates_the_residuals_decay():
+    """The monitor of "auto"'s Gauss–Seidel run: at step TWO_GRID_AFTER (and every TWO_GRID_AFTER after) it
+    switches where the decay of the last 100 steps needs more than TWO_GRID_REMAINING more to reach rtol, or where
+    the residual no longer falls; not before, and not where Gauss–Seidel is nearly done."""
+    from quadnodes.fairing import TWO_GRID_AFTER, TWO_GRID_REMAINING, _SwitchCheck
+
+    def run(rate: float, rtol: float = 1e-10, noise: float = 0.0) -> tuple[bool, int]:
+        check, wobble = _SwitchCheck(rtol), np.random.default_rng(0)
+        for step in range(1, 4 * TWO_GRID_AFTER + 1):
+            residual = np.exp(-rate * step) * np.exp(noise * wobble.normal())
+            if check(step, residual):
+                return check.switch, step
+        return check.switch, step
+
+    # the residual at TWO_GRID_AFTER is exp(-rate·300); rtol 1e-10 is ln 1e-10 ≈ -23.0 away from 1
+    slow = 23.0 / (TWO_GRID_AFTER + 2 * TWO_GRID_REMAINING)  # about 2,000 steps still to go at the check
+    fast = 23.0 / (TWO_GRID_AFTER + TWO_GRID_REMAINING / 2)  # about 500
+    assert run(slow) == (True, TWO_GRID_AFTER)
+    assert run(slow, noise=0.3) == (True, TWO_GRID_AFTER)  # (means over 10 steps: a noisy residual too)
+    assert run(fast) == (False, 4 * TWO_GRID_AFTER)
+    assert run(0.0) == (True, TWO_GRID_AFTER)  # stagnating
+    assert run(-0.001) == (True, TWO_GRID_AFTER)  # growing
 
 
 def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):

@@ -39,6 +39,8 @@ True
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 __all__ = ["SymmetricGaussSeidel", "CsrGaussSeidel", "gauss_seidel_cg", "sweep_scratch", "forward_solve",
@@ -281,6 +283,7 @@ def gauss_seidel_cg(
     rtol: float,
     maxiter: int,
     sweeps: SymmetricGaussSeidel | CsrGaussSeidel | None = None,
+    monitor: Callable[[int, float], bool] | None = None,
 ) -> tuple[np.ndarray, int, float]:
     """Conjugate gradients preconditioned by one symmetric Gauss–Seidel sweep, in Eisenstat's form, on threads.
 
@@ -307,6 +310,10 @@ def gauss_seidel_cg(
         Cap on steps.
     sweeps : SymmetricGaussSeidel or CsrGaussSeidel, optional
         The scaled matrix, made once for many solves (default: made here for ``blocks``).
+    monitor : callable, optional
+        Called after every step with the step count and the worst column's preconditioned residual
+        relative to its preconditioned right-hand side (what the stop compares with ``rtol``);
+        returning True ends the solve there, with the iterate reached.
 
     Returns
     -------
@@ -373,13 +380,15 @@ def gauss_seidel_cg(
         return out
 
     bh = np.sqrt(lower_norms(Bp * s, W))  # ‖(I + L)⁻¹ D^{-1/2} B‖: the preconditioned residual's scale
+    bh2 = np.maximum(bh, 1e-300) ** 2
     steps = 0
     inner = rtol  # the preconditioned residual's target, tightened when the true residual misses rtol
+    stopped = False  # (by the monitor)
     while True:
         sw.product(X, Y)  # Y = B − M X, the true residual
         np.subtract(Bp, Y, out=Y)
         true = np.sqrt(norms2(Y)) / bnorm
-        if (true <= rtol).all() or steps >= maxiter or inner < 1e-17:
+        if (true <= rtol).all() or steps >= maxiter or inner < 1e-17 or stopped:
             return result(float(true.max()))
         Y *= s  # D^{-1/2} (B − M X), then CG's preconditioned residual
         rr = lower_norms(Y, Rh)
@@ -403,6 +412,9 @@ def gauss_seidel_cg(
             beta = np.divide(rr_new, rr, out=np.zeros(c), where=rr > 0)
             rr = rr_new
             steps += 1
+            if monitor is not None and monitor(steps, float(np.sqrt((rr / bh2).max()))):
+                stopped = True
+                break
         Xs *= s
         X += Xs
         inner *= 0.1 if steps == start else 0.5

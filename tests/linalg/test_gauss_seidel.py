@@ -220,3 +220,26 @@ def test_a_numbering_without_locality_sweeps_on_one_thread(small_ranges):
     p = np.random.default_rng(1).permutation(M.shape[0])
     cs = CsrGaussSeidel(RowBlocks(sp.csr_matrix(M[p][:, p]), threads=2))
     assert len(cs.interiors) == 1 and not cs.separators
+
+
+def test_a_monitor_sees_every_step_and_may_stop_the_solve():
+    """``monitor(step, residual)`` is called after every step with the preconditioned residual relative to its
+    right-hand side; returning True ends the solve there, with the iterate of a run capped at that step."""
+    n = 60
+    M = sp.diags([1.0, -4.0, 6.01, -4.0, 1.0], [-2, -1, 0, 1, 2], shape=(n, n)).todia()
+    blocks = SymmetricDiagonalBlocks(M.offsets, M.data, threads=1)
+    b = np.random.default_rng(0).normal(size=(n, 3))
+    seen: list[tuple[int, float]] = []
+
+    def monitor(step: int, residual: float) -> bool:
+        seen.append((step, residual))
+        return step == 7
+
+    x, steps, res = gauss_seidel_cg(blocks, b, np.zeros_like(b), rtol=1e-12, maxiter=500, monitor=monitor)
+    capped, capped_steps, capped_res = gauss_seidel_cg(blocks, b, np.zeros_like(b), rtol=1e-12, maxiter=7)
+    assert steps == capped_steps == 7 and [s for s, _ in seen] == list(range(1, 8))
+    assert np.array_equal(x, capped) and res == capped_res > 1e-12
+    assert all(r > 0 for _, r in seen) and seen[-1][1] < seen[0][1]
+    full, full_steps, full_res = gauss_seidel_cg(blocks, b, np.zeros_like(b), rtol=1e-12, maxiter=500,
+                                                 monitor=lambda step, residual: False)
+    assert full_res <= 1e-12 and full_steps > 7
