@@ -53,7 +53,8 @@ def noisy_grid(n: int, noise: str = "zigzag", seed: int = 0):
 
 
 def noisy_torus(rings: int, segments: int, seed: int = 0):
-    """A torus (a closed mesh: lines wrap around, no grid diagonals) with broadband noise of 0.2 edge lengths."""
+    """A torus (a closed mesh: lines wrap around; a grid closed both ways, with the seams' diagonals) with broadband
+    noise of 0.2 edge lengths."""
     from quadnodes.mesh import torus
 
     t = torus(rings, segments)

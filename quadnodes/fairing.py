@@ -133,10 +133,11 @@ TWO_GRID_AFTER = 300
 #: ... and then only where Gauss–Seidel's own rate says it needs more than this many steps still (the
 #: residual's decay over its last 100 steps, extrapolated to the target; checked every :data:`TWO_GRID_AFTER`
 #: steps). What the switch costs — the coarse factorization and 50–150 steps of the cycle, each about ten
-#: Gauss–Seidel steps — matched about 1,000 steps of Gauss–Seidel on the 300² sheet, cylinder and torus; with a
-#: count of steps alone "auto" switched and lost where Gauss–Seidel needed 380–650 steps in all
-#: (``python benchmarks/studies/multigrid.py --solver --size 300``, ``--mesh torus``, ``--mesh cylinder``).
-TWO_GRID_REMAINING = 1000
+#: Gauss–Seidel steps — matched 600–1,400 steps of Gauss–Seidel on the 300² sheet, cylinder and torus, as the
+#: machine's speed and the mesh went; with a count of steps alone "auto" switched and lost where Gauss–Seidel
+#: needed 380–650 steps in all, 200–350 after the first check (``python benchmarks/studies/multigrid.py
+#: --solver --size 300``, ``--mesh torus``, ``--mesh cylinder``; ``docs/fairing.md``, "The two-grid path").
+TWO_GRID_REMAINING = 700
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -920,17 +921,16 @@ class FairingSystem:
             bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
             contrast = self._contrast = bound / self.weight
             open_grid = grid and self._grid[0].offsets.size == 13
-            shape = closed = None  # a grid's (rows, cols), and whether its columns and rows are closed around
+            shape = wrap = None  # a grid's (rows, cols), and whether its columns and rows close around
             if grid:
                 offsets, data = grid_storage()
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
-                shape = (data.shape[1] // cols, cols)
-                closed = (bool(np.any(offsets == cols - data.shape[1])), bool(np.any(offsets == 1 - cols)))
+                shape, wrap = (data.shape[1] // cols, cols), self._grid[0].wrap
             # "auto" at a tiny weight on a grid with a small enough coarse grid: Gauss–Seidel first, the two-grid
             # cycle if it is slow; the kernels pay for that at any size
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None
                           and min(shape) > TWO_GRID_MIN_SIDE
-                          and np.prod([coarse_nodes(side, TWO_GRID_STRIDE, c).size for side, c in zip(shape, closed)])
+                          and np.prod([coarse_nodes(side, TWO_GRID_STRIDE, c).size for side, c in zip(shape, wrap)])
                           <= TWO_GRID_COARSE_MAX)
             wanted = wanted or may_switch
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
@@ -946,11 +946,10 @@ class FairingSystem:
                     return self._gauss_seidel(RowBlocks(self.matrix), CsrGaussSeidel)
                 offsets, data = grid_storage()
                 blocks = SymmetricDiagonalBlocks(offsets, data) if open_grid else DiagonalBlocks(offsets, data)
-                self._closed = closed
                 if self.preconditioner == "two-grid":
-                    return self._two_grid(blocks, shape)
+                    return self._two_grid(blocks, (shape, wrap))
                 if may_switch:
-                    self._two_grid_shape = shape
+                    self._switch_to = (shape, wrap)
                 return self._gauss_seidel(blocks, SymmetricGaussSeidel if open_grid else CsrGaussSeidel)
             if self.preconditioner in ("gauss-seidel", "two-grid"):
                 raise InputError(f"preconditioner={self.preconditioner!r} needs the compiled kernels (Numba); use 'auto'")
@@ -983,18 +982,20 @@ class FairingSystem:
 
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
-    _two_grid_shape: tuple[int, int] | None = None  # (set by _cg_setup where "auto" may switch to the two-grid cycle)
-    _closed = (False, False)  # (set by _cg_setup on a grid: whether its columns and rows are closed around)
+    #: (set by _cg_setup where "auto" may switch to the two-grid cycle: the grid's (rows, cols) and its wrap)
+    _switch_to: tuple[tuple[int, int], tuple[bool, bool]] | None = None
 
-    def _two_grid(self, blocks: DiagonalBlocks, shape: tuple[int, int]) -> tuple:
-        """``self._cg`` with the two-grid cycle on ``blocks`` (a grid of ``shape``, closed as ``self._closed``)."""
+    def _two_grid(self, blocks: DiagonalBlocks, grid: tuple[tuple[int, int], tuple[bool, bool]]) -> tuple:
+        """``self._cg`` with the two-grid cycle on ``blocks``, a grid of ``grid = ((rows, cols), (wrap_rows,
+        wrap_cols))``."""
+        shape, wrap = grid
         try:
-            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], closed=self._closed), None)
+            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], wrap=wrap), None)
         except ValueError as exc:  # a grid too small for a coarse grid
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
-        self._two_grid_shape = None
+        self._switch_to = None
         return self._cg
 
     def _gauss_seidel(self, blocks: RowBlocks, kind: type) -> tuple:
@@ -1056,7 +1057,7 @@ class FairingSystem:
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
                     rtol = min(rtol, guard)
-            check = _SwitchCheck(rtol) if self._two_grid_shape is not None else None
+            check = _SwitchCheck(rtol) if self._switch_to is not None else None
             if check is not None:  # Gauss–Seidel, watched: it stops where the two-grid cycle would be faster
                 y, its, res = gauss_seidel_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS,
                                               sweeps=precond, monitor=check)
@@ -1066,10 +1067,10 @@ class FairingSystem:
                 # (on from Gauss–Seidel's iterate, which has not met the error guard: the guard is what keeps the
                 # residual it leaves in the smooth modes from meaning a large error)
                 try:
-                    blocks, precond, _ = self._two_grid(blocks, self._two_grid_shape)
+                    blocks, precond, _ = self._two_grid(blocks, self._switch_to)
                     rtol = min(self.rtol * TWO_GRID_RTOL, guard)
                 except InputError:  # pragma: no cover - (the coarse matrix is made definite) Gauss–Seidel goes on
-                    self._two_grid_shape = None
+                    self._switch_to = None
                 y, more, res = block_cg(blocks, shifted, y, rtol=rtol, maxiter=MAX_CG_ITERATIONS - its,
                                         precond=precond)
                 its += more

@@ -1236,7 +1236,7 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
                          _topology=m.topology)
     auto.solve(m.vertices[held])
     assert isinstance(auto._cg[1], SymmetricGaussSeidel) and auto.iterations < fairing_module.TWO_GRID_AFTER
-    t = torus(24, 40, major=800.0, minor=200.0)  # renumbered, not the grid's numbering: no grid path, refused
+    t = torus(24, 40, major=800.0, minor=200.0)  # without its topology (_topology): no grid path, refused
     with pytest.raises(InputError, match="two-grid.*needs a vertex grid"):
         FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-9, solver="cg",
                       preconditioner="two-grid")._cg_setup()

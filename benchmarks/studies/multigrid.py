@@ -325,8 +325,8 @@ def solver_table(args: argparse.Namespace) -> None:
 def _strided(base: type, stride: int) -> type:
     """``base`` (TwoGrid) at ``stride``, as fair() constructs it (a subclass, so fair's type checks still hold)."""
     class Strided(base):  # type: ignore[valid-type, misc]
-        def __init__(self, blocks, shape, moving, closed=(False, False)):  # type: ignore[no-untyped-def]
-            super().__init__(blocks, shape, moving, stride=stride, closed=closed)
+        def __init__(self, blocks, shape, moving, wrap=(False, False)):  # type: ignore[no-untyped-def]
+            super().__init__(blocks, shape, moving, stride=stride, wrap=wrap)
     return Strided
 
 

@@ -47,6 +47,8 @@ class GridPattern:
     def __init__(self, ext: np.ndarray, start: np.ndarray, n: int, cols: int, *, wrap_rows: bool = False,
                  wrap_cols: bool = False) -> None:
         m = ext.size
+        #: ``(wrap_rows, wrap_cols)``: whether the grid's columns (row index) and rows (column index) close around.
+        self.wrap = (bool(wrap_rows), bool(wrap_cols))
         offsets = [-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols]
         # a pair d apart along a closed line, across its seam: (d, b - a, slot of M[a, b], slot of M[b, a])
         seam: list[tuple[int, int, int, int]] = []
@@ -130,6 +132,7 @@ class GridPattern:
         self.offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
         self.n, self.rows, self.cols = rows * cols, rows, cols
         self.valid, self.summed = True, False
+        self.wrap = (False, False)
         self.blocks = tuple((int(f), int(a), int(c)) for f, a, c in blocks)
         return self
 

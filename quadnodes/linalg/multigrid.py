@@ -47,7 +47,7 @@ TWO_GRID_STRIDE = 4
 
 
 def coarse_nodes(n: int, stride: int, closed: bool = False) -> np.ndarray:
-    """The coarse nodes of a line of ``n`` nodes: ``0, stride, 2·stride, …`` and ``n − 1``.
+    """The coarse nodes of a line of ``n`` nodes: ``0, stride, 2·stride, …`` and ``n − 1`` (closed: without it).
 
     Parameters
     ----------
@@ -81,8 +81,8 @@ def cubic_interpolation(n: int, stride: int, closed: bool = False) -> sp.csr_mat
     Each fine node takes the Lagrange polynomial of degree ``min(3, m − 1)`` through the
     coarse nodes nearest it (two on each side where there are), so the interpolation is
     exact on polynomials of that degree; a coarse node is copied. On a closed line the
-    four nearest coarse nodes are taken around the seam (positions unwrapped), so a
-    polynomial in the distance along the line is exact wherever its four nodes are.
+    two coarse nodes on each side are counted across the seam (positions unwrapped), so a
+    polynomial in the distance along the line is reproduced at every node.
 
     Parameters
     ----------
@@ -147,7 +147,7 @@ def cubic_interpolation(n: int, stride: int, closed: bool = False) -> sp.csr_mat
 
 
 def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | None = None,
-                       closed: tuple[bool, bool] = (False, False)) -> sp.csr_matrix:
+                       wrap: tuple[bool, bool] = (False, False)) -> sp.csr_matrix:
     """The ``(rows·cols, m)`` tensor-product :func:`cubic_interpolation` of a grid numbered row after row.
 
     Parameters
@@ -158,9 +158,10 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
         Fine rows and columns per coarse interval (≥ 2).
     moving : (rows·cols,) bool, optional
         The vertices a correction may move; the others' rows are zero (a fixed vertex stays put).
-    closed : (bool, bool)
-        Whether the grid's columns (row ``rows − 1`` beside row 0) and its rows (column ``cols − 1``
-        beside column 0) are closed around: a cylinder has one, a torus both.
+    wrap : (bool, bool)
+        ``(wrap_rows, wrap_cols)`` as :class:`~quadnodes.linalg.grid.GridPattern`'s: whether row
+        ``rows − 1`` lies beside row 0 (the columns close around) and column ``cols − 1`` beside
+        column 0 (the rows close around); a cylinder has one, a torus both.
 
     Returns
     -------
@@ -177,7 +178,7 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
     >>> grid_interpolation(5, 9, 4).shape  # coarse rows 0, 4; coarse columns 0, 4, 8
     (45, 6)
     """
-    P = sp.kron(cubic_interpolation(rows, stride, closed[0]), cubic_interpolation(cols, stride, closed[1]),
+    P = sp.kron(cubic_interpolation(rows, stride, wrap[0]), cubic_interpolation(cols, stride, wrap[1]),
                 format="csr")
     if moving is not None:
         P = (sp.diags(np.asarray(moving, dtype=np.float64)) @ P).tocsr()
@@ -207,8 +208,9 @@ class TwoGrid:
         The free vertices (the coarse correction moves no other).
     stride : int
         Coarse grid spacing (:data:`TWO_GRID_STRIDE`).
-    closed : (bool, bool)
-        Whether the grid's columns and its rows are closed around (:func:`grid_interpolation`).
+    wrap : (bool, bool)
+        ``(wrap_rows, wrap_cols)``: whether the grid's columns and its rows close around
+        (:func:`grid_interpolation`); the sweeps are then the compressed rows'.
 
     Attributes
     ----------
@@ -254,7 +256,7 @@ class TwoGrid:
     whole = True  # (block_cg applies it to all rows at once)
 
     def __init__(self, blocks: object, shape: tuple[int, int], moving: np.ndarray,
-                 stride: int = TWO_GRID_STRIDE, closed: tuple[bool, bool] = (False, False)) -> None:
+                 stride: int = TWO_GRID_STRIDE, wrap: tuple[bool, bool] = (False, False)) -> None:
         rows, cols = (int(v) for v in shape)
         M = blocks.M.tocsr()  # type: ignore[attr-defined]
         n = M.shape[0]
@@ -262,11 +264,13 @@ class TwoGrid:
             raise ValueError(f"shape: {rows} × {cols} grid does not match the matrix's {n} rows")
         if min(rows, cols) <= stride:
             raise ValueError(f"shape: a {rows} × {cols} grid has no coarse grid at stride {stride}")
-        closed = (bool(closed[0]), bool(closed[1]))
-        self.lines = (cubic_interpolation(rows, stride, closed[0]), cubic_interpolation(cols, stride, closed[1]))
+        wrap = (bool(wrap[0]), bool(wrap[1]))
+        self.lines = (cubic_interpolation(rows, stride, wrap[0]), cubic_interpolation(cols, stride, wrap[1]))
         self.lines_t = tuple(L.T.tocsr() for L in self.lines)
-        self.P = grid_interpolation(rows, cols, stride, moving, closed)
-        self.sweeps = CsrGaussSeidel(blocks) if any(closed) else SymmetricGaussSeidel(blocks)
+        self.P = grid_interpolation(rows, cols, stride, moving, wrap)
+        # the grid's fast sweeps need an open grid's symmetric storage; the seams' diagonals take compressed rows
+        fast = not any(wrap) and hasattr(blocks, "upper")
+        self.sweeps = SymmetricGaussSeidel(blocks) if fast else CsrGaussSeidel(blocks)
         self.shape = (rows, cols)
         self.moving = np.asarray(moving, dtype=np.float64)
         C = (self.P.T.tocsr() @ (M @ self.P)).tocsr()
@@ -350,11 +354,12 @@ class TwoGrid:
                 c = shape[0]
             else:  # (n, c)
                 scale, c = sw.scale[:, None], shape[1]
-            self._buffers = {"shape": shape, "scale": scale, "vectors": [np.zeros(shape) for _ in range(6)],
+            self._buffers = {"shape": shape, "scale": scale,
+                             "vectors": [np.zeros(shape) for _ in range(5 if sw.columns else 6)],
                              "scratch": sweep_scratch(sw, c)}
         s = self._buffers["scale"]
-        V, X, Y, T, nothing, out = self._buffers["vectors"]  # (nothing: never written, read as zeros)
-        Z = out if Z is None else Z
+        V, X, Y, T, nothing = self._buffers["vectors"][:5]  # (nothing: never written, read as zeros)
+        Z = self._buffers["vectors"][5] if Z is None else Z  # (compressed rows: a buffer of its own)
         scratch = self._buffers["scratch"]
 
         def fine(A: np.ndarray) -> np.ndarray:  # (c, ≥ n) rows of fine vectors: restrict's and prolong's view

@@ -98,7 +98,7 @@ def test_grid_interpolation_is_the_tensor_product_with_fixed_rows_zero():
     P = grid_interpolation(9, 14, 4, moving).toarray()
     full = np.kron(cubic_interpolation(9, 4).toarray(), cubic_interpolation(14, 4).toarray())
     assert np.array_equal(P[moving], full[moving]) and not P[~moving].any()
-    torus = grid_interpolation(16, 20, 4, closed=(True, True)).toarray()
+    torus = grid_interpolation(16, 20, 4, wrap=(True, True)).toarray()
     assert np.array_equal(torus, np.kron(cubic_interpolation(16, 4, True).toarray(),
                                          cubic_interpolation(20, 4, True).toarray()))
 
@@ -128,7 +128,7 @@ def test_one_cycle_equals_its_dense_formula(closed):
     moving = np.ones(rows * cols, bool)
     moving[[0, cols - 1, (rows - 1) * cols, rows * cols - 1]] = False  # the corners, as fair's all-free grid
     M = with_fixed(line_matrix(rows, cols, 0.002, seed=2, closed=closed), ~moving)
-    tg = TwoGrid(blocks_of(M, 1, closed), (rows, cols), moving, stride=4, closed=closed)
+    tg = TwoGrid(blocks_of(M, 1, closed), (rows, cols), moving, stride=4, wrap=closed)
     assert type(tg.sweeps).__name__ == ("CsrGaussSeidel" if any(closed) else "SymmetricGaussSeidel")
     R = np.random.default_rng(3).normal(size=(3, rows * cols))
     R[:, ~moving] = 0.0
@@ -151,9 +151,11 @@ def test_the_cycle_is_symmetric_positive_definite_on_threads(monkeypatch, thread
     """CG needs ``B⁻¹`` symmetric positive definite, whatever the threads' order of the sweeps (the grid's
     sweeps on an open grid, compressed rows with separators on a torus)."""
     monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 8)
-    rows, cols = 16, 21
+    rows, cols = (16, 21) if not any(closed) else (40, 30)  # (a torus of 40 rows: separators below n/4)
     M = line_matrix(rows, cols, 1e-3, seed=5, closed=closed)
-    tg = TwoGrid(blocks_of(M, threads, closed), (rows, cols), np.ones(rows * cols, bool), stride=4, closed=closed)
+    tg = TwoGrid(blocks_of(M, threads, closed), (rows, cols), np.ones(rows * cols, bool), stride=4, wrap=closed)
+    if any(closed) and threads > 1:  # the compressed rows' sweeps with separators, not one thread's
+        assert tg.sweeps.separators and len(tg.sweeps.interiors) == threads
     n = rows * cols
     kp = -(-n // linalg_threads.RANGE_ALIGN) * linalg_threads.RANGE_ALIGN
     B = np.zeros((n, n))
@@ -188,7 +190,7 @@ def test_cg_steps_do_not_grow_as_the_weight_falls(monkeypatch, threads, closed):
         b = M @ np.random.default_rng(8).normal(size=(rows * cols, 3))
         x, steps[weight], res = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=5000,
                                          precond=TwoGrid(blocks, (rows, cols), np.ones(rows * cols, bool),
-                                                         closed=closed))
+                                                         wrap=closed))
         assert res <= 1e-10
         assert np.abs(x - np.linalg.solve(M, b)).max() <= 1e-6 * np.abs(b).max() / weight
         if weight == 1e-8:
