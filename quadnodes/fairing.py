@@ -107,10 +107,11 @@ GAUSS_SEIDEL_CONTRAST = 30.0
 #: Below a weight of about 10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
 #: (77–107 from 10⁻³ to 10⁻⁶, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
 #: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on a grid (open, a cylinder or a torus) where the
-#: Gershgorin bound exceeds this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet), after
-#: :data:`TWO_GRID_AFTER` Gauss–Seidel steps. On
-#: the 300² sheet: 1.31 s Gauss–Seidel against 1.88 s two-grid at 3·10⁻⁴, 1.60 against 1.70 s at 10⁻⁴, 9.38 against
-#: 2.24 s at 10⁻⁵ (``python benchmarks/studies/multigrid.py --solver --size 300``).
+#: Gershgorin bound exceeds this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet, 10⁻³ on a cylinder or torus),
+#: where Gauss–Seidel's rate says it pays (:data:`TWO_GRID_AFTER`, :data:`TWO_GRID_REMAINING`). On the 300² sheet
+#: (2026-12-02 15:09 UTC): 1.74 s Gauss–Seidel against 1.71 s two-grid at 3·10⁻⁴, 3.06 against 1.88 s at 10⁻⁴,
+#: 7.47 against 1.73 s at 10⁻⁵; 12:20 UTC the same day, 1.31 against 1.88 s, 1.60 against 1.70 s and 9.38
+#: against 2.24 s (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
 #: 430 × 430). The coarse matrix (cubic interpolation's Galerkin product, up to 81 couplings a row) is
@@ -126,8 +127,8 @@ TWO_GRID_RTOL = 0.1
 #: Where "auto" may take the two-grid path it runs Gauss–Seidel first and switches (from Gauss–Seidel's iterate)
 #: no earlier than after this many steps. The Gershgorin bound does not see fixed vertices, and fixed
 #: vertices scattered over the free ones hold the smooth modes as ω would: on a 200² sheet at ω = 10⁻⁶ with 10 %
-#: of the vertices fixed at random Gauss–Seidel converges in 467 steps (0.28 s), with 30 % in 106 (0.10 s), where
-#: the two-grid path takes 0.73 and 0.56 s; all free it needs 14,083 (10.43 s against 1.00 s; "auto" 0.89 s)
+#: of the vertices fixed at random Gauss–Seidel converges in 467 steps (0.42 s), with 30 % in 106 (0.10 s), where
+#: the two-grid path takes 0.71 and 0.55 s; all free it needs 14,083 (9.08 s against 0.81 s; "auto" 0.84 s)
 #: (``python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3``).
 TWO_GRID_AFTER = 300
 #: ... and then only where Gauss–Seidel's own rate says it needs more than this many steps still (the
