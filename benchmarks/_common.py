@@ -63,12 +63,13 @@ def noisy_torus(rings: int, segments: int, seed: int = 0):
     return t.with_vertices(t.vertices + rng.normal(scale=0.2 * h, size=t.vertices.shape))
 
 
-def noisy_cylinder(rows: int, segments: int, seed: int = 0):
+def noisy_cylinder(rows: int, segments: int, seed: int = 0, aspect: float | None = None):
     """An open cylinder (its rows closed around, its columns open; radius 1, height 2) with broadband noise of
-    0.2 edge lengths."""
+    0.2 edge lengths; ``aspect``: the radius instead that makes the edges around ``aspect`` times those along."""
     from quadnodes.mesh import cylinder
 
-    c = cylinder(rows, segments, radius=1.0, height=2.0)
+    radius = 1.0 if aspect is None else aspect * 2.0 / (rows - 1) * segments / (2 * np.pi)
+    c = cylinder(rows, segments, radius=radius, height=2.0)
     h = c.mean_edge_length
     rng = np.random.default_rng(seed)
     return c.with_vertices(c.vertices + rng.normal(scale=0.2 * h, size=c.vertices.shape))

@@ -139,6 +139,14 @@ TWO_GRID_AFTER = 300
 #: needed 380–650 steps in all, 200–350 after the first check (``python benchmarks/studies/multigrid.py
 #: --solver --size 300``, ``--mesh torus``, ``--mesh cylinder``; ``docs/fairing.md``, "The two-grid path").
 TWO_GRID_REMAINING = 700
+#: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
+#: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the
+#: other axis's: there the point sweeps leave the error rough. On 200² cylinders whose edges around are 2 and 6
+#: times those along (couplings 3.2 and 13 times weaker) the steps at ω = 10⁻⁵ fell from 117 and 221 to 74 and
+#: 78, the time by 8 % and 45 %; at 1.5 times (couplings 2.0 times weaker) a finer coarse grid cost more than the
+#: steps it saved (2.27 against 1.80 s) (a throwaway script, the cylinders of ``--mesh cylinder`` with their
+#: radius set; ``python benchmarks/studies/multigrid.py --solver --mesh cylinder --size 300``).
+TWO_GRID_ANISOTROPY = 2.5
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -533,6 +541,19 @@ def grid_pattern(topology: object) -> GridPattern | None:
     return pattern
 
 
+def _two_grid_strides(offsets: np.ndarray, data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
+    """The two-grid cycle's ``(rows', cols')`` strides for a grid's diagonal storage (:data:`TWO_GRID_ANISOTROPY`).
+
+    ``offsets[10]`` is ``cols``; the mean magnitude of the ``+cols`` and ``+1`` diagonals over the free vertices
+    measures the couplings along the rows' and the columns' axis.
+    """
+    cols = int(offsets[10])
+    along = [float(np.abs(data[int(np.flatnonzero(offsets == step)[0])][free]).mean()) for step in (cols, 1)]
+    half = TWO_GRID_STRIDE // 2
+    return (half if along[0] * TWO_GRID_ANISOTROPY < along[1] else TWO_GRID_STRIDE,
+            half if along[1] * TWO_GRID_ANISOTROPY < along[0] else TWO_GRID_STRIDE)
+
+
 def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
     """Largest Gershgorin bound (absolute row sum) over ``rows`` (a mask) of a symmetric matrix
     in diagonal storage (a column sum there: ``data[d, j] = M[j - offset_d, j]``)."""
@@ -922,16 +943,17 @@ class FairingSystem:
             bound = _gershgorin(grid_storage()[1], self._grid[2]) if grid else _csr_gershgorin(self.matrix)
             contrast = self._contrast = bound / self.weight
             open_grid = grid and self._grid[0].offsets.size == 13
-            shape = wrap = None  # a grid's (rows, cols), and whether its columns and rows close around
+            shape = wrap = strides = None  # a grid's (rows, cols), whether they close around, the two-grid strides
             if grid:
                 offsets, data = grid_storage()
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
                 shape, wrap = (data.shape[1] // cols, cols), self._grid[0].wrap
+                strides = _two_grid_strides(offsets, data, self._grid[2])
             # "auto" at a tiny weight on a grid with a small enough coarse grid: Gauss–Seidel first, the two-grid
             # cycle if it is slow; the kernels pay for that at any size
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None
                           and min(shape) > TWO_GRID_MIN_SIDE
-                          and np.prod([coarse_nodes(side, TWO_GRID_STRIDE, c).size for side, c in zip(shape, wrap)])
+                          and np.prod([coarse_nodes(side, st, c).size for side, st, c in zip(shape, strides, wrap)])
                           <= TWO_GRID_COARSE_MAX)
             wanted = wanted or may_switch
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
@@ -948,9 +970,9 @@ class FairingSystem:
                 offsets, data = grid_storage()
                 blocks = SymmetricDiagonalBlocks(offsets, data) if open_grid else DiagonalBlocks(offsets, data)
                 if self.preconditioner == "two-grid":
-                    return self._two_grid(blocks, (shape, wrap))
+                    return self._two_grid(blocks, (shape, wrap, strides))
                 if may_switch:
-                    self._switch_to = (shape, wrap)
+                    self._switch_to = (shape, wrap, strides)
                 return self._gauss_seidel(blocks, SymmetricGaussSeidel if open_grid else CsrGaussSeidel)
             if self.preconditioner in ("gauss-seidel", "two-grid"):
                 raise InputError(f"preconditioner={self.preconditioner!r} needs the compiled kernels (Numba); use 'auto'")
@@ -983,15 +1005,17 @@ class FairingSystem:
 
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
-    #: (set by _cg_setup where "auto" may switch to the two-grid cycle: the grid's (rows, cols) and its wrap)
-    _switch_to: tuple[tuple[int, int], tuple[bool, bool]] | None = None
+    #: (set by _cg_setup where "auto" may switch to the two-grid cycle: the grid's (rows, cols), its wrap and
+    #: the cycle's strides)
+    _switch_to: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | None = None
 
-    def _two_grid(self, blocks: DiagonalBlocks, grid: tuple[tuple[int, int], tuple[bool, bool]]) -> tuple:
+    def _two_grid(self, blocks: DiagonalBlocks,
+                  grid: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]]) -> tuple:
         """``self._cg`` with the two-grid cycle on ``blocks``, a grid of ``grid = ((rows, cols), (wrap_rows,
-        wrap_cols))``."""
-        shape, wrap = grid
+        wrap_cols), (rows' stride, cols' stride))``."""
+        shape, wrap, strides = grid
         try:
-            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], wrap=wrap), None)
+            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], stride=strides, wrap=wrap), None)
         except ValueError as exc:  # a grid too small for a coarse grid
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive

@@ -1207,6 +1207,7 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
                           _topology=m.topology)
         x = s.solve(m.vertices[free])
         assert isinstance(s._cg[1], TwoGrid) and s.residual <= 1e-9
+        assert s._cg[1].strides == (4, 4)  # (square quads: no axis's couplings much weaker)
         steps[weight] = s.iterations
         d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
         assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max(), weight
@@ -1258,7 +1259,7 @@ def test_two_grid_on_cylinders_and_tori(monkeypatch, kind):
     m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
     free = m.topology.window_middle
     extent = np.ptp(m.vertices, axis=0).max()
-    steps = {}
+    steps, strides = {}, {}
     for weight in (1e-3, 1e-5, 1e-7):
         w = weight / m.mean_edge_length**2
         d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
@@ -1266,6 +1267,7 @@ def test_two_grid_on_cylinders_and_tori(monkeypatch, kind):
                           _topology=m.topology)
         x = s.solve(m.vertices[free])
         assert isinstance(s._cg[1], TwoGrid) and s._cg[1].sweeps.columns is False and s.residual <= 1e-9
+        strides[weight] = s._cg[1].strides
         assert np.abs(x - d).max() <= 1e-8 * extent, weight
         steps[weight] = s.iterations
         if weight == 1e-5:
@@ -1274,6 +1276,10 @@ def test_two_grid_on_cylinders_and_tori(monkeypatch, kind):
             gs.solve(m.vertices[free])
             assert gs.iterations > 2 * s.iterations, (gs.iterations, s.iterations)
     assert steps[1e-7] <= 1.5 * steps[1e-3], steps
+    # the cylinder's edges around are 2.5 times those along, the torus's around its axis 2.4 times those around
+    # its tube (on average): the couplings along the rows are weak, so the coarse grid takes every 2nd vertex of a
+    # row (TWO_GRID_ANISOTROPY)
+    assert set(strides.values()) == {(4, 2)}, strides
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # a fresh process
     w = 1e-6 / m.mean_edge_length**2
     auto = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", _topology=m.topology)

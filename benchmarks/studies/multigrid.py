@@ -43,6 +43,9 @@ fair's error guard at tiny weights off (``ERROR_GUARD_CONTRAST = inf``: the resi
 (``--size`` rows of ``--size`` vertices around, radius 1, height 2) and ``--mesh torus`` (``--size`` × ``--size``)
 take the closed grids' path instead (compressed-row sweeps; the coarse lines closed around), with broadband
 noise of 0.2 edge lengths.
+``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
+"two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
+much weaker couplings), "two-grid, stride s" forces ``s`` along both axes.
 
 Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [--weights 0.001 0.01 0.1 0.3 3]
       python benchmarks/studies/multigrid.py --solver --size 300 --weights 0.3 0.001 0.0001 0.00001 0.000001
@@ -240,6 +243,8 @@ def main() -> None:
                     help="--solver: without fair's error guard at tiny weights (the residual stop alone)")
     ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus"], default="sheet",
                     help="--solver: the bench sheet (open grid), a cylinder or a torus (closed grids)")
+    ap.add_argument("--aspect", type=float, default=None,
+                    help="--mesh cylinder: the edges around this many times those along (default: radius 1)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
     args = ap.parse_args()
@@ -287,7 +292,7 @@ def solver_table(args: argparse.Namespace) -> None:
 
     compiled.wait()
     n = args.size
-    m = {"sheet": lambda: _common.noisy_grid(n, args.noise), "cylinder": lambda: _common.noisy_cylinder(n, n),
+    m = {"sheet": lambda: _common.noisy_grid(n, args.noise), "cylinder": lambda: _common.noisy_cylinder(n, n, aspect=args.aspect),
          "torus": lambda: _common.noisy_torus(n, n)}[args.mesh]()
     t = m.topology
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
@@ -295,7 +300,7 @@ def solver_table(args: argparse.Namespace) -> None:
     if args.no_guard:
         fairing.ERROR_GUARD_CONTRAST = float("inf")
     kinds = ([("Gauss–Seidel", "gauss-seidel", None)] + [(f"two-grid, stride {s}", "two-grid", s) for s in args.strides]
-             + [("auto", "auto", None)])
+             + [("two-grid, its strides", "two-grid", None), ("auto", "auto", None)])
     what = f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet" else f"{n}×{n} {args.mesh}, broadband noise"
     print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
           f"from the {'direct solve' if n <= 450 else 'Gauss–Seidel solve to rtol 1e-12'} / extent\n")
@@ -324,9 +329,11 @@ def solver_table(args: argparse.Namespace) -> None:
 
 def _strided(base: type, stride: int) -> type:
     """``base`` (TwoGrid) at ``stride``, as fair() constructs it (a subclass, so fair's type checks still hold)."""
+    given = stride
+
     class Strided(base):  # type: ignore[valid-type, misc]
-        def __init__(self, blocks, shape, moving, wrap=(False, False)):  # type: ignore[no-untyped-def]
-            super().__init__(blocks, shape, moving, stride=stride, wrap=wrap)
+        def __init__(self, blocks, shape, moving, stride=None, wrap=(False, False)):  # type: ignore[no-untyped-def]
+            super().__init__(blocks, shape, moving, stride=given, wrap=wrap)  # (the solver's choice replaced)
     return Strided
 
 

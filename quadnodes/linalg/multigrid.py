@@ -46,6 +46,14 @@ __all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_inter
 TWO_GRID_STRIDE = 4
 
 
+def _per_axis(stride: int | tuple[int, int]) -> tuple[int, int]:
+    """``(rows', cols')`` strides from one stride or a pair."""
+    if np.ndim(stride) == 0:
+        return int(stride), int(stride)  # type: ignore[arg-type]
+    sr, sc = stride  # type: ignore[misc]
+    return int(sr), int(sc)
+
+
 def coarse_nodes(n: int, stride: int, closed: bool = False) -> np.ndarray:
     """The coarse nodes of a line of ``n`` nodes: ``0, stride, 2·stride, …`` and ``n − 1`` (closed: without it).
 
@@ -146,7 +154,7 @@ def cubic_interpolation(n: int, stride: int, closed: bool = False) -> sp.csr_mat
     return P
 
 
-def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | None = None,
+def grid_interpolation(rows: int, cols: int, stride: int | tuple[int, int], moving: np.ndarray | None = None,
                        wrap: tuple[bool, bool] = (False, False)) -> sp.csr_matrix:
     """The ``(rows·cols, m)`` tensor-product :func:`cubic_interpolation` of a grid numbered row after row.
 
@@ -154,8 +162,8 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
     ----------
     rows, cols : int
         The fine grid's shape; vertex ``i·cols + j`` is at row ``i``, column ``j``.
-    stride : int
-        Fine rows and columns per coarse interval (≥ 2).
+    stride : int or (int, int)
+        Fine rows and columns per coarse interval (≥ 2), or one per axis ``(rows', cols')``.
     moving : (rows·cols,) bool, optional
         The vertices a correction may move; the others' rows are zero (a fixed vertex stays put).
     wrap : (bool, bool)
@@ -178,8 +186,8 @@ def grid_interpolation(rows: int, cols: int, stride: int, moving: np.ndarray | N
     >>> grid_interpolation(5, 9, 4).shape  # coarse rows 0, 4; coarse columns 0, 4, 8
     (45, 6)
     """
-    P = sp.kron(cubic_interpolation(rows, stride, wrap[0]), cubic_interpolation(cols, stride, wrap[1]),
-                format="csr")
+    sr, sc = _per_axis(stride)
+    P = sp.kron(cubic_interpolation(rows, sr, wrap[0]), cubic_interpolation(cols, sc, wrap[1]), format="csr")
     if moving is not None:
         P = (sp.diags(np.asarray(moving, dtype=np.float64)) @ P).tocsr()
         P.eliminate_zeros()
@@ -206,8 +214,10 @@ class TwoGrid:
         ``(rows, cols)`` of the grid.
     moving : (rows·cols,) bool
         The free vertices (the coarse correction moves no other).
-    stride : int
-        Coarse grid spacing (:data:`TWO_GRID_STRIDE`).
+    stride : int or (int, int)
+        Coarse grid spacing (:data:`TWO_GRID_STRIDE`), or one per axis ``(rows', cols')``: an
+        anisotropic matrix (couplings much weaker along one axis) wants a finer coarse grid along the weak
+        axis, where the point sweeps leave the error rough.
     wrap : (bool, bool)
         ``(wrap_rows, wrap_cols)``: whether the grid's columns and its rows close around
         (:func:`grid_interpolation`); the sweeps are then the compressed rows'.
@@ -223,6 +233,8 @@ class TwoGrid:
         ``PᵀMP`` (plus 1e-10 of its diagonal) factorized.
     sweeps : SymmetricGaussSeidel or CsrGaussSeidel
         The smoother.
+    strides : (int, int)
+        The coarse grid's spacing along the rows' and the columns' axis.
     shape : (int, int)
     moving : (n,) float64
         1 at the free vertices, 0 at the fixed ones.
@@ -256,18 +268,20 @@ class TwoGrid:
     whole = True  # (block_cg applies it to all rows at once)
 
     def __init__(self, blocks: object, shape: tuple[int, int], moving: np.ndarray,
-                 stride: int = TWO_GRID_STRIDE, wrap: tuple[bool, bool] = (False, False)) -> None:
+                 stride: int | tuple[int, int] = TWO_GRID_STRIDE, wrap: tuple[bool, bool] = (False, False)) -> None:
         rows, cols = (int(v) for v in shape)
         M = blocks.M.tocsr()  # type: ignore[attr-defined]
         n = M.shape[0]
         if rows * cols != n:
             raise ValueError(f"shape: {rows} × {cols} grid does not match the matrix's {n} rows")
-        if min(rows, cols) <= stride:
+        self.strides = _per_axis(stride)
+        if rows <= self.strides[0] or cols <= self.strides[1]:
             raise ValueError(f"shape: a {rows} × {cols} grid has no coarse grid at stride {stride}")
         wrap = (bool(wrap[0]), bool(wrap[1]))
-        self.lines = (cubic_interpolation(rows, stride, wrap[0]), cubic_interpolation(cols, stride, wrap[1]))
+        self.lines = (cubic_interpolation(rows, self.strides[0], wrap[0]),
+                      cubic_interpolation(cols, self.strides[1], wrap[1]))
         self.lines_t = tuple(L.T.tocsr() for L in self.lines)
-        self.P = grid_interpolation(rows, cols, stride, moving, wrap)
+        self.P = grid_interpolation(rows, cols, self.strides, moving, wrap)
         # the grid's fast sweeps need an open grid's symmetric storage; the seams' diagonals take compressed rows
         fast = not any(wrap) and hasattr(blocks, "upper")
         self.sweeps = SymmetricGaussSeidel(blocks) if fast else CsrGaussSeidel(blocks)
