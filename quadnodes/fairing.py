@@ -141,11 +141,11 @@ TWO_GRID_AFTER = 300
 TWO_GRID_REMAINING = 700
 #: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
 #: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the
-#: other axis's: there the point sweeps leave the error rough. On 200² cylinders whose edges around are 2 and 6
-#: times those along (couplings 3.2 and 13 times weaker) the steps at ω = 10⁻⁵ fell from 117 and 221 to 74 and
-#: 78, the time by 8 % and 45 %; at 1.5 times (couplings 2.0 times weaker) a finer coarse grid cost more than the
-#: steps it saved (2.27 against 1.80 s) (a throwaway script, the cylinders of ``--mesh cylinder`` with their
-#: radius set; ``python benchmarks/studies/multigrid.py --solver --mesh cylinder --size 300``).
+#: other axis's: there the point sweeps leave the error rough. On 200² cylinders at ω = 10⁻⁵ whose edges around
+#: are 2 and 6 times those along the steps fell from 117 and 221 to 74 and 78 (1.90 to 1.60 s, 3.09 to
+#: 1.66 s); at 1.5 times it keeps 4 (101 steps)
+#: (``python benchmarks/studies/multigrid.py --solver --mesh cylinder --size 200 --aspect 2 --weights 0.00001
+#: --strides 4``, and ``--aspect 6``, ``--aspect 1.5``; on 300² cylinders and tori, ``docs/fairing.md``).
 TWO_GRID_ANISOTROPY = 2.5
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
