@@ -948,7 +948,8 @@ class FairingSystem:
                 offsets, data = grid_storage()
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
                 shape, wrap = (data.shape[1] // cols, cols), self._grid[0].wrap
-                strides = _two_grid_strides(offsets, data, self._grid[2])
+                if self.preconditioner == "two-grid" or contrast > TWO_GRID_CONTRAST:  # (only where it may be used)
+                    strides = _two_grid_strides(offsets, data, self._grid[2])
             # "auto" at a tiny weight on a grid with a small enough coarse grid: Gauss–Seidel first, the two-grid
             # cycle if it is slow; the kernels pay for that at any size
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None
