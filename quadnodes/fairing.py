@@ -541,14 +541,14 @@ def grid_pattern(topology: object) -> GridPattern | None:
     return pattern
 
 
-def _two_grid_strides(offsets: np.ndarray, data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
+def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
     """The two-grid cycle's ``(rows', cols')`` strides for a grid's diagonal storage (:data:`TWO_GRID_ANISOTROPY`).
 
-    ``offsets[10]`` is ``cols``; the mean magnitude of the ``+cols`` and ``+1`` diagonals over the free vertices
-    measures the couplings along the rows' and the columns' axis.
+    The grid's first 13 offsets are ``-3c, -2c, -c, -3 … 3, c, 2c, 3c``: the mean magnitude of the ``+c`` (slot 10)
+    and ``+1`` (slot 7) diagonals over the free vertices measures the couplings along the rows' and the
+    columns' axis.
     """
-    cols = int(offsets[10])
-    along = [float(np.abs(data[int(np.flatnonzero(offsets == step)[0])][free]).mean()) for step in (cols, 1)]
+    along = [float(np.abs(data[slot][free]).mean()) for slot in (10, 7)]
     half = TWO_GRID_STRIDE // 2
     return (half if along[0] * TWO_GRID_ANISOTROPY < along[1] else TWO_GRID_STRIDE,
             half if along[1] * TWO_GRID_ANISOTROPY < along[0] else TWO_GRID_STRIDE)
@@ -695,7 +695,7 @@ class _SwitchCheck:
 
     def __call__(self, step: int, residual: float) -> bool:
         self.logs.append(float(np.log(max(residual, 1e-300))))
-        if step < TWO_GRID_AFTER or step % TWO_GRID_AFTER or len(self.logs) < 110:
+        if step < TWO_GRID_AFTER or step % TWO_GRID_AFTER:  # (one log a step: step ≥ 300 of them, 110 needed)
             return False
         now, before = np.mean(self.logs[-10:]), np.mean(self.logs[-110:-100])
         rate = (now - before) / 100.0  # (log of the residual per step: negative while it falls)
@@ -949,7 +949,7 @@ class FairingSystem:
                 cols = int(offsets[10])  # (offsets: -3c, -2c, -c, -3 … 3, c, 2c, 3c[, across the seams])
                 shape, wrap = (data.shape[1] // cols, cols), self._grid[0].wrap
                 if self.preconditioner == "two-grid" or contrast > TWO_GRID_CONTRAST:  # (only where it may be used)
-                    strides = _two_grid_strides(offsets, data, self._grid[2])
+                    strides = _two_grid_strides(data, self._grid[2])
             # "auto" at a tiny weight on a grid with a small enough coarse grid: Gauss–Seidel first, the two-grid
             # cycle if it is slow; the kernels pay for that at any size
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None

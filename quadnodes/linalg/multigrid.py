@@ -187,7 +187,12 @@ def grid_interpolation(rows: int, cols: int, stride: int | tuple[int, int], movi
     (45, 6)
     """
     sr, sc = _per_axis(stride)
-    P = sp.kron(cubic_interpolation(rows, sr, wrap[0]), cubic_interpolation(cols, sc, wrap[1]), format="csr")
+    return _tensor(cubic_interpolation(rows, sr, wrap[0]), cubic_interpolation(cols, sc, wrap[1]), moving)
+
+
+def _tensor(rows_p: sp.csr_matrix, cols_p: sp.csr_matrix, moving: np.ndarray | None) -> sp.csr_matrix:
+    """``rows_p ⊗ cols_p`` with the rows of the vertices that do not move zero."""
+    P = sp.kron(rows_p, cols_p, format="csr")
     if moving is not None:
         P = (sp.diags(np.asarray(moving, dtype=np.float64)) @ P).tocsr()
         P.eliminate_zeros()
@@ -281,7 +286,7 @@ class TwoGrid:
         self.lines = (cubic_interpolation(rows, self.strides[0], wrap[0]),
                       cubic_interpolation(cols, self.strides[1], wrap[1]))
         self.lines_t = tuple(L.T.tocsr() for L in self.lines)
-        self.P = grid_interpolation(rows, cols, self.strides, moving, wrap)
+        self.P = _tensor(*self.lines, moving)  # (grid_interpolation's, from the factors already made)
         # the grid's fast sweeps need an open grid's symmetric storage; the seams' diagonals take compressed rows
         fast = not any(wrap) and hasattr(blocks, "upper")
         self.sweeps = SymmetricGaussSeidel(blocks) if fast else CsrGaussSeidel(blocks)
