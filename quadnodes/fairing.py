@@ -36,7 +36,7 @@ from .linalg import compiled as kernels
 from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, gauss_seidel_cg
 from .linalg.grid import GridPattern
 from .linalg.heap import reused_heap
-from .linalg.multigrid import TWO_GRID_STRIDE, TwoGrid, coarse_nodes
+from .linalg.multigrid import TWO_GRID_STRIDE, LineTwoGrid, TwoGrid, coarse_nodes, line_interpolation
 from .linalg.threads import RowBlocks
 from .progress import report_progress
 from .mesh import QuadMesh
@@ -147,6 +147,7 @@ TWO_GRID_REMAINING = 700
 #: (``python benchmarks/studies/multigrid.py --solver --mesh cylinder --size 200 --aspect 2 --weights 0.00001
 #: --strides 4``, and ``--aspect 6``, ``--aspect 1.5``; on 300² cylinders and tori, ``docs/fairing.md``).
 TWO_GRID_ANISOTROPY = 2.5
+_LINES = "lines"  # (FairingSystem._switch_to on a mesh that is no grid: the structure lines' two-grid cycle)
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -952,10 +953,13 @@ class FairingSystem:
                     strides = _two_grid_strides(data, self._grid[2])
             # "auto" at a tiny weight on a grid with a small enough coarse grid: Gauss–Seidel first, the two-grid
             # cycle if it is slow; the kernels pay for that at any size
-            may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and shape is not None
-                          and min(shape) > TWO_GRID_MIN_SIDE
-                          and np.prod([coarse_nodes(side, st, c).size for side, st, c in zip(shape, strides, wrap)])
-                          <= TWO_GRID_COARSE_MAX)
+            may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST
+            if may_switch and shape is not None:
+                may_switch = (min(shape) > TWO_GRID_MIN_SIDE and TWO_GRID_COARSE_MAX
+                              >= np.prod([coarse_nodes(side, st, c).size for side, st, c in zip(shape, strides, wrap)]))
+            elif may_switch:  # any other mesh: coarse nodes along its structure lines, about one in TWO_GRID_STRIDE²
+                may_switch = (not grid and self._lines is not None
+                              and TWO_GRID_MIN_SIDE**2 < k <= TWO_GRID_COARSE_MAX * TWO_GRID_STRIDE**2)
             wanted = wanted or may_switch
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
             if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST)) \
@@ -963,11 +967,15 @@ class FairingSystem:
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
                 # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights on
                 # a grid, the two-grid cycle around those sweeps.
-                if self.preconditioner == "two-grid" and not grid:
-                    raise InputError("preconditioner='two-grid' needs a vertex grid (mostly free; open, a cylinder "
-                                     "or a torus); use 'auto'")
-                if not grid:
-                    return self._gauss_seidel(RowBlocks(self.matrix), CsrGaussSeidel)
+                if not grid:  # any other mesh: the cycle's coarse nodes along its structure lines
+                    if self.preconditioner == "two-grid" and self._lines is None:
+                        raise InputError("preconditioner='two-grid' needs the mesh's structure lines; use 'auto'")
+                    rows = RowBlocks(self.matrix)
+                    if self.preconditioner == "two-grid":
+                        return self._two_grid(rows, _LINES)
+                    if may_switch:
+                        self._switch_to = _LINES
+                    return self._gauss_seidel(rows, CsrGaussSeidel)
                 offsets, data = grid_storage()
                 blocks = SymmetricDiagonalBlocks(offsets, data) if open_grid else DiagonalBlocks(offsets, data)
                 if self.preconditioner == "two-grid":
@@ -1007,22 +1015,44 @@ class FairingSystem:
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
     #: (set by _cg_setup where "auto" may switch to the two-grid cycle: the grid's (rows, cols), its wrap and
-    #: the cycle's strides)
-    _switch_to: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | None = None
+    #: the cycle's strides; on any other mesh ``_LINES``)
+    _switch_to: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | str | None = None
 
-    def _two_grid(self, blocks: DiagonalBlocks,
-                  grid: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]]) -> tuple:
-        """``self._cg`` with the two-grid cycle on ``blocks``, a grid of ``grid = ((rows, cols), (wrap_rows,
-        wrap_cols), (rows' stride, cols' stride))``."""
-        shape, wrap, strides = grid
+    def _two_grid(self, blocks: RowBlocks,
+                  grid: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | str) -> tuple:
+        """``self._cg`` with the two-grid cycle on ``blocks``: a grid's (:class:`~quadnodes.linalg.multigrid.TwoGrid`)
+        for ``grid = ((rows, cols), (wrap_rows, wrap_cols), (rows' stride, cols' stride))``, else (``_LINES``)
+        the structure lines' (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`)."""
         try:
-            self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], stride=strides, wrap=wrap), None)
+            if grid == _LINES:
+                self._cg = (blocks, LineTwoGrid(blocks, self._line_prolongation()), None)
+            else:
+                shape, wrap, strides = grid
+                self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], stride=strides, wrap=wrap), None)
         except ValueError as exc:  # a grid too small for a coarse grid
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         self._switch_to = None
         return self._cg
+
+    def _line_prolongation(self) -> sp.csr_matrix:
+        """The unknowns' rows of :func:`~quadnodes.linalg.multigrid.line_interpolation` on the structure lines
+        (coarse nodes that reach no unknown dropped).
+
+        Raises
+        ------
+        InputError
+            When the coarse nodes exceed :data:`TWO_GRID_COARSE_MAX` (lines too tangled for a coarse space).
+        """
+        lines = self._lines
+        P = line_interpolation(lines.indices, lines.offsets, lines.closed,  # type: ignore[union-attr]
+                               self._n_vertices)[0][self.free_index]
+        P = P[:, np.flatnonzero(P.getnnz(axis=0))].tocsr()
+        if P.shape[1] > TWO_GRID_COARSE_MAX:
+            raise InputError(f"preconditioner='two-grid': {P.shape[1]} coarse nodes along the structure lines, more "
+                             f"than {TWO_GRID_COARSE_MAX}; use 'auto'")
+        return P
 
     def _gauss_seidel(self, blocks: RowBlocks, kind: type) -> tuple:
         """``self._cg`` with symmetric Gauss–Seidel of ``kind`` on ``blocks``."""
@@ -1075,7 +1105,7 @@ class FairingSystem:
                 shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
                 x0 = a_cg - c
             rtol = self.rtol * (GAUSS_SEIDEL_RTOL if getattr(precond, "eisenstat", False)
-                                else TWO_GRID_RTOL if isinstance(precond, TwoGrid) else 1.0)
+                                else TWO_GRID_RTOL if isinstance(precond, (TwoGrid, LineTwoGrid)) else 1.0)
             guard = np.inf  # ‖e‖₂ ≤ ‖r‖₂ / ω: at tiny weights keep the RMS error within ERROR_RMS of the extent
             if self._contrast > ERROR_GUARD_CONTRAST:
                 extent = float(np.ptp(a, axis=0).max())

@@ -1237,8 +1237,8 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
                          _topology=m.topology)
     auto.solve(m.vertices[held])
     assert isinstance(auto._cg[1], SymmetricGaussSeidel) and auto.iterations < fairing_module.TWO_GRID_AFTER
-    t = torus(24, 40, major=800.0, minor=200.0)  # without its topology (_topology): no grid path, refused
-    with pytest.raises(InputError, match="two-grid.*needs a vertex grid"):
+    t = torus(24, 40, major=800.0, minor=200.0)  # neither its grid (_topology) nor its lines (_lines): refused
+    with pytest.raises(InputError, match="two-grid.*needs the mesh's structure lines"):
         FairingSystem(t.vertices, t.topology.windows, t.topology.window_middle, 1e-9, solver="cg",
                       preconditioner="two-grid")._cg_setup()
 
@@ -1287,6 +1287,63 @@ def test_two_grid_on_cylinders_and_tori(monkeypatch, kind):
     assert isinstance(auto._cg[1], TwoGrid) and auto.iterations > fairing_module.TWO_GRID_AFTER
     d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
     assert np.abs(x - d).max() <= 1e-8 * extent
+
+
+@pytest.mark.parametrize("kind", ["extraordinary", "holed, boundary fixed", "rounded_box"])
+def test_two_grid_on_meshes_that_are_no_grid(monkeypatch, kind):
+    """A mesh that is no grid (extraordinary vertices, a hole with its boundary fixed, a closed box) takes the
+    two-grid cycle on coarse nodes along its structure lines (LineTwoGrid): within 1e-8 of the mesh's size of the
+    direct solve from 1e-3 down to 1e-7 on one and two threads, the fixed vertices put, steps that do not grow as
+    Gauss–Seidel's; "auto" at 1e-6 switches to it where Gauss–Seidel is slow, in a fresh process too."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.io import load
+    from quadnodes.linalg.multigrid import LineTwoGrid
+
+    if kind == "extraordinary":
+        base = extraordinary_mesh(4)
+    elif kind == "rounded_box":
+        base = load(Path(__file__).parent / "data" / "rounded_box.obj")
+    else:
+        base = l_shape_with_hole(50)
+    rng = np.random.default_rng(12)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
+    free = m.topology.window_middle.copy()
+    if kind.endswith("fixed"):
+        free &= ~m.topology.boundary_vertices
+    lines = m.topology.structure_lines
+    extent = np.ptp(m.vertices, axis=0).max()
+    steps = {}
+    for threads in (1, 2):
+        if threads > 1:
+            monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+            monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+        for weight in (1e-3, 1e-5, 1e-7):
+            w = weight / m.mean_edge_length**2
+            d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+            s = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", preconditioner="two-grid",
+                              _lines=lines)
+            x = s.solve(m.vertices[free])
+            assert isinstance(s._cg[1], LineTwoGrid) and s.residual <= 1e-9
+            assert np.abs(x - d).max() <= 1e-8 * extent, (threads, weight)
+            steps[threads, weight] = s.iterations
+        assert steps[threads, 1e-7] <= 1.5 * steps[threads, 1e-3] + 5, steps
+    gs = FairingSystem(m.vertices, m.topology.windows, free, 1e-7 / m.mean_edge_length**2, solver="cg",
+                       preconditioner="gauss-seidel", _lines=lines)
+    gs.solve(m.vertices[free])
+    assert gs.iterations > 1.5 * steps[2, 1e-7], (gs.iterations, steps)
+    if kind.startswith("holed"):  # Gauss–Seidel needs thousands of steps here at 1e-6: "auto" switches
+        held = m.topology.boundary_vertices  # (the public path, fair(), one solve: equal to the direct one, held put)
+        faired = [fair(m, weight=1e-6, threshold=0.0, fix="boundary", solver=solver, line_curvature="fair")[0].vertices
+                  for solver in ("cg", "direct")]
+        assert np.array_equal(faired[0][held], m.vertices[held])
+        assert np.abs(faired[0] - faired[1]).max() <= 1e-8 * extent
+        monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # (a fresh process: loads the kernels)
+        w = 1e-6 / m.mean_edge_length**2
+        auto = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", _lines=lines)
+        x = auto.solve(m.vertices[free])
+        assert isinstance(auto._cg[1], LineTwoGrid) and auto.iterations > fairing_module.TWO_GRID_AFTER
+        d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+        assert np.abs(x - d).max() <= 1e-8 * extent
 
 
 def test_switch_check_extrapolates_the_residuals_decay():

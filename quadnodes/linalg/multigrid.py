@@ -38,7 +38,8 @@ import scipy.sparse as sp
 from .direct import Factorization, factorize
 from .gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, backward_solve, forward_solve, sweep_scratch
 
-__all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "TwoGrid"]
+__all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "line_interpolation",
+           "TwoGrid", "LineTwoGrid"]
 
 #: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 18–23 steps but
 #: factorizes a quarter of the unknowns (4.2–6.5 s in all); 4 takes 77–107 steps (1.7–2.4 s); 8 takes 289–650
@@ -81,6 +82,17 @@ def coarse_nodes(n: int, stride: int, closed: bool = False) -> np.ndarray:
     """
     coarse = np.arange(0, n, stride)
     return coarse if closed or coarse[-1] == n - 1 else np.append(coarse, n - 1)
+
+
+def _lagrange(t: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """``(E, taps)`` Lagrange weights at positions ``t`` (``(E,)``) through the nodes ``xs`` (``(E, taps)``, distinct)."""
+    taps = xs.shape[1]
+    weights = np.ones(xs.shape)
+    for a in range(taps):
+        for b in range(taps):
+            if b != a:
+                weights[:, a] *= (t - xs[:, b]) / (xs[:, a] - xs[:, b])
+    return weights
 
 
 def cubic_interpolation(n: int, stride: int, closed: bool = False) -> sp.csr_matrix:
@@ -142,12 +154,7 @@ def cubic_interpolation(n: int, stride: int, closed: bool = False) -> sp.csr_mat
         first = np.clip(left - (taps // 2 - 1), 0, m - taps)
         cols = first[:, None] + np.arange(taps)  # (n, taps)
         xs = coarse[cols].astype(np.float64)
-    t = i[:, None].astype(np.float64)
-    weights = np.ones((n, taps))
-    for a in range(taps):
-        for b in range(taps):
-            if b != a:
-                weights[:, a] *= (t[:, 0] - xs[:, b]) / (xs[:, a] - xs[:, b])
+    weights = _lagrange(i.astype(np.float64), xs)
     P = sp.csr_matrix((weights.ravel(), cols.ravel(), np.arange(0, n * taps + 1, taps)), shape=(n, m))
     P.sum_duplicates()
     P.eliminate_zeros()  # (at a coarse node every other tap is an exact 0)
@@ -199,7 +206,310 @@ def _tensor(rows_p: sp.csr_matrix, cols_p: sp.csr_matrix, moving: np.ndarray | N
     return P
 
 
-class TwoGrid:
+def _along_lines(line: np.ndarray, pos: np.ndarray, lengths: np.ndarray, closed: np.ndarray, knot: np.ndarray,
+                 target: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Interpolation along lines from their knots: ``(entries, knot entries, weights)``, one triple per tap.
+
+    ``line``, ``pos``: every entry's line and position on it (entries in line order, positions ascending);
+    ``knot``, ``target``: ``(S,)`` bool, the entries that are knots and those to interpolate. Each target
+    entry takes the Lagrange polynomial through the (up to) four knots of its line nearest it, two on each
+    side where there are (as :func:`cubic_interpolation`; on a closed line counted across the seam, which
+    needs at least 4 knots: a closed line with fewer gives nothing). An open line's ends must be knots.
+    """
+    n_lines = lengths.size
+    q = np.bincount(line[knot], minlength=n_lines)  # knots per line
+    kentry = np.flatnonzero(knot)
+    kstart = np.zeros(n_lines + 1, dtype=np.int64)
+    np.cumsum(q, out=kstart[1:])
+    left = np.cumsum(knot) - 1 - kstart[line]  # the line's knot at or before each entry (closed: −1 before the first)
+    e = np.flatnonzero(target)
+    ring = closed[line[e]]
+    taps_of = np.where(ring, np.where(q[line[e]] >= 4, 4, 0), np.minimum(q[line[e]], 4))
+    parts = []
+    for taps in (1, 2, 3, 4):
+        for wrap in (False, True):
+            sel = e[(taps_of == taps) & (ring == wrap)]
+            if not sel.size:
+                continue
+            ln = line[sel]
+            qq = q[ln][:, None]
+            if wrap:
+                around = left[sel][:, None] - 1 + np.arange(4)
+                knots = kentry[kstart[ln][:, None] + around % qq]
+                xs = pos[knots] + lengths[ln][:, None] * np.floor_divide(around, qq)
+            else:
+                first = np.clip(left[sel] - (taps // 2 - 1), 0, q[ln] - taps)
+                knots = kentry[kstart[ln][:, None] + first[:, None] + np.arange(taps)]
+                xs = pos[knots]
+            weights = _lagrange(pos[sel].astype(np.float64), xs.astype(np.float64))
+            parts.append((np.repeat(sel, taps), knots.ravel(), weights.ravel()))
+    if not parts:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
+    return tuple(np.concatenate(a) for a in zip(*parts))  # type: ignore[return-value]
+
+
+def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndarray, n: int,
+                       stride: int = TWO_GRID_STRIDE) -> tuple[sp.csr_matrix, np.ndarray]:
+    """A coarse space for nodes on lines that cross (a quad mesh's structure lines): every ``stride``-th line kept.
+
+    The nodes lie on lines (every node on two that cross it, except where lines end); two lines are
+    *side by side* where consecutive nodes of a third lie one on each. On a grid this is
+    :func:`grid_interpolation` without the grid:
+
+    1. **Kept lines.** A line through a node where another line ends (a boundary's, or one from an
+       extraordinary node: the lines that cut the nodes into grid-like patches) is a seed, and so is
+       the first line of every family of side-by-side lines without one (a torus's loops). A line
+       is kept when its distance from the nearest seed, counted in side-by-side steps, is a multiple
+       of ``stride``.
+    2. **Coarse nodes.** Where two kept lines cross, a kept line's ends, any line's end on no kept
+       line (an extraordinary node), and enough nodes on each kept line that no two consecutive ones
+       are more than ``stride`` apart (a closed kept line gets at least 4, or is coarse throughout).
+    3. **Along the kept lines**, every other node is interpolated from the line's coarse nodes by
+       the cubic Lagrange polynomial in the position along the line (two coarse nodes on each side;
+       :func:`cubic_interpolation`'s rule, with uneven spacing).
+    4. **Between them**, a node on no kept line is interpolated the same way along each of its lines
+       from the nodes of that line that lie on kept lines (their values from step 3), and the lines'
+       results are averaged.
+
+    On an open grid the rows' and the columns' results are the same tensor product, so ``P``
+    reproduces every ``iᵃ jᵇ`` (``a, b ≤ 3``) as :func:`grid_interpolation` does; on any mesh each
+    row of ``P`` sums to 1 (a node that no line interpolates, on a closed line with too few
+    knots and no other line, keeps a zero row).
+
+    Parameters
+    ----------
+    indices : (S,) int64
+        The nodes of every line, one line after another (``StructureLines.indices``).
+    offsets : (L + 1,) int64
+        Line ``i`` is ``indices[offsets[i]:offsets[i + 1]]``.
+    closed : (L,) bool
+        Whether each line closes around (its last node beside its first).
+    n : int
+        Number of nodes (every index below it).
+    stride : int
+        Side-by-side steps between kept lines, and the longest gap between coarse nodes along one (≥ 2).
+
+    Returns
+    -------
+    P : (n, m) scipy.sparse.csr_matrix
+        The prolongation: row ``v`` gives node ``v``'s value from the ``m`` coarse nodes' values.
+    coarse : (m,) int64
+        The coarse nodes, ascending (``P[coarse]`` is the identity).
+
+    Raises
+    ------
+    ValueError
+        When ``stride`` is below 2 or the lines' arrays disagree.
+
+    Examples
+    --------
+    >>> from quadnodes.mesh import grid
+    >>> from quadnodes.topology import structure_lines
+    >>> lines = structure_lines(grid(9, 9))  # 9 × 9 nodes: rows and columns 0, 4 and 8 kept
+    >>> P, coarse = line_interpolation(lines.indices, lines.offsets, lines.closed, 81)
+    >>> coarse.tolist()
+    [0, 4, 8, 36, 40, 44, 72, 76, 80]
+    >>> i, j = np.divmod(np.arange(81), 9)
+    >>> bool(np.allclose(P @ (i * j**2)[coarse], i * j**2))
+    True
+    """
+    from scipy.sparse.csgraph import connected_components, dijkstra
+
+    if stride < 2:
+        raise ValueError(f"line_interpolation: expected stride >= 2, got {stride}")
+    indices = np.asarray(indices, dtype=np.int64)
+    offsets = np.asarray(offsets, dtype=np.int64)
+    closed = np.asarray(closed, dtype=bool)
+    lengths = np.diff(offsets)
+    n_lines = lengths.size
+    if closed.shape != (n_lines,) or offsets[0] != 0 or offsets[-1] != indices.size or (lengths < 1).any() \
+            or (indices.size and not 0 <= indices.min() <= indices.max() < n):
+        raise ValueError("line_interpolation: indices, offsets and closed do not describe lines of nodes 0 … n − 1")
+    S = indices.size
+    line = np.repeat(np.arange(n_lines), lengths)
+    pos = np.arange(S) - offsets[line]
+    ring = closed[line]
+    end = ~ring & ((pos == 0) | (pos == lengths[line] - 1))
+    lines_at = np.bincount(indices, minlength=n)
+
+    # 1. seeds: lines through a node where another line ends; side-by-side lines from nodes on exactly two lines
+    seed = np.zeros(n_lines, dtype=bool)
+    seed[line[np.bincount(indices[end], minlength=n)[indices] > end]] = True
+    order = np.argsort(indices, kind="stable")
+    sorted_nodes = indices[order]
+    pair = np.flatnonzero((sorted_nodes[:-1] == sorted_nodes[1:]) & (lines_at[sorted_nodes[:-1]] == 2))
+    other = np.full(S, -1, dtype=np.int64)  # the other line through each entry's node
+    other[order[pair]], other[order[pair + 1]] = line[order[pair + 1]], line[order[pair]]
+    nxt = np.arange(1, S + 1)
+    last = pos == lengths[line] - 1
+    nxt[last] = offsets[line[last]]  # (a closed line's last node is beside its first; an open one's pair dropped)
+    step = ~(last & ~ring) & (other >= 0) & (other[nxt % max(S, 1)] >= 0)
+    a, b = other[step], other[nxt[step]]
+    keep_pair = a != b
+    G = sp.coo_matrix((np.ones(int(keep_pair.sum())), (a[keep_pair], b[keep_pair])), shape=(n_lines, n_lines)).tocsr()
+    n_comp, label = connected_components(G, directed=False)
+    seeded = np.zeros(n_comp, dtype=bool)
+    seeded[label[seed]] = True
+    first_line = np.full(n_comp, n_lines)
+    np.minimum.at(first_line, label, np.arange(n_lines))
+    seed[first_line[~seeded]] = True
+    distance = dijkstra(G, directed=False, indices=np.flatnonzero(seed), unweighted=True, min_only=True)
+    kept = np.isfinite(distance) & (np.rint(np.nan_to_num(distance, posinf=1)).astype(np.int64) % stride == 0)
+    # where two fronts meet (rows 8 and 15 of 24 at stride 4), a gap of up to 2·stride − 1 lines: keep its middle
+    wide = stride // 2 + 1  # (a line this far from every kept line lies in a gap of more than stride + 1)
+    rows_g, cols_g = G.nonzero()
+    while True:
+        gap = dijkstra(G, directed=False, indices=np.flatnonzero(kept), unweighted=True, min_only=True)
+        gap = np.nan_to_num(gap, posinf=-1)
+        ridge = gap >= wide
+        if not ridge.any():
+            break
+        # a ridge line with no ridge neighbour farther out, or as far but numbered lower, is kept
+        beaten = np.zeros(n_lines, dtype=bool)
+        rival = ridge[rows_g] & ridge[cols_g] & ((gap[cols_g] > gap[rows_g])
+                                                 | ((gap[cols_g] == gap[rows_g]) & (cols_g < rows_g)))
+        beaten[rows_g[rival]] = True
+        kept |= ridge & ~beaten
+
+    # 2. coarse nodes
+    on_kept = kept[line]
+    kept_at = np.bincount(indices[on_kept], minlength=n)
+    coarse = kept_at >= 2
+    coarse[indices[end & on_kept]] = True
+    ends = indices[end]
+    coarse[ends[kept_at[ends] == 0]] = True
+    lonely = kept & closed & (np.bincount(line[on_kept & coarse[indices]], minlength=n_lines) == 0)
+    coarse[indices[offsets[:-1][lonely]]] = True  # (a closed kept line no kept line crosses: its first node)
+    ke = np.flatnonzero(on_kept & coarse[indices])  # every kept line's coarse nodes, in line order
+    kl, kp = line[ke], pos[ke]
+    q = np.bincount(kl, minlength=n_lines)
+    kstart = np.r_[0, np.cumsum(q)[:-1]]
+    final = np.r_[kl[1:] != kl[:-1], True]
+    succ = np.where(final, kstart[kl], np.arange(ke.size) + 1)
+    gap = np.where(final, kp[succ] + lengths[kl] - kp, kp[succ] - kp)
+    wide = (~final | closed[kl]) & (gap > stride)
+    inserts = -(-gap[wide] // stride) - 1
+    g = np.repeat(np.flatnonzero(wide), inserts)
+    j = np.arange(g.size) - np.repeat(np.cumsum(inserts) - inserts, inserts) + 1
+    at = (kp[g] + np.rint(j * gap[g] / (np.repeat(inserts, inserts) + 1)).astype(np.int64)) % lengths[kl[g]]
+    coarse[indices[offsets[kl[g]] + at]] = True
+    q = np.bincount(line[on_kept & coarse[indices]], minlength=n_lines)
+    short = kept & closed & (q < 4)
+    coarse[indices[short[line]]] = True  # (a short closed kept line: coarse throughout)
+    nodes = np.flatnonzero(coarse)
+    m = nodes.size
+    column = np.full(n, -1, dtype=np.int64)
+    column[nodes] = np.arange(m)
+
+    # 3. along the kept lines
+    rows, knots, w = _along_lines(line, pos, lengths, closed, on_kept & coarse[indices], on_kept & ~coarse[indices])
+    P = sp.csr_matrix((np.r_[np.ones(m), w], (np.r_[nodes, indices[rows]], np.r_[np.arange(m), column[indices[knots]]])),
+                      shape=(n, m))
+    # 4. between them: along every other line from its nodes on kept lines, averaged over the lines
+    known = (kept_at > 0) | coarse
+    rows, knots, w = _along_lines(line, pos, lengths, closed, ~on_kept & known[indices],
+                                  ~on_kept & ~known[indices])
+    if rows.size:
+        fine = indices[rows]
+        lines_used = np.bincount(indices[np.unique(rows)], minlength=n)
+        W = sp.csr_matrix((w / lines_used[fine], (fine, indices[knots])), shape=(n, n))
+        P = P + W @ P
+    P = P.tocsr()
+    P.sum_duplicates()
+    P.eliminate_zeros()
+    return P, nodes
+
+
+class _Cycle:
+    """The symmetric two-grid cycle around Gauss–Seidel sweeps (see the module); subclasses give ``P``'s transfers."""
+
+    whole = True  # (block_cg applies it to all rows at once)
+    sweeps: SymmetricGaussSeidel | CsrGaussSeidel
+    coarse: Factorization
+    _n: int
+
+    def _factorize(self, M: sp.csr_matrix, P: sp.csr_matrix) -> None:
+        """``coarse``: ``PᵀMP`` factorized (with 1e-10 of its diagonal; an identity row where it is zero)."""
+        C = (P.T.tocsr() @ (M @ P)).tocsr()
+        # a coarse node whose every fine node is fixed: an identity row; and 1e-10 of the diagonal on all, for
+        # coarse nodes that see the same few free vertices (dependent columns of P: C only semidefinite; a
+        # residual restricted by Pᵀ has no part along them, so the shift changes nothing that P brings back)
+        diagonal = C.diagonal()
+        C = (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
+        self.coarse = factorize(C, kind="spd", what="two-grid coarse matrix")
+        self._buffers: dict = {}
+
+    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
+        """``Z = B⁻¹ R`` on all rows: the two-grid cycle of the module.
+
+        Parameters
+        ----------
+        R : (c, kp) or (kp, c) float64
+            Residuals, zero-padded past ``n`` (``block_cg``'s layout, ``columns``).
+        Z : (c, kp) or (kp, c) float64
+            Out: the preconditioned residuals (padding stays zero).
+        lo, hi : int
+            Ignored: applied to all rows at once (``whole``).
+        columns : bool
+            The layout: ``(c, kp)`` vectors (diagonal storage's, small compressed rows'), else ``(kp, c)``.
+        """
+        if self.sweeps.columns:  # the grid's sweeps take CG's (c, kp) vectors
+            self._cycle(R, Z, R.shape)
+            return
+        n = self._n  # compressed rows' sweeps take (n, c) vectors
+        if columns:
+            Zt = self._cycle(np.ascontiguousarray(R[:, :n].T), None, (n, R.shape[0]))
+            Z[:, :n] = Zt.T
+            Z[:, n:] = 0.0
+        else:  # (CG's (kp, c) vectors: the first n rows are the sweeps' layout)
+            Z[:n] = self._cycle(R[:n], None, (n, R.shape[1]))
+            Z[n:] = 0.0
+
+    def _cycle(self, R: np.ndarray, Z: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray:
+        """The cycle on vectors in the sweeps' layout (``Z`` None: into a buffer of its own, returned)."""
+        sw, n = self.sweeps, self._n
+        if self._buffers.get("shape") != shape:  # (one set per vector shape: CG applies it every step)
+            if sw.columns:  # (c, kp)
+                scale = np.zeros(shape[1])
+                scale[:n] = sw.scale
+                c = shape[0]
+            else:  # (n, c)
+                scale, c = sw.scale[:, None], shape[1]
+            self._buffers = {"shape": shape, "scale": scale,
+                             "vectors": [np.zeros(shape) for _ in range(5 if sw.columns else 6)],
+                             "scratch": sweep_scratch(sw, c)}
+        s = self._buffers["scale"]
+        V, X, Y, T, nothing = self._buffers["vectors"][:5]  # (nothing: never written, read as zeros)
+        Z = self._buffers["vectors"][5] if Z is None else Z  # (compressed rows: a buffer of its own)
+        scratch = self._buffers["scratch"]
+
+        def fine(A: np.ndarray) -> np.ndarray:  # (c, ≥ n) rows of fine vectors: restrict's and prolong's view
+            return A if sw.columns else A.T
+
+        def residual() -> None:  # Y = R − M X
+            sw.product(X, Y)
+            np.subtract(R, Y, out=Y)
+
+        np.multiply(R, s, out=V)  # x = (D + L)⁻¹ r = D^{-1/2} (I + L̃)⁻¹ D^{-1/2} r
+        forward_solve(sw, V, nothing, T, scratch)
+        np.multiply(T, s, out=X)
+        residual()
+        self.prolong(self.coarse.solve(self.restrict(fine(Y))), fine(X))
+        residual()
+        np.multiply(Y, s, out=V)  # x += (D + U)⁻¹ (r − M x)
+        backward_solve(sw, V, Y, T, scratch)  # (Y, spent, takes a copy of V)
+        np.multiply(T, s, out=Z)
+        Z += X
+        return Z
+
+    def restrict(self, Y: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def prolong(self, E: np.ndarray, X: np.ndarray) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+class TwoGrid(_Cycle):
     """The symmetric two-grid cycle of a grid's matrix in diagonal storage, made once (see the module).
 
     Passed to :func:`~quadnodes.linalg.cg.block_cg` as ``precond`` (applied to all rows at once);
@@ -270,7 +580,6 @@ class TwoGrid:
     (True, True)
     """
 
-    whole = True  # (block_cg applies it to all rows at once)
 
     def __init__(self, blocks: object, shape: tuple[int, int], moving: np.ndarray,
                  stride: int | tuple[int, int] = TWO_GRID_STRIDE, wrap: tuple[bool, bool] = (False, False)) -> None:
@@ -292,15 +601,8 @@ class TwoGrid:
         self.sweeps = SymmetricGaussSeidel(blocks) if fast else CsrGaussSeidel(blocks)
         self.shape = (rows, cols)
         self.moving = np.asarray(moving, dtype=np.float64)
-        C = (self.P.T.tocsr() @ (M @ self.P)).tocsr()
-        # a coarse node whose every fine node is fixed: an identity row; and 1e-10 of the diagonal on all, for
-        # coarse nodes that see the same few free vertices (dependent columns of P: C only semidefinite; a
-        # residual restricted by Pᵀ has no part along them, so the shift changes nothing that P brings back)
-        diagonal = C.diagonal()
-        C = (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
-        self.coarse: Factorization = factorize(C, kind="spd", what="two-grid coarse matrix")
         self._n = n
-        self._buffers: dict = {}
+        self._factorize(M, self.P)
 
     def restrict(self, Y: np.ndarray) -> np.ndarray:
         """``Pᵀ y`` of every row ``y`` of ``Y``, along the grid's columns, then its rows.
@@ -339,63 +641,74 @@ class TwoGrid:
             fine *= self.moving
             X[j, :n] += fine
 
-    def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
-        """``Z = B⁻¹ R`` on all rows: the two-grid cycle of the module.
 
-        Parameters
-        ----------
-        R : (c, kp) float64
-            Residuals, one per row, zero-padded past ``n`` (``block_cg``'s layout).
-        Z : (c, kp) float64
-            Out: the preconditioned residuals (padding stays zero).
-        lo, hi : int
-            Ignored: applied to all rows at once (``whole``).
-        columns : bool
-            Must be True (diagonal storage's ``(c, k)`` vectors).
-        """
-        if not columns:  # pragma: no cover - diagonal storage always takes (c, k) vectors
-            raise ValueError("TwoGrid: expected (c, k) vectors")
-        if self.sweeps.columns:  # the grid's sweeps take CG's (c, kp) vectors
-            self._cycle(R, Z, R.shape)
-            return
-        n = self._n  # compressed rows' sweeps take (n, c) vectors
-        Zt = self._cycle(np.ascontiguousarray(R[:, :n].T), None, (n, R.shape[0]))
-        Z[:, :n] = Zt.T
-        Z[:, n:] = 0.0
+class LineTwoGrid(_Cycle):
+    """The symmetric two-grid cycle of any mesh's matrix in compressed rows, on a given prolongation (see the module).
 
-    def _cycle(self, R: np.ndarray, Z: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray:
-        """The cycle on vectors in the sweeps' layout (``Z`` None: into a buffer of its own, returned)."""
-        sw, n = self.sweeps, self._n
-        if self._buffers.get("shape") != shape:  # (one set per vector shape: CG applies it every step)
-            if sw.columns:  # (c, kp)
-                scale = np.zeros(shape[1])
-                scale[:n] = sw.scale
-                c = shape[0]
-            else:  # (n, c)
-                scale, c = sw.scale[:, None], shape[1]
-            self._buffers = {"shape": shape, "scale": scale,
-                             "vectors": [np.zeros(shape) for _ in range(5 if sw.columns else 6)],
-                             "scratch": sweep_scratch(sw, c)}
-        s = self._buffers["scale"]
-        V, X, Y, T, nothing = self._buffers["vectors"][:5]  # (nothing: never written, read as zeros)
-        Z = self._buffers["vectors"][5] if Z is None else Z  # (compressed rows: a buffer of its own)
-        scratch = self._buffers["scratch"]
+    What :class:`TwoGrid` is on a grid, for unknowns with no grid: ``P`` from the mesh's structure lines
+    (:func:`line_interpolation`, its rows at the unknowns), the Galerkin coarse matrix ``PᵀMP``
+    factorized once, and :class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`'s sweeps in the
+    matrix's own numbering, on the blocks' threads. Passed to :func:`~quadnodes.linalg.cg.block_cg` as
+    ``precond`` (applied to all rows at once).
 
-        def fine(A: np.ndarray) -> np.ndarray:  # (c, ≥ n) rows of fine vectors: restrict's and prolong's view
-            return A if sw.columns else A.T
+    Parameters
+    ----------
+    blocks : RowBlocks
+        ``M`` (symmetric positive definite, compressed rows) and its row ranges.
+    P : (n, m) sparse
+        The prolongation: ``P[i]`` gives unknown ``i``'s correction from the ``m`` coarse values.
 
-        def residual() -> None:  # Y = R − M X
-            sw.product(X, Y)
-            np.subtract(R, Y, out=Y)
+    Attributes
+    ----------
+    P, P_t : scipy.sparse.csr_matrix
+        The prolongation and its transpose (the restriction).
+    coarse : Factorization
+        ``PᵀMP`` (plus 1e-10 of its diagonal) factorized.
+    sweeps : CsrGaussSeidel
+        The smoother.
 
-        np.multiply(R, s, out=V)  # x = (D + L)⁻¹ r = D^{-1/2} (I + L̃)⁻¹ D^{-1/2} r
-        forward_solve(sw, V, nothing, T, scratch)
-        np.multiply(T, s, out=X)
-        residual()
-        self.prolong(self.coarse.solve(self.restrict(fine(Y))), fine(X))
-        residual()
-        np.multiply(Y, s, out=V)  # x += (D + U)⁻¹ (r − M x)
-        backward_solve(sw, V, Y, T, scratch)  # (Y, spent, takes a copy of V)
-        np.multiply(T, s, out=Z)
-        Z += X
-        return Z
+    Raises
+    ------
+    ValueError
+        When ``P`` has not one row per unknown.
+    numpy.linalg.LinAlgError
+        When a diagonal entry of ``M`` is not positive.
+    quadnodes.errors.InputError
+        When the coarse matrix cannot be factorized (it is made definite: not expected).
+
+    Examples
+    --------
+    >>> from quadnodes.linalg.cg import block_cg
+    >>> from quadnodes.linalg.threads import RowBlocks
+    >>> from quadnodes.mesh import grid
+    >>> from quadnodes.topology import structure_lines
+    >>> lines = structure_lines(grid(24, 24))
+    >>> third = sp.diags([-1.0, 3.0, -3.0, 1.0], [0, 1, 2, 3], shape=(21, 24))  # third differences along a line
+    >>> A = sp.vstack([third @ sp.csr_matrix((np.ones(24), (np.arange(24), line)), shape=(24, 576)) for line in lines])
+    >>> M = (A.T @ A + 1e-6 * sp.eye(576)).tocsr()  # (a tiny weight: Gauss–Seidel alone takes thousands of steps)
+    >>> P, coarse = line_interpolation(lines.indices, lines.offsets, lines.closed, 576)
+    >>> b = np.ones((576, 3))
+    >>> x, steps, res = block_cg(RowBlocks(M, threads=1), b, np.zeros_like(b), rtol=1e-10, maxiter=500,
+    ...                          precond=LineTwoGrid(RowBlocks(M, threads=1), P))
+    >>> bool(np.abs(M @ x - b).max() < 1e-6 * np.abs(b).max() * 1e6), steps < 60
+    (True, True)
+    """
+
+    def __init__(self, blocks: object, P: sp.spmatrix) -> None:
+        M = blocks.M.tocsr()  # type: ignore[attr-defined]
+        n = M.shape[0]
+        if P.shape[0] != n:
+            raise ValueError(f"P: {P.shape[0]} rows for the matrix's {n} unknowns")
+        self.P = sp.csr_matrix(P)
+        self.P_t = self.P.T.tocsr()
+        self.sweeps = CsrGaussSeidel(blocks)
+        self._n = n
+        self._factorize(M, self.P)
+
+    def restrict(self, Y: np.ndarray) -> np.ndarray:
+        """``Pᵀ y`` of every row ``y`` of ``Y`` (``(c, ≥ n)``, rows past ``n`` not read): ``(m, c)``."""
+        return self.P_t @ Y[:, : self._n].T
+
+    def prolong(self, E: np.ndarray, X: np.ndarray) -> None:
+        """``X[j] += P e_j`` for every column ``e_j`` of ``E`` (``(m, c)``; ``X`` ``(c, ≥ n)``, added to in place)."""
+        X[:, : self._n] += (self.P @ E).T

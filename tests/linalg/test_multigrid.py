@@ -11,7 +11,12 @@ from hypothesis import strategies as st
 import quadnodes.linalg.threads as linalg_threads
 from quadnodes.linalg import compiled
 from quadnodes.linalg.cg import DiagonalBlocks, SymmetricDiagonalBlocks, block_cg
-from quadnodes.linalg.multigrid import TwoGrid, cubic_interpolation, grid_interpolation
+from quadnodes.linalg.multigrid import LineTwoGrid, TwoGrid, cubic_interpolation, grid_interpolation, line_interpolation
+from quadnodes.linalg.threads import RowBlocks
+from quadnodes.mesh import QuadMesh, cylinder, grid, torus
+from quadnodes.topology import structure_lines
+
+from meshes import extraordinary_mesh, l_shape_with_hole
 
 pytestmark = pytest.mark.skipif(not compiled.wait(), reason="the compiled kernels (Numba) are not available")
 
@@ -207,3 +212,132 @@ def test_refuses_a_grid_of_the_wrong_shape_or_without_a_coarse_grid():
         TwoGrid(blocks, (7, 8), np.ones(48, bool))
     with pytest.raises(ValueError, match="no coarse grid"):
         TwoGrid(blocks, (6, 8), np.ones(48, bool), stride=6)
+
+
+def mesh_line_matrix(mesh: QuadMesh, weight: float, seed: int = 0) -> np.ndarray:
+    """``AᵀA + ω I`` of third differences along every structure line of ``mesh`` (closed lines wrap), each window
+    scaled at random: :func:`line_matrix` on any mesh."""
+    rng = np.random.default_rng(seed)
+    windows = mesh.topology.windows
+    A = np.zeros((len(windows), mesh.n_vertices))
+    np.add.at(A, (np.arange(len(windows))[:, None], windows),
+              np.array([-1.0, 3.0, -3.0, 1.0]) * rng.uniform(0.5, 2.0, size=(len(windows), 1)))
+    return A.T @ A + weight * np.eye(mesh.n_vertices)
+
+
+def interpolation_of(mesh: QuadMesh, stride: int = 4) -> tuple[sp.csr_matrix, np.ndarray]:
+    lines = structure_lines(mesh)
+    return line_interpolation(lines.indices, lines.offsets, lines.closed, mesh.n_vertices, stride)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(10, 45), st.integers(10, 45), st.integers(0, 3), st.integers(0, 3))
+def test_line_interpolation_on_a_grid_is_exact_on_bicubics(rows, cols, a, b):
+    """On an open grid the rows' and the columns' interpolations agree: ``P`` reproduces ``iᵃ jᵇ`` (a, b ≤ 3),
+    copies its coarse nodes, and its kept rows and columns lie at most ``stride + 1`` apart (two fronts from
+    the boundary meet in the middle; the gap there is split)."""
+    P, coarse = interpolation_of(grid(rows, cols))
+    i, j = np.divmod(np.arange(rows * cols), cols)
+    f = (i / rows) ** a * (j / cols) ** b
+    assert np.allclose(P @ f[coarse], f, atol=1e-12)
+    assert np.array_equal(P[coarse].toarray(), np.eye(coarse.size))
+    for kept in (np.unique(i[coarse]), np.unique(j[coarse])):
+        assert kept[0] == 0 and kept[-1] in (rows - 1, cols - 1) and np.diff(kept).max() <= 5
+
+
+@pytest.mark.parametrize("name", ["torus", "cylinder", "extraordinary", "l-shape with hole"])
+def test_line_interpolation_on_any_mesh_is_a_partition_of_unity(name):
+    """Closed lines, extraordinary vertices, holes: every row sums to 1, coarse nodes are copied, every
+    extraordinary vertex and corner (where lines end, on no kept line crossing) is coarse, and the coarse
+    nodes are about one in stride² (between a 25th and a 6th)."""
+    mesh = {"torus": lambda: torus(40, 30), "cylinder": lambda: cylinder(37, 26),
+            "extraordinary": lambda: extraordinary_mesh(4), "l-shape with hole": lambda: l_shape_with_hole(40)}[name]()
+    P, coarse = interpolation_of(mesh)
+    assert np.allclose(np.asarray(P.sum(axis=1)).ravel(), 1.0, atol=1e-12)
+    assert np.array_equal(P[coarse].toarray(), np.eye(coarse.size))
+    lines = structure_lines(mesh)
+    ends = np.r_[lines.offsets[:-1], lines.offsets[1:] - 1][np.r_[~lines.closed, ~lines.closed]]
+    through = np.bincount(lines.indices, minlength=mesh.n_vertices)
+    extraordinary = np.unique(lines.indices[ends][through[lines.indices[ends]] != 2])
+    assert np.isin(extraordinary, coarse).all()
+    assert mesh.n_vertices / 25 < coarse.size < mesh.n_vertices / 6
+
+
+def test_line_interpolation_refuses_bad_lines():
+    lines = structure_lines(grid(6, 6))
+    with pytest.raises(ValueError, match="stride >= 2"):
+        line_interpolation(lines.indices, lines.offsets, lines.closed, 36, stride=1)
+    with pytest.raises(ValueError, match="do not describe lines"):
+        line_interpolation(lines.indices, lines.offsets, lines.closed, 30)
+    with pytest.raises(ValueError, match="do not describe lines"):
+        line_interpolation(lines.indices, lines.offsets[:-1], lines.closed, 36)
+
+
+@pytest.mark.parametrize("name", ["extraordinary", "torus"])
+def test_the_line_cycle_equals_its_dense_formula(name):
+    """One thread, compressed rows in the mesh's numbering: ``x = (D+L)⁻¹r``, ``x += P C⁻¹ Pᵀ(r − Mx)``,
+    ``x += (D+U)⁻¹(r − Mx)`` with dense matrices, on both of CG's vector layouts."""
+    mesh = extraordinary_mesh(3) if name == "extraordinary" else torus(20, 18)
+    M = mesh_line_matrix(mesh, 1e-4, seed=3)
+    n = mesh.n_vertices
+    P = interpolation_of(mesh)[0]
+    cycle = LineTwoGrid(RowBlocks(sp.csr_matrix(M), threads=1), P)
+    R = np.random.default_rng(4).normal(size=(3, n + 5))
+    R[:, n:] = 0.0
+    Z = np.zeros_like(R)
+    cycle.apply(R, Z, 0, n + 5, True)
+    Zt = np.zeros_like(R.T)
+    cycle.apply(np.ascontiguousarray(R.T), Zt, 0, n + 5, False)
+    P = P.toarray()
+    C = P.T @ M @ P
+    C += np.diag(1e-10 * np.diag(C))
+    r = R[:, :n].T
+    x = np.linalg.solve(np.tril(M), r)
+    x += P @ np.linalg.solve(C, P.T @ (r - M @ x))
+    x += np.linalg.solve(np.triu(M), r - M @ x)
+    for out in (Z, Zt.T):
+        assert np.allclose(out[:, :n].T, x, rtol=1e-9, atol=1e-9 * np.abs(x).max()) and not out[:, n:].any()
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_cg_with_the_line_cycle_keeps_its_steps_as_the_weight_falls(monkeypatch, threads):
+    """On a mesh with extraordinary vertices and a hole (no grid), CG with the line cycle solves to the dense
+    solution in steps that stay within a few from ω = 1e-2 to 1e-8, where Gauss–Seidel's grow many times; the
+    cycle is symmetric positive definite with the sweeps' separators on threads."""
+    from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
+
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 100)
+    mesh = l_shape_with_hole(30)
+    n = mesh.n_vertices
+    P = interpolation_of(mesh)[0]
+    steps = {}
+    for weight in (1e-2, 1e-5, 1e-8):
+        M = mesh_line_matrix(mesh, weight, seed=7)
+        blocks = RowBlocks(sp.csr_matrix(M), threads=threads)
+        cycle = LineTwoGrid(blocks, P)
+        b = M @ np.random.default_rng(8).normal(size=(n, 3))
+        x, steps[weight], res = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=5000, precond=cycle)
+        assert res <= 1e-10
+        assert np.abs(x - np.linalg.solve(M, b)).max() <= 1e-6 * np.abs(b).max() / weight
+        if weight == 1e-8:
+            gs = block_cg(blocks, b, np.zeros_like(b), rtol=1e-10, maxiter=20000, precond=CsrGaussSeidel(blocks))[1]
+            assert gs > 5 * steps[weight], (gs, steps)
+        if weight == 1e-5:  # (at 1e-8 the coarse solve's rounding is of the order of the test's tolerance)
+            if threads > 1:
+                assert cycle.sweeps.separators
+            B = np.zeros((n, n))
+            for start in range(0, n, 3):  # B⁻¹ column by column
+                R = np.zeros((3, n))
+                R[np.arange(3)[start + np.arange(3) < n], start + np.arange(3)[start + np.arange(3) < n]] = 1.0
+                Z = np.zeros_like(R)
+                cycle.apply(R, Z, 0, n, True)
+                B[:, start : start + 3] = Z[: min(3, n - start)].T
+            assert np.allclose(B, B.T, atol=1e-10 * np.abs(B).max())
+            assert np.linalg.eigvalsh(0.5 * (B + B.T)).min() > 0
+    assert max(steps.values()) <= 1.5 * min(steps.values()) + 5, steps
+
+
+def test_the_line_cycle_refuses_a_prolongation_of_the_wrong_size():
+    M = sp.csr_matrix(mesh_line_matrix(grid(6, 6), 0.1))
+    with pytest.raises(ValueError, match="30 rows for the matrix's 36"):
+        LineTwoGrid(RowBlocks(M, threads=1), sp.csr_matrix((30, 4)))
