@@ -106,15 +106,15 @@ ERROR_RMS = 1e-8
 GAUSS_SEIDEL_CONTRAST = 30.0
 #: Below a weight of about 10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
 #: (77–107 from 10⁻³ to 10⁻⁶, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
-#: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on a grid (open, a cylinder or a torus) where the
-#: Gershgorin bound exceeds this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet, 10⁻³ on a cylinder or torus),
+#: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on a grid (open, a cylinder or a torus), and
+#: :class:`~quadnodes.linalg.multigrid.LineTwoGrid` on any other mesh, where the Gershgorin bound exceeds this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet, 10⁻³ on a cylinder or torus),
 #: where Gauss–Seidel's rate says it pays (:data:`TWO_GRID_AFTER`, :data:`TWO_GRID_REMAINING`). On the 300² sheet
 #: (2026-12-02 15:09 UTC): 1.74 s Gauss–Seidel against 1.71 s two-grid at 3·10⁻⁴, 3.06 against 1.88 s at 10⁻⁴,
 #: 7.47 against 1.73 s at 10⁻⁵; 12:20 UTC the same day, 1.31 against 1.88 s, 1.60 against 1.70 s and 9.38
 #: against 2.24 s (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
-#: 430 × 430). The coarse matrix (cubic interpolation's Galerkin product, up to 81 couplings a row) is
+#: 430 × 430; on any other mesh about one unknown in 16 is a coarse node, so up to some 190,000 unknowns). The coarse matrix (cubic interpolation's Galerkin product, up to 81 couplings a row) is
 #: factorized, and its fill grows faster than its size: at 1000² (63,001 coarse vertices) the two-grid path took
 #: 46.8 s at ω = 10⁻⁴ against Gauss–Seidel's 22.4 s, CHOLMOD installed (``python benchmarks/studies/multigrid.py
 #: --solver --size 1000 --weights 0.0001``), so larger grids keep Gauss–Seidel until a deeper cycle replaces the
@@ -739,15 +739,17 @@ class FairingSystem:
         threads, each step two sweeps and no product. An open grid takes the grid's fast sweeps
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
         grid and any other mesh sweep compressed rows
-        (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). On a grid (open, a cylinder or a
-        torus) where the bound exceeds :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and
-        Gauss–Seidel's rate after :data:`TWO_GRID_AFTER` steps says it needs more than
-        :data:`TWO_GRID_REMAINING` more, the two-grid cycle around those
-        sweeps (:class:`~quadnodes.linalg.multigrid.TwoGrid`), whose steps do not grow as the weight falls.
-        Elsewhere: block Jacobi at small weights, else none.
+        (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Where the bound exceeds
+        :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and Gauss–Seidel's rate after
+        :data:`TWO_GRID_AFTER` steps says it needs more than :data:`TWO_GRID_REMAINING` more, the
+        two-grid cycle around those sweeps, whose steps do not grow as the weight falls: on a grid (open,
+        a cylinder or a torus) its coarse grid (:class:`~quadnodes.linalg.multigrid.TwoGrid`), on any
+        other mesh (``_lines`` given) coarse nodes along its structure lines
+        (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`); either with at most
+        :data:`TWO_GRID_COARSE_MAX` coarse nodes. Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
-        ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid only: open, a
-        cylinder or a torus).
+        ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
+        lines'; needs ``_topology`` or ``_lines``).
         ``"lines"``:
         the line preconditioner at any size — on a grid's diagonal storage the additive
         row-line + column-line blocks (:class:`~quadnodes.linalg.cg.LinePreconditioner`),
@@ -908,10 +910,12 @@ class FairingSystem:
         symmetric Gauss–Seidel, the fast sweeps on a mostly free open vertex grid
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), compressed rows on a
         cylinder or torus grid and any other mesh (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
-        On such a grid (open or closed around), where the bound exceeds :data:`TWO_GRID_CONTRAST` ω, the grid has more than
-        :data:`TWO_GRID_MIN_SIDE` rows and columns and the coarse grid at most :data:`TWO_GRID_COARSE_MAX`
-        vertices, Gauss–Seidel is marked to switch to the two-grid cycle
-        (:class:`~quadnodes.linalg.multigrid.TwoGrid`) in :meth:`solve` where its rate after
+        Where the bound exceeds :data:`TWO_GRID_CONTRAST` ω — on such a grid (open or closed around) with more
+        than :data:`TWO_GRID_MIN_SIDE` rows and columns and a coarse grid of at most :data:`TWO_GRID_COARSE_MAX`
+        vertices, on any other mesh with its structure lines (``_lines``) from :data:`TWO_GRID_MIN_SIDE`² to
+        :data:`TWO_GRID_COARSE_MAX` · :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`² unknowns — Gauss–Seidel
+        is marked to switch to the two-grid cycle (:class:`~quadnodes.linalg.multigrid.TwoGrid`, or on the lines
+        :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) in :meth:`solve` where its rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :data:`TWO_GRID_REMAINING` more; there the
         kernels are loaded at any size. Otherwise:
         when the weight is small next to the fairing term (mean diagonal of AᵀA

@@ -42,7 +42,10 @@ of the vertices at random (as a zigzag detection leaves some fixed), one block o
 fair's error guard at tiny weights off (``ERROR_GUARD_CONTRAST = inf``: the residual stop alone). ``--mesh cylinder``
 (``--size`` rows of ``--size`` vertices around, radius 1, height 2) and ``--mesh torus`` (``--size`` × ``--size``)
 take the closed grids' path instead (compressed-row sweeps; the coarse lines closed around), with broadband
-noise of 0.2 edge lengths.
+noise of 0.2 edge lengths; ``--mesh cube-sphere`` (six ``--size`` × ``--size`` faces, eight valence-3 corners,
+the same noise) is no grid: its two-grid cycle is :class:`quadnodes.linalg.multigrid.LineTwoGrid`, on coarse nodes
+along the structure lines. The column "two-grid, structure lines" runs that cycle on every mesh (on a grid,
+``FairingSystem`` without the grid's topology, as for a mesh that is none).
 ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
 "two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
 much weaker couplings), "two-grid, stride s" forces ``s`` along both axes.
@@ -51,6 +54,7 @@ Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [-
       python benchmarks/studies/multigrid.py --solver --size 300 --weights 0.3 0.001 0.0001 0.00001 0.000001
       python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3
       python benchmarks/studies/multigrid.py --solver --mesh torus --size 300 --weights 0.3 0.001 0.0001 0.000001
+      python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 50 --weights 0.3 0.001 0.0001 0.000001
 """
 
 from __future__ import annotations
@@ -241,8 +245,9 @@ def main() -> None:
     ap.add_argument("--strides", type=int, nargs="+", default=[4], help="two-grid coarse spacings (--solver)")
     ap.add_argument("--no-guard", action="store_true",
                     help="--solver: without fair's error guard at tiny weights (the residual stop alone)")
-    ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus"], default="sheet",
-                    help="--solver: the bench sheet (open grid), a cylinder or a torus (closed grids)")
+    ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus", "cube-sphere"], default="sheet",
+                    help="--solver: the bench sheet (open grid), a cylinder or a torus (closed grids), a cube-sphere "
+                         "(no grid: six --size × --size faces)")
     ap.add_argument("--aspect", type=float, default=None,
                     help="--mesh cylinder: the edges around this many times those along (default: radius 1)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
@@ -293,33 +298,39 @@ def solver_table(args: argparse.Namespace) -> None:
     compiled.wait()
     n = args.size
     m = {"sheet": lambda: _common.noisy_grid(n, args.noise), "cylinder": lambda: _common.noisy_cylinder(n, n, aspect=args.aspect),
-         "torus": lambda: _common.noisy_torus(n, n)}[args.mesh]()
+         "torus": lambda: _common.noisy_torus(n, n), "cube-sphere": lambda: _common.noisy_cube_sphere(n)}[args.mesh]()
     t = m.topology
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
     extent = float(np.ptp(m.vertices, axis=0).max())  # (the solver's and the tests' extent: the widest axis)
     if args.no_guard:
         fairing.ERROR_GUARD_CONTRAST = float("inf")
-    kinds = ([("Gauss–Seidel", "gauss-seidel", None)] + [(f"two-grid, stride {s}", "two-grid", s) for s in args.strides]
-             + [("two-grid, its strides", "two-grid", None), ("auto", "auto", None)])
-    what = f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet" else f"{n}×{n} {args.mesh}, broadband noise"
+    grid = args.mesh != "cube-sphere"
+    kinds = ([("Gauss–Seidel", "gauss-seidel", None)]
+             + ([(f"two-grid, stride {s}", "two-grid", s) for s in args.strides] if grid else [])
+             + ([("two-grid, its strides", "two-grid", None)] if grid else [])
+             + [("two-grid, structure lines", "two-grid", "lines"), ("auto", "auto", None)])
+    what = (f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet"
+            else f"cube-sphere of six {n}×{n} faces ({m.n_vertices} vertices), broadband noise" if not grid
+            else f"{n}×{n} {args.mesh}, broadband noise")
+    direct = m.n_vertices <= 450**2
     print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
-          f"from the {'direct solve' if n <= 450 else 'Gauss–Seidel solve to rtol 1e-12'} / extent\n")
+          f"from the {'direct solve' if direct else 'Gauss–Seidel solve to rtol 1e-12'} / extent\n")
     print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
     print("|---:|---:|" + "---:|" * len(kinds))
     for share, w in ((share, w) for share in args.fixed for w in args.weights):
         free = detect(m, 0.0).free & (np.random.default_rng(0).random(m.n_vertices) >= share)
-        def system(**kw):  # type: ignore[no-untyped-def]
+        def system(lines: bool = False, **kw):  # type: ignore[no-untyped-def]  # (lines: no grid path, as fair() off a grid)
             return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, _inverse_lengths=inverse,
-                                 _topology=t, **kw)
+                                 _topology=None if lines else t, _lines=t.structure_lines, **kw)
 
-        exact = system(solver="direct") if n <= 450 else system(solver="cg", preconditioner="gauss-seidel", rtol=1e-12)
+        exact = system(solver="direct") if direct else system(solver="cg", preconditioner="gauss-seidel", rtol=1e-12)
         anchor = m.vertices[exact.free_index]
         ref = exact.solve(anchor)
         cells = []
         for _, kind, stride in kinds:
-            fairing.TwoGrid = TwoGrid if stride is None else _strided(TwoGrid, stride)
+            fairing.TwoGrid = TwoGrid if stride in (None, "lines") else _strided(TwoGrid, stride)
             t0 = time.perf_counter()
-            s = system(solver="cg", preconditioner=kind)
+            s = system(solver="cg", preconditioner=kind, lines=stride == "lines")
             x = s.solve(anchor)
             seconds = time.perf_counter() - t0
             cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
