@@ -45,7 +45,9 @@ take the closed grids' path instead (compressed-row sweeps; the coarse lines clo
 noise of 0.2 edge lengths; ``--mesh cube-sphere`` (six ``--size`` × ``--size`` faces, eight valence-3 corners,
 the same noise) is no grid: its two-grid cycle is :class:`quadnodes.linalg.multigrid.LineTwoGrid`, on coarse nodes
 along the structure lines. The column "two-grid, structure lines" runs that cycle on every mesh (on a grid,
-``FairingSystem`` without the grid's topology, as for a mesh that is none).
+``FairingSystem`` without the grid's topology, as for a mesh that is none). ``--mesh real`` prints instead a table of
+the tests' meshes that are no grid (``tests/data`` and ``tests/meshes.py``; jitter noise of 0.2 edge lengths,
+boundary free and held): Gauss–Seidel against that cycle.
 ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
 "two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
 much weaker couplings), "two-grid, stride s" forces ``s`` along both axes.
@@ -55,6 +57,7 @@ Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [-
       python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3
       python benchmarks/studies/multigrid.py --solver --mesh torus --size 300 --weights 0.3 0.001 0.0001 0.000001
       python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 50 --weights 0.3 0.001 0.0001 0.000001
+      python benchmarks/studies/multigrid.py --solver --mesh real --weights 0.001 0.000001
 """
 
 from __future__ import annotations
@@ -245,16 +248,16 @@ def main() -> None:
     ap.add_argument("--strides", type=int, nargs="+", default=[4], help="two-grid coarse spacings (--solver)")
     ap.add_argument("--no-guard", action="store_true",
                     help="--solver: without fair's error guard at tiny weights (the residual stop alone)")
-    ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus", "cube-sphere"], default="sheet",
+    ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus", "cube-sphere", "real"], default="sheet",
                     help="--solver: the bench sheet (open grid), a cylinder or a torus (closed grids), a cube-sphere "
-                         "(no grid: six --size × --size faces)")
+                         "(no grid: six --size × --size faces), or the tests' real meshes (a table of their own)")
     ap.add_argument("--aspect", type=float, default=None,
                     help="--mesh cylinder: the edges around this many times those along (default: radius 1)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
     args = ap.parse_args()
     if args.solver:
-        return solver_table(args)
+        return real_meshes(args) if args.mesh == "real" else solver_table(args)
     n = args.size
     m = _common.noisy_grid(n, args.noise)
     t = m.topology
@@ -336,6 +339,48 @@ def solver_table(args: argparse.Namespace) -> None:
             cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
         fairing.TwoGrid = TwoGrid
         print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
+
+
+def real_meshes(args: argparse.Namespace) -> None:
+    """The ``--solver --mesh real`` table: the two-grid cycle on the structure lines of meshes that are no grid."""
+    from quadnodes.io import load
+    from quadnodes.linalg import compiled
+    from quadnodes.noise import perturb
+
+    compiled.wait()
+    tests = Path(__file__).resolve().parents[2] / "tests"
+    sys.path.insert(0, str(tests))
+    from meshes import extraordinary_mesh, l_shape_with_hole
+
+    cases = [("extraordinary_mesh(4)", extraordinary_mesh(4)), ("l_shape_with_hole(60)", l_shape_with_hole(60))]
+    cases += [(name, load(tests / "data" / f"{name}.obj"))
+              for name in ("polygon_quads", "quadmesh_hole", "rounded_box", "staircase_saddle")]
+    print("the tests' meshes, perturb(jitter=0.2, seed=1), window middles free (\"boundary held\": but the boundary), "
+          "fair()'s first-iteration system; steps · seconds · max difference from the direct solve / extent\n")
+    print("| mesh | vertices | held | free | ω | Gauss–Seidel | two-grid, structure lines |")
+    print("|---|---:|---|---:|---:|---:|---:|")
+    for name, clean in cases:
+        m = perturb(clean, jitter=0.2, seed=1, fix="none")[0]
+        t = m.topology
+        inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
+        for held in ("none", "boundary"):
+            free = detect(m, 0.0).free & ~(t.boundary_vertices if held == "boundary" else False)
+            for w in args.weights:
+                def system(**kw):  # type: ignore[no-untyped-def]
+                    return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2,
+                                         _inverse_lengths=inverse, _lines=t.structure_lines, **kw)
+                exact = system(solver="direct")
+                anchor = m.vertices[exact.free_index]
+                ref, extent = exact.solve(anchor), float(np.ptp(anchor, axis=0).max())
+                cells = []
+                for kind in ("gauss-seidel", "two-grid"):
+                    t0 = time.perf_counter()
+                    s = system(solver="cg", preconditioner=kind)
+                    x = s.solve(anchor)
+                    cells.append(f"{s.iterations} · {time.perf_counter() - t0:.2f} · "
+                                 f"{np.abs(x - ref).max() / extent:.0e}")
+                print(f"| {name} | {m.n_vertices} | {held} | {free.sum()} | {w:g} | " + " | ".join(cells) + " |",
+                      flush=True)
 
 
 def _strided(base: type, stride: int) -> type:
