@@ -842,6 +842,7 @@ class FairingSystem:
         self.weight = weight
         self._lines = _lines  # the mesh's structure lines (StructureLines): paths for the line preconditioner
         self._n_vertices = n
+        self._vertices = vertices  # (the error guard's extent)
         self._windows = win
         self.active = active
         self.A = A
@@ -1071,13 +1072,17 @@ class FairingSystem:
         """Number of unknown vertices."""
         return int(self.free_index.size)
 
-    def solve(self, anchor: ArrayLike) -> np.ndarray:
+    def solve(self, anchor: ArrayLike, start: ArrayLike | None = None) -> np.ndarray:
         """Minimize ``||A x + b||² + ω ||x − anchor||²``.
 
         Parameters
         ----------
         anchor : (k, 3) float64
             Penalty targets of the free vertices, in ``free_index`` order.
+        start : (k, 3) float64, optional
+            CG's starting guess (default: the anchor). An anchor far off the mesh (fair's second solves
+            at tiny weights put it at ``a + AᵀHf/ω``) wants a start near the answer: CG's updated residual
+            drifts from the true one by rounding in proportion to the first residual.
 
         Returns
         -------
@@ -1087,11 +1092,14 @@ class FairingSystem:
         a = np.asarray(anchor, dtype=np.float64)
         if a.shape != (self.n_free, 3):
             raise InputError(f"anchor: expected shape ({self.n_free}, 3), got {a.shape}")
+        s0 = a if start is None else np.asarray(start, dtype=np.float64)
+        if s0.shape != a.shape:
+            raise InputError(f"start: expected shape ({self.n_free}, 3), got {s0.shape}")
         rhs = self._rhs + self.weight * a
         if self.solver == "cg":
-            # translation equivariance: solve about the anchor's centroid, so the stopping
+            # translation equivariance: solve about the start's centroid, so the stopping
             # rule is relative to the mesh's extent, not to its distance from the origin
-            c = np.ones(len(a)) @ a / len(a)  # (NumPy's mean over axis 0 of (k, 3) is ~15x slower)
+            c = np.ones(len(s0)) @ s0 / len(s0)  # (NumPy's mean over axis 0 of (k, 3) is ~15x slower)
             blocks, precond, order = self._cg_setup()
             if isinstance(blocks, DiagonalBlocks):  # the grid's numbering: fixed rows are identity
                 fi = self.free_index
@@ -1101,18 +1109,19 @@ class FairingSystem:
                 blocks.matvec(ones, row_sums, 0, shifted.shape[0])
                 shifted[fi] = rhs - np.take(row_sums[0], fi)[:, None] * c  # M c = (M 1) c: one scatter
                 x0 = np.zeros_like(shifted)
-                x0[fi] = a - c
+                x0[fi] = s0 - c
             else:
-                rhs_cg, a_cg = rhs, a
+                rhs_cg, s_cg = rhs, s0
                 if order is not None:  # unknowns along the Morton curve
-                    rhs_cg, a_cg = np.take(rhs, order, axis=0), np.take(a, order, axis=0)
+                    rhs_cg, s_cg = np.take(rhs, order, axis=0), np.take(s0, order, axis=0)
                 shifted = rhs_cg - blocks.M @ np.broadcast_to(c, a.shape)
-                x0 = a_cg - c
+                x0 = s_cg - c
             rtol = self.rtol * (GAUSS_SEIDEL_RTOL if getattr(precond, "eisenstat", False)
                                 else TWO_GRID_RTOL if isinstance(precond, (TwoGrid, LineTwoGrid)) else 1.0)
             guard = np.inf  # ‖e‖₂ ≤ ‖r‖₂ / ω: at tiny weights keep the RMS error within ERROR_RMS of the extent
             if self._contrast > ERROR_GUARD_CONTRAST:
-                extent = float(np.ptp(a, axis=0).max())
+                # (the mesh's extent, not the anchor's: fair's second solves move the anchor far off the mesh)
+                extent = float(np.ptp(self._vertices, axis=0).max())
                 worst = float(np.sqrt(np.einsum("ij,ij->j", shifted, shifted).max()))
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
@@ -1597,12 +1606,12 @@ def _fair(
             if n_held:
                 first = system.iterations
                 f1[~rows] = 0.0
-                new_free = system.solve(target + (system.A.T @ f1) * (1.0 / system.weight))
+                new_free = system.solve(target + (system.A.T @ f1) * (1.0 / system.weight), start=new_free)
                 system.iterations += first  # the report counts the CG steps of both solves
         if line_curvature == "hold":
             # twicing: x₁ + S(a − x₁) = S(2a − x₁) (the fixed vertices' part enters once), the same system
             first = system.iterations
-            new_free = system.solve(2.0 * target - new_free)
+            new_free = system.solve(2.0 * target - new_free, start=new_free)
             system.iterations += first  # the report counts the CG steps of both solves
         x_new = x.copy()
         x_new[system.free_index] = new_free

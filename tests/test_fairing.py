@@ -1332,8 +1332,8 @@ def test_two_grid_on_meshes_that_are_no_grid(monkeypatch, kind):
     gs.solve(m.vertices[free])
     assert gs.iterations > 1.5 * steps[2, 1e-7], (gs.iterations, steps)
     if kind.startswith("holed"):  # Gauss–Seidel needs thousands of steps here at 1e-6: "auto" switches
-        held = m.topology.boundary_vertices  # (the public path, fair(), one solve: equal to the direct one, held put)
-        faired = [fair(m, weight=1e-6, threshold=0.0, fix="boundary", solver=solver, line_curvature="fair")[0].vertices
+        held = m.topology.boundary_vertices  # (the public path, fair(): equal to the direct one, held put)
+        faired = [fair(m, weight=1e-6, threshold=0.0, fix="boundary", solver=solver)[0].vertices
                   for solver in ("cg", "direct")]
         assert np.array_equal(faired[0][held], m.vertices[held])
         assert np.abs(faired[0] - faired[1]).max() <= 1e-8 * extent
@@ -1344,6 +1344,29 @@ def test_two_grid_on_meshes_that_are_no_grid(monkeypatch, kind):
         assert isinstance(auto._cg[1], LineTwoGrid) and auto.iterations > fairing_module.TWO_GRID_AFTER
         d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
         assert np.abs(x - d).max() <= 1e-8 * extent
+
+
+@pytest.mark.parametrize(("kind", "line_curvature"), [("holed", "auto"), ("holed", "hold"), ("grid", "hold")])
+def test_second_solves_at_tiny_weights_keep_to_the_direct_solver(kind, line_curvature):
+    """fair()'s second solve (``line_curvature="auto"``: the anchor a + AᵀHf/ω, far off the mesh at a tiny ω;
+    ``"hold"``: 2a − x₁) starts CG at the first solution: from the anchor, the updated residual's rounding (in
+    proportion to the first residual) left 1.3e-6 of the extent on the holed L-shape at ω = 1e-6, and the error
+    guard measured the anchor's extent instead of the mesh's."""
+    rng = np.random.default_rng(12)
+    base = grid(48, 41, spacing=0.5) if kind == "grid" else l_shape_with_hole(50)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
+    faired = [fair(m, weight=1e-6, threshold=0.0, fix="boundary", solver=solver, line_curvature=line_curvature)
+              for solver in ("cg", "direct")]
+    if line_curvature == "auto":
+        assert faired[0][1].iterations[0].n_curvature_held > 0  # (a second solve ran)
+    assert np.abs(faired[0][0].vertices - faired[1][0].vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
+def test_solve_refuses_a_start_of_the_wrong_shape():
+    m = grid(6, 7)
+    s = FairingSystem(m.vertices, m.topology.windows, m.topology.window_middle, 0.3, solver="cg")
+    with pytest.raises(InputError, match=r"start: expected shape \(\d+, 3\)"):
+        s.solve(m.vertices[s.free_index], start=np.zeros((3, 3)))
 
 
 def test_switch_check_extrapolates_the_residuals_decay():
