@@ -341,3 +341,34 @@ def test_the_line_cycle_refuses_a_prolongation_of_the_wrong_size():
     M = sp.csr_matrix(mesh_line_matrix(grid(6, 6), 0.1))
     with pytest.raises(ValueError, match="30 rows for the matrix's 36"):
         LineTwoGrid(RowBlocks(M, threads=1), sp.csr_matrix((30, 4)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(6, 30), st.integers(1, 3), st.integers(0, 2**31 - 1), st.sampled_from([2, 3, 4, 5]))
+def test_line_interpolation_on_random_quad_meshes(points, levels, seed, stride):
+    """Quad meshes from a random triangulation split ``levels`` times (valence 3, 5, 6 … vertices everywhere,
+    a ragged boundary): ``P`` is finite, each row sums to 1 (a vertex no line interpolates keeps a zero row),
+    coarse nodes are copied, every extraordinary vertex and corner is coarse, and split three times the coarse
+    nodes are fewer than the vertices."""
+    from scipy.spatial import Delaunay
+
+    from meshes import subdivide
+
+    rng = np.random.default_rng(seed)
+    xy = rng.random((points, 2))
+    v = np.column_stack([xy, 0.1 * rng.random(points)])
+    polys = Delaunay(xy).simplices.tolist()
+    for _ in range(levels):
+        v, polys = subdivide(v, polys)
+    mesh = QuadMesh(v, np.array(polys))
+    P, coarse = interpolation_of(mesh, stride)
+    n = mesh.n_vertices
+    assert P.shape == (n, coarse.size) and np.isfinite(P.data).all()
+    assert coarse.size < n if levels == 3 else coarse.size <= n  # (split once, every vertex may end a line)
+    sums = np.asarray(P.sum(axis=1)).ravel()
+    assert np.allclose(sums[P.getnnz(axis=1) > 0], 1.0, atol=1e-9)
+    assert np.array_equal(P[coarse].toarray(), np.eye(coarse.size))
+    lines = structure_lines(mesh)
+    through = np.bincount(lines.indices, minlength=n)
+    ends = lines.indices[np.r_[lines.offsets[:-1], lines.offsets[1:] - 1][np.r_[~lines.closed, ~lines.closed]]]
+    assert np.isin(ends[through[ends] != 2], coarse).all()  # (extraordinary vertices and corners)
