@@ -698,7 +698,7 @@ class LineTwoGrid(_Cycle):
     >>> b = np.ones((576, 3))
     >>> x, steps, res = block_cg(RowBlocks(M, threads=1), b, np.zeros_like(b), rtol=1e-10, maxiter=500,
     ...                          precond=LineTwoGrid(RowBlocks(M, threads=1), P))
-    >>> bool(np.abs(M @ x - b).max() < 1e-6 * np.abs(b).max() * 1e6), steps < 60
+    >>> bool(np.abs(M @ x - b).max() < 1e-6), steps < 60  # (x is about 1e6: b is a motion the lines do not see)
     (True, True)
     """
 
