@@ -107,14 +107,17 @@ GAUSS_SEIDEL_CONTRAST = 30.0
 #: Below a weight of about 10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
 #: (77–107 from 10⁻³ to 10⁻⁶, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
 #: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on a grid (open, a cylinder or a torus), and
-#: :class:`~quadnodes.linalg.multigrid.LineTwoGrid` on any other mesh, where the Gershgorin bound exceeds this many times ω (about ω = 2.5·10⁻⁴ on the bench sheet, 10⁻³ on a cylinder or torus),
+#: :class:`~quadnodes.linalg.multigrid.LineTwoGrid` on any other mesh, where the Gershgorin bound exceeds this
+#: many times ω (about ω = 2.5·10⁻⁴ on the bench sheet, 10⁻³ on a cylinder or torus),
 #: where Gauss–Seidel's rate says it pays (:data:`TWO_GRID_AFTER`, :data:`TWO_GRID_REMAINING`). On the 300² sheet
 #: (2026-12-02 15:09 UTC): 1.74 s Gauss–Seidel against 1.71 s two-grid at 3·10⁻⁴, 3.06 against 1.88 s at 10⁻⁴,
 #: 7.47 against 1.73 s at 10⁻⁵; 12:20 UTC the same day, 1.31 against 1.88 s, 1.60 against 1.70 s and 9.38
 #: against 2.24 s (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
-#: 430 × 430; on any other mesh about one unknown in 16 is a coarse node, so up to some 190,000 unknowns). The coarse matrix (cubic interpolation's Galerkin product, up to 81 couplings a row) is
+#: 430 × 430; on any other mesh about one unknown in 16 is a coarse node, so up to some 190,000 unknowns, and
+#: its coarse space is checked before Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
+#: product, up to 81 couplings a row) is
 #: factorized, and its fill grows faster than its size: at 1000² (63,001 coarse vertices) the two-grid path took
 #: 46.8 s at ω = 10⁻⁴ against Gauss–Seidel's 22.4 s, CHOLMOD installed (``python benchmarks/studies/multigrid.py
 #: --solver --size 1000 --weights 0.0001``), so larger grids keep Gauss–Seidel until a deeper cycle replaces the
@@ -147,7 +150,7 @@ TWO_GRID_REMAINING = 700
 #: (``python benchmarks/studies/multigrid.py --solver --mesh cylinder --size 200 --aspect 2 --weights 0.00001
 #: --strides 4``, and ``--aspect 6``, ``--aspect 1.5``; on 300² cylinders and tori, ``docs/fairing.md``).
 TWO_GRID_ANISOTROPY = 2.5
-_LINES = "lines"  # (FairingSystem._switch_to on a mesh that is no grid: the structure lines' two-grid cycle)
+_LINES = "line two-grid"  # (FairingSystem._switch_to on a mesh that is no grid: the structure lines' two-grid cycle)
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -711,7 +714,7 @@ class FairingSystem:
     vertex contributes a row; fixed vertices move to the right-hand side. The
     normal matrix ``AᵀA + ω I`` is the same for x, y and z. It is solved by
     conjugate gradients on all three coordinates at once (one sparse product per
-    step for x, y and z together), started from the anchor, or — for small systems, on
+    step for x, y and z together), started from the anchor (or a given start), or — for small systems, on
     request, or if CG does not converge — by a sparse factorization made once
     and reused for every anchor. The condition number is about
     ``(32 + ω h²) / (ω h²)`` on a regular grid with edge length ``h``, so CG needs
@@ -842,7 +845,8 @@ class FairingSystem:
         self.weight = weight
         self._lines = _lines  # the mesh's structure lines (StructureLines): paths for the line preconditioner
         self._n_vertices = n
-        self._vertices = vertices  # (the error guard's extent)
+        # (the error guard's; column by column: NumPy reduces an (n, 3) array over its rows 10× slower)
+        self._extent = max(float(vertices[:, j].max() - vertices[:, j].min()) for j in range(3))
         self._windows = win
         self.active = active
         self.A = A
@@ -956,30 +960,34 @@ class FairingSystem:
                 shape, wrap = (data.shape[1] // cols, cols), self._grid[0].wrap
                 if self.preconditioner == "two-grid" or contrast > TWO_GRID_CONTRAST:  # (only where it may be used)
                     strides = _two_grid_strides(data, self._grid[2])
-            # "auto" at a tiny weight on a grid with a small enough coarse grid: Gauss–Seidel first, the two-grid
-            # cycle if it is slow; the kernels pay for that at any size
+            # "auto" at a tiny weight where the coarse space is small enough (a grid's, or one along the structure
+            # lines): Gauss–Seidel first, the two-grid cycle if it is slow; the kernels pay for that at any size
             may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST
             if may_switch and shape is not None:
                 may_switch = (min(shape) > TWO_GRID_MIN_SIDE and TWO_GRID_COARSE_MAX
                               >= np.prod([coarse_nodes(side, st, c).size for side, st, c in zip(shape, strides, wrap)]))
             elif may_switch:  # any other mesh: coarse nodes along its structure lines, about one in TWO_GRID_STRIDE²
-                may_switch = (not grid and self._lines is not None
+                may_switch = (self._lines is not None
                               and TWO_GRID_MIN_SIDE**2 < k <= TWO_GRID_COARSE_MAX * TWO_GRID_STRIDE**2)
             wanted = wanted or may_switch
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
             if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST)) \
                     and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
-                # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights on
-                # a grid, the two-grid cycle around those sweeps.
+                # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights,
+                # the two-grid cycle around those sweeps.
                 if not grid:  # any other mesh: the cycle's coarse nodes along its structure lines
                     if self.preconditioner == "two-grid" and self._lines is None:
                         raise InputError("preconditioner='two-grid' needs the mesh's structure lines; use 'auto'")
                     rows = RowBlocks(self.matrix)
                     if self.preconditioner == "two-grid":
                         return self._two_grid(rows, _LINES)
-                    if may_switch:
-                        self._switch_to = _LINES
+                    if may_switch:  # (the coarse space made now: where it is too large, no switch and no restart)
+                        try:
+                            self._line_P = self._line_prolongation()
+                            self._switch_to = _LINES
+                        except InputError:
+                            pass
                     return self._gauss_seidel(rows, CsrGaussSeidel)
                 offsets, data = grid_storage()
                 blocks = SymmetricDiagonalBlocks(offsets, data) if open_grid else DiagonalBlocks(offsets, data)
@@ -1020,25 +1028,30 @@ class FairingSystem:
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
     #: (set by _cg_setup where "auto" may switch to the two-grid cycle: the grid's (rows, cols), its wrap and
-    #: the cycle's strides; on any other mesh ``_LINES``)
+    #: the cycle's strides; on any other mesh ``_LINES``, with the prolongation in ``_line_P``)
     _switch_to: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | str | None = None
+    _line_P: sp.csr_matrix | None = None
 
     def _two_grid(self, blocks: RowBlocks,
-                  grid: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | str) -> tuple:
-        """``self._cg`` with the two-grid cycle on ``blocks``: a grid's (:class:`~quadnodes.linalg.multigrid.TwoGrid`)
-        for ``grid = ((rows, cols), (wrap_rows, wrap_cols), (rows' stride, cols' stride))``, else (``_LINES``)
-        the structure lines' (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`)."""
+                  target: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | str) -> tuple:
+        """``self._cg`` with the two-grid cycle on ``blocks`` (a grid's diagonal storage, or compressed rows):
+        for ``target = ((rows, cols), (wrap_rows, wrap_cols), (rows' stride, cols' stride))`` the grid's
+        (:class:`~quadnodes.linalg.multigrid.TwoGrid`), for ``_LINES`` the structure lines'
+        (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`)."""
         try:
-            if grid == _LINES:
-                self._cg = (blocks, LineTwoGrid(blocks, self._line_prolongation()), None)
+            if target == _LINES:
+                P = self._line_P if self._line_P is not None else self._line_prolongation()
+                self._cg = (blocks, LineTwoGrid(blocks, P), None)
             else:
-                shape, wrap, strides = grid
+                shape, wrap, strides = target
                 self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], stride=strides, wrap=wrap), None)
+        except InputError:  # (the line coarse space too large, or the coarse matrix not factorized: named already)
+            raise
         except ValueError as exc:  # a grid too small for a coarse grid
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
-        self._switch_to = None
+        self._switch_to = self._line_P = None
         return self._cg
 
     def _line_prolongation(self) -> sp.csr_matrix:
@@ -1120,8 +1133,7 @@ class FairingSystem:
                                 else TWO_GRID_RTOL if isinstance(precond, (TwoGrid, LineTwoGrid)) else 1.0)
             guard = np.inf  # ‖e‖₂ ≤ ‖r‖₂ / ω: at tiny weights keep the RMS error within ERROR_RMS of the extent
             if self._contrast > ERROR_GUARD_CONTRAST:
-                # (the mesh's extent, not the anchor's: fair's second solves move the anchor far off the mesh)
-                extent = float(np.ptp(self._vertices, axis=0).max())
+                extent = self._extent  # (the mesh's, not the anchor's: fair's second solves move it far off the mesh)
                 worst = float(np.sqrt(np.einsum("ij,ij->j", shifted, shifted).max()))
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
@@ -1138,7 +1150,8 @@ class FairingSystem:
                 try:
                     blocks, precond, _ = self._two_grid(blocks, self._switch_to)
                     rtol = min(self.rtol * TWO_GRID_RTOL, guard)
-                except InputError:  # pragma: no cover - (the coarse matrix is made definite) Gauss–Seidel goes on
+                except InputError:  # pragma: no cover - (the coarse matrix is made definite, the line coarse space
+                    # checked in _cg_setup) Gauss–Seidel goes on
                     self._switch_to = None
                 y, more, res = block_cg(blocks, shifted, y, rtol=rtol, maxiter=MAX_CG_ITERATIONS - its,
                                         precond=precond)

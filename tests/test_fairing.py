@@ -1346,6 +1346,29 @@ def test_two_grid_on_meshes_that_are_no_grid(monkeypatch, kind):
         assert np.abs(x - d).max() <= 1e-8 * extent
 
 
+def test_auto_keeps_gauss_seidel_where_the_line_coarse_space_is_too_large(monkeypatch):
+    """"auto" makes the line coarse space before Gauss–Seidel starts: above TWO_GRID_COARSE_MAX coarse nodes it
+    does not switch (no restart), and still equals the direct solve; "two-grid" asked for refuses by name."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
+
+    base = l_shape_with_hole(50)
+    rng = np.random.default_rng(12)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
+    free = m.topology.window_middle & ~m.topology.boundary_vertices
+    w = 1e-6 / m.mean_edge_length**2
+    monkeypatch.setattr(fairing_module, "TWO_GRID_COARSE_MAX", 50)
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
+    auto = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", _lines=m.topology.structure_lines)
+    x = auto.solve(m.vertices[free])
+    assert isinstance(auto._cg[1], CsrGaussSeidel) and auto._switch_to is None
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    with pytest.raises(InputError, match=r"^preconditioner='two-grid': \d+ coarse nodes along the structure lines"):
+        FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", preconditioner="two-grid",
+                      _lines=m.topology.structure_lines).solve(m.vertices[free])
+
+
 @pytest.mark.parametrize(("kind", "line_curvature"), [("holed", "auto"), ("holed", "hold"), ("grid", "hold")])
 def test_second_solves_at_tiny_weights_keep_to_the_direct_solver(kind, line_curvature):
     """fair()'s second solve (``line_curvature="auto"``: the anchor a + AᵀHf/ω, far off the mesh at a tiny ω;

@@ -93,7 +93,7 @@ def coarse_nodes(n: int, stride: int, closed: bool = False) -> np.ndarray:
 
 
 def _lagrange(t: np.ndarray, xs: np.ndarray) -> np.ndarray:
-    """``(E, taps)`` Lagrange weights at positions ``t`` (``(E,)``) through the nodes ``xs`` (``(E, taps)``, distinct)."""
+    """``(E, taps)`` Lagrange weights at positions ``t`` (``(E,)``) through the nodes ``xs`` (``(E, taps)``)."""
     taps = xs.shape[1]
     weights = np.ones(xs.shape)
     for a in range(taps):
@@ -221,8 +221,9 @@ def _along_lines(line: np.ndarray, pos: np.ndarray, lengths: np.ndarray, closed:
     ``line``, ``pos``: every entry's line and position on it (entries in line order, positions ascending);
     ``knot``, ``target``: ``(S,)`` bool, the entries that are knots and those to interpolate. Each target
     entry takes the Lagrange polynomial through the (up to) four knots of its line nearest it, two on each
-    side where there are (as :func:`cubic_interpolation`; on a closed line counted across the seam, which
-    needs at least 4 knots: a closed line with fewer gives nothing). An open line's ends must be knots.
+    side where there are (as :func:`cubic_interpolation`; on a closed line counted across the seam, and of a
+    lower degree where it has fewer than 4 knots; a line without knots gives nothing). An open line's ends
+    should be knots (else its ends are extrapolated).
     """
     n_lines = lengths.size
     q = np.bincount(line[knot], minlength=n_lines)  # knots per line
@@ -232,7 +233,7 @@ def _along_lines(line: np.ndarray, pos: np.ndarray, lengths: np.ndarray, closed:
     left = np.cumsum(knot) - 1 - kstart[line]  # the line's knot at or before each entry (closed: −1 before the first)
     e = np.flatnonzero(target)
     ring = closed[line[e]]
-    taps_of = np.where(ring, np.where(q[line[e]] >= 4, 4, 0), np.minimum(q[line[e]], 4))
+    taps_of = np.minimum(q[line[e]], 4)
     parts = []
     for taps in (1, 2, 3, 4):
         for wrap in (False, True):
@@ -242,7 +243,7 @@ def _along_lines(line: np.ndarray, pos: np.ndarray, lengths: np.ndarray, closed:
             ln = line[sel]
             qq = q[ln][:, None]
             if wrap:
-                around = left[sel][:, None] - 1 + np.arange(4)
+                around = left[sel][:, None] - (taps // 2 - 1) + np.arange(taps)
                 knots = kentry[kstart[ln][:, None] + around % qq]
                 xs = pos[knots] + lengths[ln][:, None] * np.floor_divide(around, qq)
             else:
@@ -268,10 +269,11 @@ def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndar
        extraordinary node: the lines that cut the nodes into grid-like patches) is a seed, and so is
        the first line of every family of side-by-side lines without one (a torus's loops). A line
        is kept when its distance from the nearest seed, counted in side-by-side steps, is a multiple
-       of ``stride``.
-    2. **Coarse nodes.** Where two kept lines cross, a kept line's ends, any line's end on no kept
-       line (an extraordinary node), and enough nodes on each kept line that no two consecutive ones
-       are more than ``stride`` apart (a closed kept line gets at least 4, or is coarse throughout).
+       of ``stride`` (of two such lines side by side at the same distance, where two fronts meet, the
+       first), and so is the middle line of a gap of more than ``stride + 1`` lines where fronts meet.
+    2. **Coarse nodes.** Where two kept lines cross, a kept line's ends (every extraordinary node and corner:
+       their lines are seeds), and enough nodes on each kept line that no two consecutive ones are more than
+       ``stride`` apart. (A line's end on no kept line is one too; a quad mesh's lines leave none.)
     3. **Along the kept lines**, every other node is interpolated from the line's coarse nodes by
        the cubic Lagrange polynomial in the position along the line (two coarse nodes on each side;
        :func:`cubic_interpolation`'s rule, with uneven spacing).
@@ -281,8 +283,8 @@ def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndar
 
     On an open grid the rows' and the columns' results are the same tensor product, so ``P``
     reproduces every ``iᵃ jᵇ`` (``a, b ≤ 3``) as :func:`grid_interpolation` does; on any mesh each
-    row of ``P`` sums to 1 (a node that no line interpolates, on a closed line with too few
-    knots and no other line, keeps a zero row).
+    row of ``P`` sums to 1 (a node that no line interpolates, on closed lines that no kept line crosses,
+    keeps a zero row).
 
     Parameters
     ----------
@@ -330,7 +332,8 @@ def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndar
     closed = np.asarray(closed, dtype=bool)
     lengths = np.diff(offsets)
     n_lines = lengths.size
-    if closed.shape != (n_lines,) or offsets[0] != 0 or offsets[-1] != indices.size or (lengths < 1).any() \
+    if n_lines == 0 or closed.shape != (n_lines,) or offsets[0] != 0 or offsets[-1] != indices.size \
+            or (lengths < 1).any() \
             or (indices.size and not 0 <= indices.min() <= indices.max() < n):
         raise ValueError("line_interpolation: indices, offsets and closed do not describe lines of nodes 0 … n − 1")
     S = indices.size
@@ -351,32 +354,40 @@ def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndar
     nxt = np.arange(1, S + 1)
     last = pos == lengths[line] - 1
     nxt[last] = offsets[line[last]]  # (a closed line's last node is beside its first; an open one's pair dropped)
-    step = ~(last & ~ring) & (other >= 0) & (other[nxt % max(S, 1)] >= 0)
+    step = ~(last & ~ring) & (other >= 0) & (other[nxt] >= 0)
     a, b = other[step], other[nxt[step]]
     keep_pair = a != b
     G = sp.coo_matrix((np.ones(int(keep_pair.sum())), (a[keep_pair], b[keep_pair])), shape=(n_lines, n_lines)).tocsr()
+    G = (G + G.T).tocsr()  # (side by side both ways: the rules below read every neighbour)
+    beside_a, beside_b = G.nonzero()
     n_comp, label = connected_components(G, directed=False)
     seeded = np.zeros(n_comp, dtype=bool)
     seeded[label[seed]] = True
     first_line = np.full(n_comp, n_lines)
     np.minimum.at(first_line, label, np.arange(n_lines))
     seed[first_line[~seeded]] = True
-    distance = dijkstra(G, directed=False, indices=np.flatnonzero(seed), unweighted=True, min_only=True)
-    kept = np.isfinite(distance) & (np.rint(np.nan_to_num(distance, posinf=1)).astype(np.int64) % stride == 0)
-    # where two fronts meet (rows 8 and 15 of 24 at stride 4), a gap of up to 2·stride − 1 lines: keep its middle
-    wide = stride // 2 + 1  # (a line this far from every kept line lies in a gap of more than stride + 1)
-    rows_g, cols_g = G.nonzero()
+    distance = np.rint(dijkstra(G, directed=False, indices=np.flatnonzero(seed), unweighted=True,
+                                min_only=True)).astype(np.int64)  # (finite: every family has a seed)
+    kept = distance % stride == 0
+    # where two fronts meet at the same distance, two kept lines side by side (rows 4 and 5 of 10): the first only
+    twin = (kept[beside_a] & kept[beside_b] & (distance[beside_a] == distance[beside_b]) & (beside_b < beside_a)
+            & (distance[beside_a] > 0))  # (never a seed: its ends must be coarse)
+    kept[beside_a[twin]] = False
+    # where they meet farther apart (rows 8 and 15 of 24 at stride 4), a gap of up to 2·stride − 1 lines: keep its
+    # middle line where a line lies this far from every kept line (a gap of stride + 2 lines or more; an odd
+    # stride's, of stride + 1)
+    far = stride // 2 + 1
     while True:
-        gap = dijkstra(G, directed=False, indices=np.flatnonzero(kept), unweighted=True, min_only=True)
-        gap = np.nan_to_num(gap, posinf=-1)
-        ridge = gap >= wide
+        apart = dijkstra(G, directed=False, indices=np.flatnonzero(kept), unweighted=True, min_only=True)
+        ridge = np.isfinite(apart) & (apart >= far)
         if not ridge.any():
             break
-        # a ridge line with no ridge neighbour farther out, or as far but numbered lower, is kept
+        # a ridge line with no ridge neighbour farther out, or as far but numbered lower, is kept (the lowest of
+        # the farthest is never beaten, so every pass keeps one more)
         beaten = np.zeros(n_lines, dtype=bool)
-        rival = ridge[rows_g] & ridge[cols_g] & ((gap[cols_g] > gap[rows_g])
-                                                 | ((gap[cols_g] == gap[rows_g]) & (cols_g < rows_g)))
-        beaten[rows_g[rival]] = True
+        rival = ridge[beside_a] & ridge[beside_b] & ((apart[beside_b] > apart[beside_a])
+                                                     | ((apart[beside_b] == apart[beside_a]) & (beside_b < beside_a)))
+        beaten[beside_a[rival]] = True
         kept |= ridge & ~beaten
 
     # 2. coarse nodes
@@ -385,25 +396,21 @@ def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndar
     coarse = kept_at >= 2
     coarse[indices[end & on_kept]] = True
     ends = indices[end]
-    coarse[ends[kept_at[ends] == 0]] = True
+    coarse[ends[kept_at[ends] == 0]] = True  # (none where the lines are a quad mesh's: their ends lie on seeds)
     lonely = kept & closed & (np.bincount(line[on_kept & coarse[indices]], minlength=n_lines) == 0)
     coarse[indices[offsets[:-1][lonely]]] = True  # (a closed kept line no kept line crosses: its first node)
     ke = np.flatnonzero(on_kept & coarse[indices])  # every kept line's coarse nodes, in line order
     kl, kp = line[ke], pos[ke]
-    q = np.bincount(kl, minlength=n_lines)
-    kstart = np.r_[0, np.cumsum(q)[:-1]]
+    first_of = np.r_[0, np.cumsum(np.bincount(kl, minlength=n_lines))[:-1]]
     final = np.r_[kl[1:] != kl[:-1], True]
-    succ = np.where(final, kstart[kl], np.arange(ke.size) + 1)
-    gap = np.where(final, kp[succ] + lengths[kl] - kp, kp[succ] - kp)
-    wide = (~final | closed[kl]) & (gap > stride)
-    inserts = -(-gap[wide] // stride) - 1
-    g = np.repeat(np.flatnonzero(wide), inserts)
+    succ = np.where(final, first_of[kl], np.arange(ke.size) + 1)
+    span = np.where(final, kp[succ] + lengths[kl] - kp, kp[succ] - kp)  # to the next coarse node (closed: around)
+    long = (~final | closed[kl]) & (span > stride)
+    inserts = -(-span[long] // stride) - 1
+    g = np.repeat(np.flatnonzero(long), inserts)
     j = np.arange(g.size) - np.repeat(np.cumsum(inserts) - inserts, inserts) + 1
-    at = (kp[g] + np.rint(j * gap[g] / (np.repeat(inserts, inserts) + 1)).astype(np.int64)) % lengths[kl[g]]
+    at = (kp[g] + np.rint(j * span[g] / (np.repeat(inserts, inserts) + 1)).astype(np.int64)) % lengths[kl[g]]
     coarse[indices[offsets[kl[g]] + at]] = True
-    q = np.bincount(line[on_kept & coarse[indices]], minlength=n_lines)
-    short = kept & closed & (q < 4)
-    coarse[indices[short[line]]] = True  # (a short closed kept line: coarse throughout)
     nodes = np.flatnonzero(coarse)
     m = nodes.size
     column = np.full(n, -1, dtype=np.int64)
@@ -411,8 +418,8 @@ def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndar
 
     # 3. along the kept lines
     rows, knots, w = _along_lines(line, pos, lengths, closed, on_kept & coarse[indices], on_kept & ~coarse[indices])
-    P = sp.csr_matrix((np.r_[np.ones(m), w], (np.r_[nodes, indices[rows]], np.r_[np.arange(m), column[indices[knots]]])),
-                      shape=(n, m))
+    P = sp.csr_matrix((np.r_[np.ones(m), w],
+                       (np.r_[nodes, indices[rows]], np.r_[np.arange(m), column[indices[knots]]])), shape=(n, m))
     # 4. between them: along every other line from its nodes on kept lines, averaged over the lines
     known = (kept_at > 0) | coarse
     rows, knots, w = _along_lines(line, pos, lengths, closed, ~on_kept & known[indices],
@@ -437,7 +444,8 @@ class _Cycle:
     _n: int
 
     def _factorize(self, M: sp.csr_matrix, P: sp.csr_matrix) -> None:
-        """``coarse``: ``PᵀMP`` factorized (with 1e-10 of its diagonal; an identity row where it is zero)."""
+        """``coarse``: ``PᵀMP`` factorized (with 1e-10 of its diagonal; an identity row where it is zero); the
+        cycle's vectors made on first use."""
         C = (P.T.tocsr() @ (M @ P)).tocsr()
         # a coarse node whose every fine node is fixed: an identity row; and 1e-10 of the diagonal on all, for
         # coarse nodes that see the same few free vertices (dependent columns of P: C only semidefinite; a
@@ -459,9 +467,12 @@ class _Cycle:
         lo, hi : int
             Ignored: applied to all rows at once (``whole``).
         columns : bool
-            The layout: ``(c, kp)`` vectors (diagonal storage's, small compressed rows'), else ``(kp, c)``.
+            The layout: ``(c, kp)`` vectors (diagonal storage's, small compressed rows'), else ``(kp, c)``
+            (compressed rows' sweeps only).
         """
-        if self.sweeps.columns:  # the grid's sweeps take CG's (c, kp) vectors
+        if self.sweeps.columns:  # the grid's sweeps take CG's (c, kp) vectors (diagonal storage's only layout)
+            if not columns:  # pragma: no cover - diagonal storage always takes (c, k) vectors
+                raise ValueError("TwoGrid: the grid's sweeps take (c, k) vectors")
             self._cycle(R, Z, R.shape)
             return
         n = self._n  # compressed rows' sweeps take (n, c) vectors
@@ -588,7 +599,6 @@ class TwoGrid(_Cycle):
     (True, True)
     """
 
-
     def __init__(self, blocks: object, shape: tuple[int, int], moving: np.ndarray,
                  stride: int | tuple[int, int] = TWO_GRID_STRIDE, wrap: tuple[bool, bool] = (False, False)) -> None:
         rows, cols = (int(v) for v in shape)
@@ -698,7 +708,7 @@ class LineTwoGrid(_Cycle):
     >>> b = np.ones((576, 3))
     >>> x, steps, res = block_cg(RowBlocks(M, threads=1), b, np.zeros_like(b), rtol=1e-10, maxiter=500,
     ...                          precond=LineTwoGrid(RowBlocks(M, threads=1), P))
-    >>> bool(np.abs(M @ x - b).max() < 1e-6), steps < 60  # (x is about 1e6: b is a motion the lines do not see)
+    >>> bool(np.abs(M @ x - b).max() < 1e-6), steps < 100  # (x is about 1e6: b is a motion the lines do not see)
     (True, True)
     """
 
