@@ -45,7 +45,9 @@ take the closed grids' path instead (compressed-row sweeps; the coarse lines clo
 noise of 0.2 edge lengths; ``--mesh cube-sphere`` (six ``--size`` × ``--size`` faces, eight valence-3 corners,
 the same noise) is no grid: its two-grid cycle is :class:`quadnodes.linalg.multigrid.LineTwoGrid`, on coarse nodes
 along the structure lines. The column "two-grid, structure lines" runs that cycle on every mesh (on a grid,
-``FairingSystem`` without the grid's topology, as for a mesh that is none). ``--mesh real`` prints instead a table of
+``FairingSystem`` without the grid's topology, as for a mesh that is none); on the cube-sphere ``--strides``
+other than 4 add columns with that many side-by-side steps between kept lines (``line_interpolation``'s
+``stride``), as the solver would need above ``TWO_GRID_COARSE_MAX`` coarse nodes. ``--mesh real`` prints instead a table of
 the tests' meshes that are no grid (``tests/data`` and ``tests/meshes.py``; jitter noise of 0.2 edge lengths,
 boundary free and held): Gauss–Seidel against that cycle.
 ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
@@ -296,7 +298,7 @@ def solver_table(args: argparse.Namespace) -> None:
     """The ``--solver`` table (see the module)."""
     import quadnodes.fairing as fairing
     from quadnodes.linalg import compiled
-    from quadnodes.linalg.multigrid import TwoGrid
+    from quadnodes.linalg.multigrid import TWO_GRID_STRIDE, TwoGrid, line_interpolation
 
     compiled.wait()
     n = args.size
@@ -311,7 +313,10 @@ def solver_table(args: argparse.Namespace) -> None:
     kinds = ([("Gauss–Seidel", "gauss-seidel", None)]
              + ([(f"two-grid, stride {s}", "two-grid", s) for s in args.strides] if grid else [])
              + ([("two-grid, its strides", "two-grid", None)] if grid else [])
-             + [("two-grid, structure lines", "two-grid", "lines"), ("auto", "auto", None)])
+             + [("two-grid, structure lines", "two-grid", "lines")]
+             + ([(f"two-grid, structure lines, stride {s}", "two-grid", ("lines", s)) for s in args.strides if s != 4]
+                if not grid else [])
+             + [("auto", "auto", None)])
     what = (f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet"
             else f"cube-sphere of six {n}×{n} faces ({m.n_vertices} vertices), broadband noise" if not grid
             else f"{n}×{n} {args.mesh}, broadband noise")
@@ -331,13 +336,16 @@ def solver_table(args: argparse.Namespace) -> None:
         ref = exact.solve(anchor)
         cells = []
         for _, kind, stride in kinds:
-            fairing.TwoGrid = TwoGrid if stride in (None, "lines") else _strided(TwoGrid, stride)
+            on_lines = stride == "lines" or isinstance(stride, tuple)
+            fairing.TwoGrid = TwoGrid if stride is None or on_lines else _strided(TwoGrid, stride)
+            along = stride[1] if isinstance(stride, tuple) else TWO_GRID_STRIDE  # (the lines' stride)
+            fairing.line_interpolation = lambda *lines, _s=along: line_interpolation(*lines, stride=_s)
             t0 = time.perf_counter()
-            s = system(solver="cg", preconditioner=kind, lines=stride == "lines")
+            s = system(solver="cg", preconditioner=kind, lines=on_lines)
             x = s.solve(anchor)
             seconds = time.perf_counter() - t0
             cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
-        fairing.TwoGrid = TwoGrid
+        fairing.TwoGrid, fairing.line_interpolation = TwoGrid, line_interpolation
         print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
 
 
