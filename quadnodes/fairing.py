@@ -150,7 +150,6 @@ TWO_GRID_REMAINING = 700
 #: (``python benchmarks/studies/multigrid.py --solver --mesh cylinder --size 200 --aspect 2 --weights 0.00001
 #: --strides 4``, and ``--aspect 6``, ``--aspect 1.5``; on 300² cylinders and tori, ``docs/fairing.md``).
 TWO_GRID_ANISOTROPY = 2.5
-_LINES = "line two-grid"  # (FairingSystem._switch_to on a mesh that is no grid: the structure lines' two-grid cycle)
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -981,11 +980,10 @@ class FairingSystem:
                         raise InputError("preconditioner='two-grid' needs the mesh's structure lines; use 'auto'")
                     rows = RowBlocks(self.matrix)
                     if self.preconditioner == "two-grid":
-                        return self._two_grid(rows, _LINES)
+                        return self._two_grid(rows, self._line_prolongation())
                     if may_switch:  # (the coarse space made now: where it is too large, no switch and no restart)
                         try:
-                            self._line_P = self._line_prolongation()
-                            self._switch_to = _LINES
+                            self._switch_to = self._line_prolongation()
                         except InputError:
                             pass
                     return self._gauss_seidel(rows, CsrGaussSeidel)
@@ -1028,20 +1026,18 @@ class FairingSystem:
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
     #: (set by _cg_setup where "auto" may switch to the two-grid cycle: the grid's (rows, cols), its wrap and
-    #: the cycle's strides; on any other mesh ``_LINES``, with the prolongation in ``_line_P``)
-    _switch_to: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | str | None = None
-    _line_P: sp.csr_matrix | None = None
+    #: the cycle's strides; on any other mesh the structure lines' prolongation, :meth:`_line_prolongation`)
+    _switch_to: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | sp.csr_matrix | None = None
 
     def _two_grid(self, blocks: RowBlocks,
-                  target: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | str) -> tuple:
+                  target: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | sp.csr_matrix) -> tuple:
         """``self._cg`` with the two-grid cycle on ``blocks`` (a grid's diagonal storage, or compressed rows):
         for ``target = ((rows, cols), (wrap_rows, wrap_cols), (rows' stride, cols' stride))`` the grid's
-        (:class:`~quadnodes.linalg.multigrid.TwoGrid`), for ``_LINES`` the structure lines'
-        (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`)."""
+        (:class:`~quadnodes.linalg.multigrid.TwoGrid`), for a prolongation (:meth:`_line_prolongation`) the
+        structure lines' (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`)."""
         try:
-            if target == _LINES:
-                P = self._line_P if self._line_P is not None else self._line_prolongation()
-                self._cg = (blocks, LineTwoGrid(blocks, P), None)
+            if sp.issparse(target):
+                self._cg = (blocks, LineTwoGrid(blocks, target), None)
             else:
                 shape, wrap, strides = target
                 self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], stride=strides, wrap=wrap), None)
@@ -1051,7 +1047,7 @@ class FairingSystem:
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         except np.linalg.LinAlgError as exc:  # pragma: no cover - ω > 0 keeps the diagonal positive
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
-        self._switch_to = self._line_P = None
+        self._switch_to = None
         return self._cg
 
     def _line_prolongation(self) -> sp.csr_matrix:

@@ -147,25 +147,19 @@ def cubic_interpolation(n: int, stride: int, closed: bool = False) -> sp.csr_mat
         raise ValueError(f"cubic_interpolation: expected n >= 2 and stride >= 2, got n={n}, stride={stride}")
     coarse = coarse_nodes(n, stride, closed)
     m = coarse.size
-    i = np.arange(n)
-    left = np.searchsorted(coarse, i, side="right") - 1  # the coarse node at or before each fine node
-    if closed:
-        if m < 4:
-            raise ValueError(f"cubic_interpolation: a closed line of {n} nodes has {m} coarse nodes at stride "
-                             f"{stride}; at least 4 are needed")
-        taps = 4
-        around = left[:, None] - 1 + np.arange(taps)  # two coarse nodes on each side, counted past the seam
-        cols = around % m
-        xs = (coarse[cols] + n * np.floor_divide(around, m)).astype(np.float64)  # (unwrapped positions)
-    else:
-        taps = min(4, m)
-        first = np.clip(left - (taps // 2 - 1), 0, m - taps)
-        cols = first[:, None] + np.arange(taps)  # (n, taps)
-        xs = coarse[cols].astype(np.float64)
-    weights = _lagrange(i.astype(np.float64), xs)
-    P = sp.csr_matrix((weights.ravel(), cols.ravel(), np.arange(0, n * taps + 1, taps)), shape=(n, m))
+    if closed and m < 4:
+        raise ValueError(f"cubic_interpolation: a closed line of {n} nodes has {m} coarse nodes at stride "
+                         f"{stride}; at least 4 are needed")
+    knot = np.zeros(n, dtype=bool)
+    knot[coarse] = True
+    # one line whose knots are the coarse nodes: _along_lines' rule (two on each side, across the seam if closed)
+    rows, knots, weights = _along_lines(np.zeros(n, dtype=np.int64), np.arange(n), np.array([n]),
+                                        np.array([closed]), knot, ~knot)
+    column = np.cumsum(knot) - 1  # (a knot's column; the line's entries are its nodes)
+    P = sp.csr_matrix((np.r_[np.ones(m), weights], (np.r_[coarse, rows], np.r_[np.arange(m), column[knots]])),
+                      shape=(n, m))
     P.sum_duplicates()
-    P.eliminate_zeros()  # (at a coarse node every other tap is an exact 0)
+    P.eliminate_zeros()
     return P
 
 
