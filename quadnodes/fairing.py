@@ -114,15 +114,16 @@ GAUSS_SEIDEL_CONTRAST = 30.0
 #: 7.47 against 1.73 s at 10⁻⁵; 12:20 UTC the same day, 1.31 against 1.88 s, 1.60 against 1.70 s and 9.38
 #: against 2.24 s (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
-#: "auto" takes the two-grid path only where its coarse grid has at most this many vertices (a grid up to about
-#: 430 × 430; on any other mesh about one unknown in 16 is a coarse node, so up to some 190,000 unknowns, and
-#: its coarse space is checked before Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
-#: product, up to 81 couplings a row) is
-#: factorized, and its fill grows faster than its size: at 1000² (63,001 coarse vertices) the two-grid path took
-#: 46.8 s at ω = 10⁻⁴ against Gauss–Seidel's 22.4 s, CHOLMOD installed (``python benchmarks/studies/multigrid.py
-#: --solver --size 1000 --weights 0.0001``), so larger grids keep Gauss–Seidel until a deeper cycle replaces the
-#: coarse factorization.
-TWO_GRID_COARSE_MAX = 12_000
+#: "auto" takes the two-grid path only where its coarse space has at most this many nodes (a grid up to about
+#: 1,100 × 1,100; on any other mesh about one unknown in 16 is a coarse node, so up to some 1.2 million unknowns,
+#: and its coarse space is checked before Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
+#: product, up to 81 couplings a row) is factorized, and its fill grows faster than its size: at 1000² (63,001
+#: coarse vertices) SuperLU's factor holds 51 million entries (0.6 GB) and a solve of the three coordinates takes
+#: 0.13 s, some nine Gauss–Seidel steps; the two-grid path took 80–101 steps and 32–36 s from ω = 10⁻⁴ to 10⁻⁶
+#: in 2.2 GB, where Gauss–Seidel took 1,075 steps (14.5 s) at 10⁻⁴, 3,582 (47.5 s) at 10⁻⁵
+#: (``python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.0001 0.00001 0.000001``). Beyond this
+#: size Gauss–Seidel stays (its steps grow as 1/√ω) until a deeper cycle replaces the coarse factorization.
+TWO_GRID_COARSE_MAX = 80_000
 #: ... and only where the grid has more than this many rows and columns (four coarse intervals each way).
 TWO_GRID_MIN_SIDE = 16
 #: The two-grid path stops at this fraction of ``rtol`` (its residual, like Gauss–Seidel's, leaves smooth error).
@@ -141,7 +142,14 @@ TWO_GRID_AFTER = 300
 #: machine's speed and the mesh went; with a count of steps alone "auto" switched and lost where Gauss–Seidel
 #: needed 380–650 steps in all, 200–350 after the first check (``python benchmarks/studies/multigrid.py
 #: --solver --size 300``, ``--mesh torus``, ``--mesh cylinder``; ``docs/fairing.md``, "The two-grid path").
+#: This many for a coarse space of up to :data:`TWO_GRID_REMAINING_COARSE` nodes; a larger one costs more per
+#: node (the coarse factor's fill grows faster than its size), so the count grows with the square root of its
+#: size (:func:`_switch_remaining`).
 TWO_GRID_REMAINING = 700
+#: ... the coarse space's size up to which :data:`TWO_GRID_REMAINING` holds as it is (the 300² sheet's 5,776
+#: coarse vertices). At 1000² (63,001) the two-grid path matched some 2,300 Gauss–Seidel steps: 33 s against
+#: 13.5 ms a step (``python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.0001 0.00001``).
+TWO_GRID_REMAINING_COARSE = 6_000
 #: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
 #: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the
 #: other axis's: there the point sweeps leave the error rough. On 200² cylinders at ω = 10⁻⁵ whose edges around
@@ -683,16 +691,29 @@ def _patch_order(windows: np.ndarray, free_index: np.ndarray, side: int = 4) -> 
     return np.argsort(key, kind="stable")
 
 
+def _switch_remaining(coarse: int) -> float:
+    """How many more Gauss–Seidel steps the two-grid path with ``coarse`` coarse nodes is worth:
+    :data:`TWO_GRID_REMAINING`, times √(``coarse`` / :data:`TWO_GRID_REMAINING_COARSE`) above that size.
+
+    Examples
+    --------
+    >>> _switch_remaining(5_776), round(_switch_remaining(63_001))
+    (700.0, 2268)
+    """
+    return TWO_GRID_REMAINING * max(1.0, float(np.sqrt(coarse / TWO_GRID_REMAINING_COARSE)))
+
+
 class _SwitchCheck:
-    """Gauss–Seidel's monitor where "auto" may switch to the two-grid cycle (:data:`TWO_GRID_REMAINING`).
+    """Gauss–Seidel's monitor where "auto" may switch to the two-grid cycle (:func:`_switch_remaining`).
 
     Every :data:`TWO_GRID_AFTER` steps it extrapolates the residual's decay over the last 100 steps (means of
     its logarithm over 10 steps at each end) to the target ``rtol``; it stops the solve (``switch`` True)
-    where that needs more than :data:`TWO_GRID_REMAINING` steps more, or the residual no longer falls.
+    where that needs more than ``remaining`` steps more, or the residual no longer falls.
     """
 
-    def __init__(self, rtol: float) -> None:
+    def __init__(self, rtol: float, remaining: float) -> None:
         self.target = float(np.log(rtol))
+        self.remaining = remaining
         self.logs: list[float] = []
         self.switch = False
 
@@ -702,7 +723,7 @@ class _SwitchCheck:
             return False
         now, before = np.mean(self.logs[-10:]), np.mean(self.logs[-110:-100])
         rate = (now - before) / 100.0  # (log of the residual per step: negative while it falls)
-        self.switch = bool(rate >= 0.0 or (self.target - now) / rate > TWO_GRID_REMAINING)
+        self.switch = bool(rate >= 0.0 or (self.target - now) / rate > self.remaining)
         return self.switch
 
 
@@ -743,7 +764,7 @@ class FairingSystem:
         grid and any other mesh sweep compressed rows
         (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Where the bound exceeds
         :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and Gauss–Seidel's rate after
-        :data:`TWO_GRID_AFTER` steps says it needs more than :data:`TWO_GRID_REMAINING` more, the
+        :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more, the
         two-grid cycle around those sweeps, whose steps do not grow as the weight falls: on a grid (open,
         a cylinder or a torus) its coarse grid (:class:`~quadnodes.linalg.multigrid.TwoGrid`), on any
         other mesh (``_lines`` given) coarse nodes along its structure lines
@@ -920,7 +941,7 @@ class FairingSystem:
         :data:`TWO_GRID_COARSE_MAX` · :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`² unknowns — Gauss–Seidel
         is marked to switch to the two-grid cycle (:class:`~quadnodes.linalg.multigrid.TwoGrid`, or on the lines
         :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) in :meth:`solve` where its rate after
-        :data:`TWO_GRID_AFTER` steps says it needs more than :data:`TWO_GRID_REMAINING` more; there the
+        :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more; there the
         kernels are loaded at any size. Otherwise:
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
@@ -963,8 +984,9 @@ class FairingSystem:
             # lines): Gauss–Seidel first, the two-grid cycle if it is slow; the kernels pay for that at any size
             may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST
             if may_switch and shape is not None:
-                may_switch = (min(shape) > TWO_GRID_MIN_SIDE and TWO_GRID_COARSE_MAX
-                              >= np.prod([coarse_nodes(side, st, c).size for side, st, c in zip(shape, strides, wrap)]))
+                self._coarse = int(np.prod([coarse_nodes(side, st, c).size
+                                            for side, st, c in zip(shape, strides, wrap)]))
+                may_switch = min(shape) > TWO_GRID_MIN_SIDE and self._coarse <= TWO_GRID_COARSE_MAX
             elif may_switch:  # any other mesh: coarse nodes along its structure lines, about one in TWO_GRID_STRIDE²
                 may_switch = (self._lines is not None
                               and TWO_GRID_MIN_SIDE**2 < k <= TWO_GRID_COARSE_MAX * TWO_GRID_STRIDE**2)
@@ -984,6 +1006,7 @@ class FairingSystem:
                     if may_switch:  # (the coarse space made now: where it is too large, no switch and no restart)
                         try:
                             self._switch_to = self._line_prolongation()
+                            self._coarse = self._switch_to.shape[1]
                         except InputError:
                             pass
                     return self._gauss_seidel(rows, CsrGaussSeidel)
@@ -1025,6 +1048,7 @@ class FairingSystem:
 
     _cg: tuple | None = None
     _contrast = 0.0  # (set by _cg_setup: the Gershgorin bound over ω where a preconditioner was chosen by it)
+    _coarse = 0  # (set by _cg_setup where "auto" may switch: the two-grid path's coarse nodes)
     #: (set by _cg_setup where "auto" may switch to the two-grid cycle: the grid's (rows, cols), its wrap and
     #: the cycle's strides; on any other mesh the structure lines' prolongation, :meth:`_line_prolongation`)
     _switch_to: tuple[tuple[int, int], tuple[bool, bool], tuple[int, int]] | sp.csr_matrix | None = None
@@ -1134,7 +1158,7 @@ class FairingSystem:
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
                     rtol = min(rtol, guard)
-            check = _SwitchCheck(rtol) if self._switch_to is not None else None
+            check = _SwitchCheck(rtol, _switch_remaining(self._coarse)) if self._switch_to is not None else None
             if check is not None:  # Gauss–Seidel, watched: it stops where the two-grid cycle would be faster
                 y, its, res = gauss_seidel_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS,
                                               sweeps=precond, monitor=check)

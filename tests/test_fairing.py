@@ -1224,6 +1224,16 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
         assert (auto.iterations > fairing_module.TWO_GRID_AFTER) == (kind is TwoGrid)
         d = FairingSystem(m.vertices, m.topology.windows, every, w, solver="direct").solve(m.vertices[every])
         assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+    # a coarse space priced as dear as 143 coarse nodes at a per-node cost of 1 (TWO_GRID_REMAINING_COARSE = 1):
+    # worth 700·√143 ≈ 8,400 Gauss–Seidel steps, more than all 1,201 it needs, so it goes on: no switch
+    priced = fairing_module.TWO_GRID_REMAINING_COARSE
+    monkeypatch.setattr(fairing_module, "TWO_GRID_REMAINING_COARSE", 1)
+    auto = FairingSystem(m.vertices, m.topology.windows, every, 1e-6 / m.mean_edge_length**2, solver="cg",
+                         _topology=m.topology)
+    auto.solve(m.vertices[every])
+    assert auto._coarse == 13 * 11 and isinstance(auto._cg[1], SymmetricGaussSeidel)
+    assert auto.iterations > 2 * fairing_module.TWO_GRID_AFTER and auto.residual <= 1e-9
+    monkeypatch.setattr(fairing_module, "TWO_GRID_REMAINING_COARSE", priced)
     # 5 % fixed at random: Gauss–Seidel needs some 500 steps, past TWO_GRID_AFTER, but its rate says it is nearly
     # done (fewer than TWO_GRID_REMAINING to go), so it goes on: no switch
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
@@ -1398,8 +1408,9 @@ def test_switch_check_extrapolates_the_residuals_decay():
     the residual no longer falls; not before, and not where Gauss–Seidel is nearly done."""
     from quadnodes.fairing import TWO_GRID_AFTER, TWO_GRID_REMAINING, _SwitchCheck
 
-    def run(rate: float, rtol: float = 1e-10, noise: float = 0.0) -> tuple[bool, int]:
-        check, wobble = _SwitchCheck(rtol), np.random.default_rng(0)
+    def run(rate: float, rtol: float = 1e-10, noise: float = 0.0,
+            remaining: float = TWO_GRID_REMAINING) -> tuple[bool, int]:
+        check, wobble = _SwitchCheck(rtol, remaining), np.random.default_rng(0)
         for step in range(1, 4 * TWO_GRID_AFTER + 1):
             residual = np.exp(-rate * step) * np.exp(noise * wobble.normal())
             if check(step, residual):
@@ -1414,6 +1425,16 @@ def test_switch_check_extrapolates_the_residuals_decay():
     assert run(fast) == (False, 4 * TWO_GRID_AFTER)
     assert run(0.0) == (True, TWO_GRID_AFTER)  # stagnating
     assert run(-0.001) == (True, TWO_GRID_AFTER)  # growing
+    assert run(slow, remaining=4 * TWO_GRID_REMAINING) == (False, 4 * TWO_GRID_AFTER)  # (a dearer coarse space)
+
+
+def test_switch_remaining_grows_with_the_coarse_space():
+    """A coarse space up to TWO_GRID_REMAINING_COARSE nodes is worth TWO_GRID_REMAINING Gauss–Seidel steps; a
+    larger one more, with the square root of its size (its factor fills more per node)."""
+    from quadnodes.fairing import TWO_GRID_REMAINING, TWO_GRID_REMAINING_COARSE, _switch_remaining
+
+    assert _switch_remaining(1) == _switch_remaining(TWO_GRID_REMAINING_COARSE) == TWO_GRID_REMAINING
+    assert _switch_remaining(4 * TWO_GRID_REMAINING_COARSE) == pytest.approx(2 * TWO_GRID_REMAINING)
 
 
 def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):

@@ -36,7 +36,7 @@ first-iteration system (``FairingSystem``, all window middles free, ``line_spaci
 vertices, the compiled kernels loaded before the clock), solved by symmetric Gauss–Seidel (``preconditioner=
 "gauss-seidel"``, its stop tightened at tiny weights) and by :class:`quadnodes.linalg.multigrid.TwoGrid`
 (``"two-grid"``, at each ``--strides``) and by ``"auto"`` (Gauss–Seidel, switching to the two-grid cycle where it is
-slow), each against the direct solve (``--size`` ≤ 450; above, Gauss–Seidel to rtol 1e-12): steps, seconds
+slow), each against the direct solve (``--size`` ≤ 450; above, the two-grid cycle to rtol 1e-12): steps, seconds
 (set-up and solve, one run), and the largest difference over the sheet's extent. ``--fixed`` also fixes a share
 of the vertices at random (as a zigzag detection leaves some fixed), one block of rows each; ``--no-guard`` turns
 fair's error guard at tiny weights off (``ERROR_GUARD_CONTRAST = inf``: the residual stop alone). ``--mesh cylinder``
@@ -50,7 +50,8 @@ other than 4 add columns with that many side-by-side steps between kept lines (`
 ``stride``), as the solver would need above ``TWO_GRID_COARSE_MAX`` coarse nodes. ``--mesh real`` prints instead a table of
 the tests' meshes that are no grid (``tests/data`` and ``tests/meshes.py``; jitter noise of 0.2 edge lengths,
 boundary free and held): Gauss–Seidel against that cycle.
-``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
+``--columns`` picks the columns (``gauss-seidel``, ``two-grid``, ``lines``, ``auto``), e.g. none of Gauss–Seidel where
+it would run to its cap. ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
 "two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
 much weaker couplings), "two-grid, stride s" forces ``s`` along both axes.
 
@@ -60,6 +61,7 @@ Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [-
       python benchmarks/studies/multigrid.py --solver --mesh torus --size 300 --weights 0.3 0.001 0.0001 0.000001
       python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 50 --weights 0.3 0.001 0.0001 0.000001
       python benchmarks/studies/multigrid.py --solver --mesh real --weights 0.001 0.000001
+      python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.000001 --columns two-grid auto
 """
 
 from __future__ import annotations
@@ -255,6 +257,9 @@ def main() -> None:
                          "(no grid: six --size × --size faces), or the tests' real meshes (a table of their own)")
     ap.add_argument("--aspect", type=float, default=None,
                     help="--mesh cylinder: the edges around this many times those along (default: radius 1)")
+    ap.add_argument("--columns", nargs="+", choices=["gauss-seidel", "two-grid", "lines", "auto"],
+                    default=["gauss-seidel", "two-grid", "lines", "auto"],
+                    help="--solver: which columns (e.g. no Gauss–Seidel where it would take its 20,000-step cap)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
     args = ap.parse_args()
@@ -310,19 +315,20 @@ def solver_table(args: argparse.Namespace) -> None:
     if args.no_guard:
         fairing.ERROR_GUARD_CONTRAST = float("inf")
     grid = args.mesh != "cube-sphere"
-    kinds = ([("Gauss–Seidel", "gauss-seidel", None)]
-             + ([(f"two-grid, stride {s}", "two-grid", s) for s in args.strides] if grid else [])
-             + ([("two-grid, its strides", "two-grid", None)] if grid else [])
-             + [("two-grid, structure lines", "two-grid", "lines")]
-             + ([(f"two-grid, structure lines, stride {s}", "two-grid", ("lines", s)) for s in args.strides if s != 4]
-                if not grid else [])
-             + [("auto", "auto", None)])
+    chosen = set(args.columns)
+    kinds = ([("Gauss–Seidel", "gauss-seidel", None)] if "gauss-seidel" in chosen else []) \
+        + ([(f"two-grid, stride {s}", "two-grid", s) for s in args.strides] if grid and "two-grid" in chosen else []) \
+        + ([("two-grid, its strides", "two-grid", None)] if grid and "two-grid" in chosen else []) \
+        + ([("two-grid, structure lines", "two-grid", "lines")] if "lines" in chosen else []) \
+        + ([(f"two-grid, structure lines, stride {s}", "two-grid", ("lines", s)) for s in args.strides if s != 4]
+           if not grid and "lines" in chosen else []) \
+        + ([("auto", "auto", None)] if "auto" in chosen else [])
     what = (f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet"
             else f"cube-sphere of six {n}×{n} faces ({m.n_vertices} vertices), broadband noise" if not grid
             else f"{n}×{n} {args.mesh}, broadband noise")
     direct = m.n_vertices <= 450**2
     print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
-          f"from the {'direct solve' if direct else 'Gauss–Seidel solve to rtol 1e-12'} / extent\n")
+          f"from the {'direct solve' if direct else 'two-grid solve to rtol 1e-12'} / extent\n")
     print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
     print("|---:|---:|" + "---:|" * len(kinds))
     for share, w in ((share, w) for share in args.fixed for w in args.weights):
@@ -331,7 +337,10 @@ def solver_table(args: argparse.Namespace) -> None:
             return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, _inverse_lengths=inverse,
                                  _topology=None if lines else t, _lines=t.structure_lines, **kw)
 
-        exact = system(solver="direct") if direct else system(solver="cg", preconditioner="gauss-seidel", rtol=1e-12)
+        # (above 450²: the two-grid cycle to rtol 1e-12, whose steps do not grow as ω falls; Gauss–Seidel's would
+        # reach its cap at 10⁻⁶ and fall back to a direct solve of the whole mesh)
+        exact = system(solver="direct") if direct else system(solver="cg", preconditioner="two-grid", rtol=1e-12,
+                                                              lines=not grid)
         anchor = m.vertices[exact.free_index]
         ref = exact.solve(anchor)
         cells = []

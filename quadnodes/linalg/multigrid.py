@@ -446,7 +446,9 @@ class _Cycle:
         # residual restricted by Pᵀ has no part along them, so the shift changes nothing that P brings back)
         diagonal = C.diagonal()
         C = (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
-        self.coarse = factorize(C, kind="spd", what="two-grid coarse matrix")
+        # minimum degree at any size: the Galerkin stencil (up to 81 couplings a row) fills less so than in nested
+        # dissection (1000² sheet's 63,001 coarse nodes: 51 against 63 million entries, 3.8 against 11 s)
+        self.coarse = factorize(C, kind="spd", what="two-grid coarse matrix", order="minimum_degree")
         self._buffers: dict = {}
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
