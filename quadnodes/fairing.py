@@ -118,11 +118,11 @@ TWO_GRID_CONTRAST = 2e5
 #: 1,100 × 1,100; on any other mesh about one unknown in 16 is a coarse node, so up to some 1.2 million unknowns,
 #: and its coarse space is checked before Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
 #: product, up to 81 couplings a row) is factorized, and its fill grows faster than its size: at 1000² (63,001
-#: coarse vertices) SuperLU's factor holds 51 million entries (0.6 GB) and a solve of the three coordinates takes
-#: 0.13 s, some nine Gauss–Seidel steps; the two-grid path took 80–101 steps and 32–36 s from ω = 10⁻⁴ to 10⁻⁶
-#: in 2.2 GB, where Gauss–Seidel took 1,075 steps (14.5 s) at 10⁻⁴, 3,582 (47.5 s) at 10⁻⁵
-#: (``python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.0001 0.00001 0.000001``). Beyond this
-#: size Gauss–Seidel stays (its steps grow as 1/√ω) until a deeper cycle replaces the coarse factorization.
+#: coarse vertices) the factor holds 51 million entries and a solve of the three coordinates costs some nine
+#: Gauss–Seidel steps. There the two-grid path took 80–101 steps and 25–32 s from ω = 10⁻⁴ to 10⁻⁶, where
+#: Gauss–Seidel took 1,075 steps (14.8 s) at 10⁻⁴ and 3,582 (47.4 s) at 10⁻⁵ (``python
+#: benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.0001 0.00001 --columns gauss-seidel two-grid
+#: auto``; ``docs/fairing.md``, "The two-grid path"). Beyond this size Gauss–Seidel stays (its steps grow as 1/√ω).
 TWO_GRID_COARSE_MAX = 80_000
 #: ... and only where the grid has more than this many rows and columns (four coarse intervals each way).
 TWO_GRID_MIN_SIDE = 16
@@ -147,8 +147,9 @@ TWO_GRID_AFTER = 300
 #: size (:func:`_switch_remaining`).
 TWO_GRID_REMAINING = 700
 #: ... the coarse space's size up to which :data:`TWO_GRID_REMAINING` holds as it is (the 300² sheet's 5,776
-#: coarse vertices). At 1000² (63,001) the two-grid path matched some 2,300 Gauss–Seidel steps: 33 s against
-#: 13.5 ms a step (``python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.0001 0.00001``).
+#: coarse vertices). At 1000² (63,001; :func:`_switch_remaining` 2,268) the two-grid path's 25–27 s matched some
+#: 1,800–2,000 Gauss–Seidel steps of 13.5 ms (the same command with ``--size 1000``, see
+#: :data:`TWO_GRID_COARSE_MAX`).
 TWO_GRID_REMAINING_COARSE = 6_000
 #: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
 #: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the

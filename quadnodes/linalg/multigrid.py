@@ -45,6 +45,7 @@ import scipy.sparse as sp
 
 from .direct import Factorization, factorize
 from .gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, backward_solve, forward_solve, sweep_scratch
+from .threads import RowBlocks
 
 __all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "line_interpolation",
            "TwoGrid", "LineTwoGrid"]
@@ -715,14 +716,29 @@ class LineTwoGrid(_Cycle):
             raise ValueError(f"P: {P.shape[0]} rows for the matrix's {n} unknowns")
         self.P = sp.csr_matrix(P)
         self.P_t = self.P.T.tocsr()
+        # the transfers on the blocks' threads: rows of P (fine) and of Pᵀ (coarse) in ranges of equal nonzeros
+        threads = len(blocks.ranges)  # type: ignore[attr-defined]
+        self._transfers = (RowBlocks(self.P, threads=threads, columns=False),
+                           RowBlocks(self.P_t, threads=threads, columns=False))
         self.sweeps = CsrGaussSeidel(blocks)
         self._n = n
         self._factorize(M, self.P)
 
     def restrict(self, Y: np.ndarray) -> np.ndarray:
         """``Pᵀ y`` of every row ``y`` of ``Y`` (``(c, ≥ n)``, rows past ``n`` not read): ``(m, c)``."""
-        return self.P_t @ Y[:, : self._n].T
+        Yt = Y[:, : self._n].T
+        if not Yt.flags.c_contiguous:  # (the cycle passes its (n, c) vectors transposed: this never copies there)
+            Yt = np.ascontiguousarray(Yt)
+        rows = self._transfers[1]
+        E = np.empty((self.P_t.shape[0], Y.shape[0]))
+        rows.run(lambda lo, hi: rows.matvec(Yt, E, lo, hi))
+        return E
 
     def prolong(self, E: np.ndarray, X: np.ndarray) -> None:
         """``X[j] += P e_j`` for every column ``e_j`` of ``E`` (``(m, c)``; ``X`` ``(c, ≥ n)``, added to in place)."""
-        X[:, : self._n] += (self.P @ E).T
+        Xt, rows = X[:, : self._n].T, self._transfers[0]
+        E = np.ascontiguousarray(E)
+        if not Xt.flags.c_contiguous:  # pragma: no cover - (the cycle passes its (n, c) vectors transposed)
+            X[:, : self._n] += (self.P @ E).T
+            return
+        rows.run(lambda lo, hi: rows.matvec(E, Xt, lo, hi, accumulate=True))

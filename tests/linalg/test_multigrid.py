@@ -344,6 +344,28 @@ def test_cg_with_the_line_cycle_keeps_its_steps_as_the_weight_falls(monkeypatch,
     assert max(steps.values()) <= 1.5 * min(steps.values()) + 5, steps
 
 
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_the_line_cycles_transfers_equal_the_prolongation_on_threads(monkeypatch, threads):
+    """Restriction and prolongation on the blocks' threads (rows of ``Pᵀ`` and of ``P`` in ranges of equal
+    nonzeros) equal SciPy's products, on the cycle's own ``(n, c)`` vectors seen transposed (no copy) and on
+    ``(c, ≥ n)`` arrays (copied); prolongation adds to what is there."""
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 8)
+    mesh = extraordinary_mesh(3)
+    n = mesh.n_vertices
+    P = interpolation_of(mesh)[0]
+    cycle = LineTwoGrid(RowBlocks(sp.csr_matrix(mesh_line_matrix(mesh, 1e-3, seed=5)), threads=threads), P)
+    assert len(cycle._transfers[0].ranges) == threads
+    rng = np.random.default_rng(6)
+    for Y in (np.ascontiguousarray(rng.normal(size=(n, 3))).T, rng.normal(size=(3, n + 7))):
+        assert np.allclose(cycle.restrict(Y), P.T @ Y[:, :n].T, rtol=0, atol=1e-12)
+    E = rng.normal(size=(P.shape[1], 3))
+    for X in (np.ascontiguousarray(rng.normal(size=(n, 3))).T, rng.normal(size=(3, n + 7))):
+        before = X.copy()
+        cycle.prolong(E, X)
+        assert np.allclose(X[:, :n].T, before[:, :n].T + P @ E, rtol=0, atol=1e-12)
+        assert np.array_equal(X[:, n:], before[:, n:])
+
+
 def test_the_line_cycle_refuses_a_prolongation_of_the_wrong_size():
     M = sp.csr_matrix(mesh_line_matrix(grid(6, 6), 0.1))
     with pytest.raises(ValueError, match="30 rows for the matrix's 36"):
