@@ -114,8 +114,8 @@ GAUSS_SEIDEL_CONTRAST = 30.0
 #: 7.47 against 1.73 s at 10⁻⁵; 12:20 UTC the same day, 1.31 against 1.88 s, 1.60 against 1.70 s and 9.38
 #: against 2.24 s (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
-#: "auto" takes the two-grid path only where its coarse space has at most this many nodes (a grid up to about
-#: 1,100 × 1,100; on any other mesh about one unknown in 16 is a coarse node, so up to some 1.2 million unknowns,
+#: "auto" takes the two-grid path only where its coarse space has at most this many nodes (a square grid up to
+#: about 1,100 × 1,100 at strides (4, 4), about 780² where an axis takes stride 2; on any other mesh about one unknown in 16 is a coarse node, so up to some 1.2 million unknowns,
 #: and its coarse space is checked before Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
 #: product, up to 81 couplings a row) is factorized, and its fill grows faster than its size: at 1000² (63,001
 #: coarse vertices) the factor holds 51 million entries and a solve of the three coordinates costs some nine
@@ -147,9 +147,10 @@ TWO_GRID_AFTER = 300
 #: size (:func:`_switch_remaining`).
 TWO_GRID_REMAINING = 700
 #: ... the coarse space's size up to which :data:`TWO_GRID_REMAINING` holds as it is (the 300² sheet's 5,776
-#: coarse vertices). At 1000² (63,001; :func:`_switch_remaining` 2,268) the two-grid path's 25–27 s matched some
-#: 1,800–2,000 Gauss–Seidel steps of 13.5 ms (the same command with ``--size 1000``, see
-#: :data:`TWO_GRID_COARSE_MAX`).
+#: coarse vertices). At 1000² (63,001) the two-grid path's 25–27 s matched some 1,800–2,000 Gauss–Seidel steps of
+#: 13.5 ms (the command at :data:`TWO_GRID_COARSE_MAX`): the square root's 2,268 there errs a little towards
+#: Gauss–Seidel (some 5 s at most). A step of the cycle cost about ten Gauss–Seidel steps at 300² and about 16 at
+#: 1000², and the factorization grows faster still; sizes between were not measured.
 TWO_GRID_REMAINING_COARSE = 6_000
 #: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
 #: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the

@@ -1226,6 +1226,7 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
         assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     # a coarse space priced as dear as 143 coarse nodes at a per-node cost of 1 (TWO_GRID_REMAINING_COARSE = 1):
     # worth 700·√143 ≈ 8,400 Gauss–Seidel steps, more than all 1,201 it needs, so it goes on: no switch
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
     priced = fairing_module.TWO_GRID_REMAINING_COARSE
     monkeypatch.setattr(fairing_module, "TWO_GRID_REMAINING_COARSE", 1)
     auto = FairingSystem(m.vertices, m.topology.windows, every, 1e-6 / m.mean_edge_length**2, solver="cg",
@@ -1233,7 +1234,7 @@ def test_two_grid_equals_the_direct_solve_at_tiny_weights(monkeypatch, threads):
     auto.solve(m.vertices[every])
     assert auto._coarse == 13 * 11 and isinstance(auto._cg[1], SymmetricGaussSeidel)
     assert auto.iterations > 2 * fairing_module.TWO_GRID_AFTER and auto.residual <= 1e-9
-    monkeypatch.setattr(fairing_module, "TWO_GRID_REMAINING_COARSE", priced)
+    monkeypatch.setattr(fairing_module, "TWO_GRID_REMAINING_COARSE", priced)  # (the cases below as priced)
     # 5 % fixed at random: Gauss–Seidel needs some 500 steps, past TWO_GRID_AFTER, but its rate says it is nearly
     # done (fewer than TWO_GRID_REMAINING to go), so it goes on: no switch
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)
@@ -1352,6 +1353,7 @@ def test_two_grid_on_meshes_that_are_no_grid(monkeypatch, kind):
         auto = FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", _lines=lines)
         x = auto.solve(m.vertices[free])
         assert isinstance(auto._cg[1], LineTwoGrid) and auto.iterations > fairing_module.TWO_GRID_AFTER
+        assert auto._coarse == auto._cg[1].P.shape[1]  # (what the switch was priced at: the lines' coarse nodes)
         d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
         assert np.abs(x - d).max() <= 1e-8 * extent
 

@@ -50,6 +50,9 @@ other than 4 add columns with that many side-by-side steps between kept lines (`
 ``stride``), as the solver would need above ``TWO_GRID_COARSE_MAX`` coarse nodes. ``--mesh real`` prints instead a table of
 the tests' meshes that are no grid (``tests/data`` and ``tests/meshes.py``; jitter noise of 0.2 edge lengths,
 boundary free and held): Gauss–Seidel against that cycle.
+``--coarse-factor`` prints instead the two-grid coarse matrix of the ``--size`` sheet at each weight, factorized by
+SuperLU in minimum degree order (the solver's) and in nested dissection order (``factorize``'s default from 20,000
+unknowns on): factor entries, set-up seconds (with the ordering) and a solve of three coordinates.
 ``--columns`` picks the columns (``gauss-seidel``, ``two-grid``, ``lines``, ``auto``), e.g. none of Gauss–Seidel where
 it would run to its cap. ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
 "two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
@@ -62,6 +65,7 @@ Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [-
       python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 50 --weights 0.3 0.001 0.0001 0.000001
       python benchmarks/studies/multigrid.py --solver --mesh real --weights 0.001 0.000001
       python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.000001 --columns two-grid auto
+      python benchmarks/studies/multigrid.py --coarse-factor --size 1000 --weights 0.000001
 """
 
 from __future__ import annotations
@@ -262,7 +266,11 @@ def main() -> None:
                     help="--solver: which columns (e.g. no Gauss–Seidel where it would take its 20,000-step cap)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
+    ap.add_argument("--coarse-factor", action="store_true",
+                    help="the two-grid coarse matrix's factorization in minimum degree and nested dissection order")
     args = ap.parse_args()
+    if args.coarse_factor:
+        return coarse_factor(args)
     if args.solver:
         return real_meshes(args) if args.mesh == "real" else solver_table(args)
     n = args.size
@@ -323,6 +331,9 @@ def solver_table(args: argparse.Namespace) -> None:
         + ([(f"two-grid, structure lines, stride {s}", "two-grid", ("lines", s)) for s in args.strides if s != 4]
            if not grid and "lines" in chosen else []) \
         + ([("auto", "auto", None)] if "auto" in chosen else [])
+    if not kinds:
+        raise SystemExit(f"--columns {' '.join(args.columns)}: no such column on --mesh {args.mesh} (on a mesh that "
+                         "is no grid the two-grid column is 'lines')")
     what = (f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet"
             else f"cube-sphere of six {n}×{n} faces ({m.n_vertices} vertices), broadband noise" if not grid
             else f"{n}×{n} {args.mesh}, broadband noise")
@@ -356,6 +367,39 @@ def solver_table(args: argparse.Namespace) -> None:
             cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
         fairing.TwoGrid, fairing.line_interpolation = TwoGrid, line_interpolation
         print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
+
+
+def coarse_factor(args: argparse.Namespace) -> None:
+    """The ``--coarse-factor`` table (see the module)."""
+    from quadnodes.linalg.direct import factorize
+    from quadnodes.linalg.multigrid import grid_interpolation
+
+    n = args.size
+    m = _common.noisy_grid(n, args.noise)
+    t = m.topology
+    free = detect(m, 0.0).free
+    inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
+    print(f"{n}×{n} sheet, {args.noise} noise: the two-grid coarse matrix PᵀMP (stride 4, SuperLU)\n")
+    print("| ω | coarse nodes | couplings a row | order | factor entries (L + U) | factorize (s) | "
+          "solve of 3 coordinates (ms) |")
+    print("|---:|---:|---:|---|---:|---:|---:|")
+    for w in args.weights:
+        M = grid_system(m, free, inverse, w)
+        P = grid_interpolation(n, n, 4, free)
+        C = (P.T.tocsr() @ (M @ P)).tocsr()
+        C = (C + sp.diags(1e-10 * C.diagonal())).tocsr()  # (as the solver makes it)
+        B = np.random.default_rng(0).normal(size=(C.shape[0], 3))
+        for order in ("minimum_degree", "nested_dissection"):
+            t0 = time.perf_counter()
+            f = factorize(C, kind="spd", order=order, backend="superlu")
+            seconds = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            for _ in range(5):
+                f.solve(B)
+            solve = (time.perf_counter() - t0) / 5
+            lu = f._lu
+            print(f"| {w:g} | {C.shape[0]} | {C.nnz / C.shape[0]:.1f} | {order.replace('_', ' ')} | "
+                  f"{(lu.L.nnz + lu.U.nnz) / 1e6:.1f} M | {seconds:.2f} | {1e3 * solve:.0f} |", flush=True)
 
 
 def real_meshes(args: argparse.Namespace) -> None:

@@ -448,7 +448,8 @@ class _Cycle:
         diagonal = C.diagonal()
         C = (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
         # minimum degree at any size: the Galerkin stencil (up to 81 couplings a row) fills less so than in nested
-        # dissection (1000² sheet's 63,001 coarse nodes: 51 against 63 million entries, 3.8 against 11 s)
+        # dissection (1000² sheet's 63,001 coarse nodes: 51 against 63 million entries, 4.3 against 10.6 s;
+        # ``python benchmarks/studies/multigrid.py --coarse-factor --size 1000 --weights 0.000001``)
         self.coarse = factorize(C, kind="spd", what="two-grid coarse matrix", order="minimum_degree")
         self._buffers: dict = {}
 
@@ -718,8 +719,9 @@ class LineTwoGrid(_Cycle):
         self.P_t = self.P.T.tocsr()
         # the transfers on the blocks' threads: rows of P (fine) and of Pᵀ (coarse) in ranges of equal nonzeros
         threads = len(blocks.ranges)  # type: ignore[attr-defined]
-        self._transfers = (RowBlocks(self.P, threads=threads, columns=False),
-                           RowBlocks(self.P_t, threads=threads, columns=False))
+        self._prolong_rows = RowBlocks(self.P, threads=threads, columns=False)
+        self._restrict_rows = RowBlocks(self.P_t, threads=threads, columns=False)  # (one range below 2 ×
+        # PARALLEL_MIN_ROWS coarse nodes: there the restriction is a small part of the cycle)
         self.sweeps = CsrGaussSeidel(blocks)
         self._n = n
         self._factorize(M, self.P)
@@ -729,16 +731,16 @@ class LineTwoGrid(_Cycle):
         Yt = Y[:, : self._n].T
         if not Yt.flags.c_contiguous:  # (the cycle passes its (n, c) vectors transposed: this never copies there)
             Yt = np.ascontiguousarray(Yt)
-        rows = self._transfers[1]
+        rows = self._restrict_rows
         E = np.empty((self.P_t.shape[0], Y.shape[0]))
         rows.run(lambda lo, hi: rows.matvec(Yt, E, lo, hi))
         return E
 
     def prolong(self, E: np.ndarray, X: np.ndarray) -> None:
         """``X[j] += P e_j`` for every column ``e_j`` of ``E`` (``(m, c)``; ``X`` ``(c, ≥ n)``, added to in place)."""
-        Xt, rows = X[:, : self._n].T, self._transfers[0]
+        Xt, rows = X[:, : self._n].T, self._prolong_rows
         E = np.ascontiguousarray(E)
-        if not Xt.flags.c_contiguous:  # pragma: no cover - (the cycle passes its (n, c) vectors transposed)
+        if not Xt.flags.c_contiguous:  # (the cycle passes its (n, c) vectors transposed: never taken there)
             X[:, : self._n] += (self.P @ E).T
             return
         rows.run(lambda lo, hi: rows.matvec(E, Xt, lo, hi, accumulate=True))

@@ -350,11 +350,13 @@ def test_the_line_cycles_transfers_equal_the_prolongation_on_threads(monkeypatch
     nonzeros) equal SciPy's products, on the cycle's own ``(n, c)`` vectors seen transposed (no copy) and on
     ``(c, ≥ n)`` arrays (copied); prolongation adds to what is there."""
     monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 8)
-    mesh = extraordinary_mesh(3)
+    monkeypatch.setattr(linalg_threads, "RANGE_ALIGN", 1)
+    mesh = extraordinary_mesh(6)
     n = mesh.n_vertices
     P = interpolation_of(mesh)[0]
     cycle = LineTwoGrid(RowBlocks(sp.csr_matrix(mesh_line_matrix(mesh, 1e-3, seed=5)), threads=threads), P)
-    assert len(cycle._transfers[0].ranges) == threads
+    for rows in (cycle._prolong_rows, cycle._restrict_rows):  # (every range holds rows: all threads write)
+        assert len(rows.ranges) == threads and all(lo < hi for lo, hi in rows.ranges)
     rng = np.random.default_rng(6)
     for Y in (np.ascontiguousarray(rng.normal(size=(n, 3))).T, rng.normal(size=(3, n + 7))):
         assert np.allclose(cycle.restrict(Y), P.T @ Y[:, :n].T, rtol=0, atol=1e-12)
