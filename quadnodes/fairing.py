@@ -149,8 +149,9 @@ TWO_GRID_REMAINING = 700
 #: ... the coarse space's size up to which :data:`TWO_GRID_REMAINING` holds as it is (the 300² sheet's 5,776
 #: coarse vertices). At 1000² (63,001) the two-grid path's 25–27 s matched some 1,800–2,000 Gauss–Seidel steps of
 #: 13.5 ms (the command at :data:`TWO_GRID_COARSE_MAX`): the square root's 2,268 there errs a little towards
-#: Gauss–Seidel (some 5 s at most). A step of the cycle cost about ten Gauss–Seidel steps at 300² and about 16 at
-#: 1000², and the factorization grows faster still; sizes between were not measured.
+#: Gauss–Seidel (some 5 s at most). At 600² (22,801 nodes; 1,365) the switch cost what some 1,800 steps did: at
+#: ω = 3·10⁻⁵, where Gauss–Seidel had 1,826 to go, it won 7.99 against 8.36 s (``--size 600``). A step of the cycle cost about ten
+#: Gauss–Seidel steps at 300² and about 16 at 1000², and the factorization grows faster still.
 TWO_GRID_REMAINING_COARSE = 6_000
 #: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
 #: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the

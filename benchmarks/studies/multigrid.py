@@ -52,7 +52,8 @@ the tests' meshes that are no grid (``tests/data`` and ``tests/meshes.py``; jitt
 boundary free and held): Gauss–Seidel against that cycle.
 ``--coarse-factor`` prints instead the two-grid coarse matrix of the ``--size`` sheet at each weight, factorized by
 SuperLU in minimum degree order (the solver's) and in nested dissection order (``factorize``'s default from 20,000
-unknowns on): factor entries, set-up seconds (with the ordering) and a solve of three coordinates.
+unknowns on), and by CHOLMOD in its AMD order where scikit-sparse is installed (the ``bench`` extra; the solver's
+choice then): factor entries, set-up seconds (with the ordering) and a solve of three coordinates.
 ``--columns`` picks the columns (``gauss-seidel``, ``two-grid``, ``lines``, ``auto``), e.g. none of Gauss–Seidel where
 it would run to its cap. ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
 "two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
@@ -371,7 +372,7 @@ def solver_table(args: argparse.Namespace) -> None:
 
 def coarse_factor(args: argparse.Namespace) -> None:
     """The ``--coarse-factor`` table (see the module)."""
-    from quadnodes.linalg.direct import factorize
+    from quadnodes.linalg.direct import cholmod_available, factorize
     from quadnodes.linalg.multigrid import grid_interpolation
 
     n = args.size
@@ -379,7 +380,8 @@ def coarse_factor(args: argparse.Namespace) -> None:
     t = m.topology
     free = detect(m, 0.0).free
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
-    print(f"{n}×{n} sheet, {args.noise} noise: the two-grid coarse matrix PᵀMP (stride 4, SuperLU)\n")
+    print(f"{n}×{n} sheet, {args.noise} noise: the two-grid coarse matrix PᵀMP (stride 4); factor entries as L + U "
+          f"(CHOLMOD's L counted twice, less the diagonal)\n")
     print("| ω | coarse nodes | couplings a row | order | factor entries (L + U) | factorize (s) | "
           "solve of 3 coordinates (ms) |")
     print("|---:|---:|---:|---|---:|---:|---:|")
@@ -389,17 +391,20 @@ def coarse_factor(args: argparse.Namespace) -> None:
         C = (P.T.tocsr() @ (M @ P)).tocsr()
         C = (C + sp.diags(1e-10 * C.diagonal())).tocsr()  # (as the solver makes it)
         B = np.random.default_rng(0).normal(size=(C.shape[0], 3))
-        for order in ("minimum_degree", "nested_dissection"):
+        for backend, order in [("superlu", "minimum_degree"), ("superlu", "nested_dissection")] + (
+                [("cholmod", "minimum_degree")] if cholmod_available() else []):
             t0 = time.perf_counter()
-            f = factorize(C, kind="spd", order=order, backend="superlu")
+            f = factorize(C, kind="spd", order=order, backend=backend)
             seconds = time.perf_counter() - t0
             t0 = time.perf_counter()
             for _ in range(5):
                 f.solve(B)
             solve = (time.perf_counter() - t0) / 5
             lu = f._lu
-            print(f"| {w:g} | {C.shape[0]} | {C.nnz / C.shape[0]:.1f} | {order.replace('_', ' ')} | "
-                  f"{(lu.L.nnz + lu.U.nnz) / 1e6:.1f} M | {seconds:.2f} | {1e3 * solve:.0f} |", flush=True)
+            entries = (lu.L.nnz + lu.U.nnz if backend == "superlu"  # (CHOLMOD: L alone, its AMD order)
+                       else 2 * lu.L().nnz - C.shape[0])  # type: ignore[operator]
+            print(f"| {w:g} | {C.shape[0]} | {C.nnz / C.shape[0]:.1f} | {backend}, {order.replace('_', ' ')} | "
+                  f"{entries / 1e6:.1f} M | {seconds:.2f} | {1e3 * solve:.0f} |", flush=True)
 
 
 def real_meshes(args: argparse.Namespace) -> None:
