@@ -115,8 +115,9 @@ GAUSS_SEIDEL_CONTRAST = 30.0
 #: against 2.24 s (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse space has at most this many nodes (a square grid up to
-#: about 1,100 × 1,100 at strides (4, 4), about 780² where an axis takes stride 2; on any other mesh about one unknown in 16 is a coarse node, so up to some 1.2 million unknowns,
-#: and its coarse space is checked before Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
+#: about 1,100 × 1,100 at strides (4, 4), about 780² where an axis takes stride 2; on any other mesh about one
+#: unknown in 16 is a coarse node, so up to some 1.2 million unknowns, and its coarse space is checked before
+#: Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
 #: product, up to 81 couplings a row) is factorized, and its fill grows faster than its size: at 1000² (63,001
 #: coarse vertices) the factor holds 51 million entries and a solve of the three coordinates costs some nine
 #: Gauss–Seidel steps. There the two-grid path took 80–101 steps and 25–32 s from ω = 10⁻⁴ to 10⁻⁶, where
@@ -150,8 +151,8 @@ TWO_GRID_REMAINING = 700
 #: coarse vertices). At 1000² (63,001) the two-grid path's 25–27 s matched some 1,800–2,000 Gauss–Seidel steps of
 #: 13.5 ms (the command at :data:`TWO_GRID_COARSE_MAX`): the square root's 2,268 there errs a little towards
 #: Gauss–Seidel (some 5 s at most). At 600² (22,801 nodes; 1,365) the switch cost what some 1,800 steps did: at
-#: ω = 3·10⁻⁵, where Gauss–Seidel had 1,826 to go, it won 7.99 against 8.36 s (``--size 600``). A step of the cycle cost about ten
-#: Gauss–Seidel steps at 300² and about 16 at 1000², and the factorization grows faster still.
+#: ω = 3·10⁻⁵, where Gauss–Seidel had 1,826 to go, it won 7.99 against 8.36 s (``--size 600``). A step of the
+#: cycle cost about ten Gauss–Seidel steps at 300² and about 16 at 1000², and the factorization grows faster still.
 TWO_GRID_REMAINING_COARSE = 6_000
 #: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
 #: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the
@@ -1161,7 +1162,7 @@ class FairingSystem:
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
                     rtol = min(rtol, guard)
-            check = _SwitchCheck(rtol, _switch_remaining(self._coarse)) if self._switch_to is not None else None
+            check = None if self._switch_to is None else _SwitchCheck(rtol, _switch_remaining(self._coarse))
             if check is not None:  # Gauss–Seidel, watched: it stops where the two-grid cycle would be faster
                 y, its, res = gauss_seidel_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS,
                                               sweeps=precond, monitor=check)
