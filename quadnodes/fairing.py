@@ -154,6 +154,20 @@ TWO_GRID_REMAINING = 700
 #: ω = 3·10⁻⁵, where Gauss–Seidel had 1,826 to go, it won 7.99 against 8.36 s (``--size 600``). A step of the
 #: cycle cost about ten Gauss–Seidel steps at 300² and about 16 at 1000², and the factorization grows faster still.
 TWO_GRID_REMAINING_COARSE = 6_000
+#: On a mesh that is no grid the two-grid path keeps every this many structure lines (not
+#: :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`, the grids' 4) up to :data:`TWO_GRID_LINE_STRIDE_MAX`
+#: unknowns. Its compressed-row sweeps, residuals and transfers cost more per step than a grid's, so halving
+#: the steps pays for the larger coarse space there: on cube-spheres at ω = 10⁻⁵ 46 steps against 91–92, 3.51
+#: against 4.34 s at 101k vertices and 17.8 against 19.3 s at 399k; at 15k 0.30 and 0.34 s against 0.37 and
+#: 0.45 s at 10⁻⁴ and 10⁻⁶ (``python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 130
+#: --weights 0.00001 --strides 3 4 --columns lines``, ``--size 258``, ``--size 50``). On the 300² grid the
+#: stride of 3 halves the steps too but gains no time (1.38 against 1.48 s, 1.68 against 1.64 s at 10⁻⁴ and
+#: 10⁻⁶; ``--size 300 --strides 3 4 --columns two-grid``), so grids keep 4.
+TWO_GRID_LINE_STRIDE = 3
+#: ... and above this many unknowns every 4th line: the gain shrinks with the size (35 %, 19 % and 8 % at 15k,
+#: 101k and 399k), and at 10⁶ a stride of 3 would make some 111,000 coarse nodes, above
+#: :data:`TWO_GRID_COARSE_MAX`.
+TWO_GRID_LINE_STRIDE_MAX = 450_000
 #: The two-grid path coarsens by 2 instead of :data:`TWO_GRID_STRIDE` along an axis whose nearest couplings (the
 #: matrix's ±1 or ±cols diagonals, mean magnitude over the free vertices) are this many times weaker than the
 #: other axis's: there the point sweeps leave the error rough. On 200² cylinders at ω = 10⁻⁵ whose edges around
@@ -1080,7 +1094,9 @@ class FairingSystem:
 
     def _line_prolongation(self) -> sp.csr_matrix:
         """The unknowns' rows of :func:`~quadnodes.linalg.multigrid.line_interpolation` on the structure lines
-        (coarse nodes that reach no unknown dropped).
+        (coarse nodes that reach no unknown dropped): every :data:`TWO_GRID_LINE_STRIDE`-th line up to
+        :data:`TWO_GRID_LINE_STRIDE_MAX` unknowns, every
+        :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`-th above.
 
         Raises
         ------
@@ -1088,8 +1104,9 @@ class FairingSystem:
             When the coarse nodes exceed :data:`TWO_GRID_COARSE_MAX` (lines too tangled for a coarse space).
         """
         lines = self._lines
+        stride = TWO_GRID_LINE_STRIDE if self.n_free <= TWO_GRID_LINE_STRIDE_MAX else TWO_GRID_STRIDE
         P = line_interpolation(lines.indices, lines.offsets, lines.closed,  # type: ignore[union-attr]
-                               self._n_vertices)[0][self.free_index]
+                               self._n_vertices, stride=stride)[0][self.free_index]
         P = P[:, np.flatnonzero(P.getnnz(axis=0))].tocsr()
         if P.shape[1] > TWO_GRID_COARSE_MAX:
             raise InputError(f"preconditioner='two-grid': {P.shape[1]} coarse nodes along the structure lines, more "

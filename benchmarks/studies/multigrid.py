@@ -45,9 +45,10 @@ take the closed grids' path instead (compressed-row sweeps; the coarse lines clo
 noise of 0.2 edge lengths; ``--mesh cube-sphere`` (six ``--size`` × ``--size`` faces, eight valence-3 corners,
 the same noise) is no grid: its two-grid cycle is :class:`quadnodes.linalg.multigrid.LineTwoGrid`, on coarse nodes
 along the structure lines. The column "two-grid, structure lines" runs that cycle on every mesh (on a grid,
-``FairingSystem`` without the grid's topology, as for a mesh that is none); on the cube-sphere ``--strides``
-other than 4 add columns with that many side-by-side steps between kept lines (``line_interpolation``'s
-``stride``), as the solver would need above ``TWO_GRID_COARSE_MAX`` coarse nodes. ``--mesh real`` prints instead a table of
+``FairingSystem`` without the grid's topology, as for a mesh that is none), every ``TWO_GRID_LINE_STRIDE``-th
+line as the solver keeps them (every 4th above ``TWO_GRID_LINE_STRIDE_MAX`` unknowns); on the cube-sphere
+``--strides`` add columns with that many side-by-side steps between kept lines (``line_interpolation``'s
+``stride``). ``--mesh real`` prints instead a table of
 the tests' meshes that are no grid (``tests/data`` and ``tests/meshes.py``; jitter noise of 0.2 edge lengths,
 boundary free and held): Gauss–Seidel against that cycle.
 ``--coarse-factor`` prints instead the two-grid coarse matrix of the ``--size`` sheet at each weight, factorized by
@@ -312,7 +313,7 @@ def solver_table(args: argparse.Namespace) -> None:
     """The ``--solver`` table (see the module)."""
     import quadnodes.fairing as fairing
     from quadnodes.linalg import compiled
-    from quadnodes.linalg.multigrid import TWO_GRID_STRIDE, TwoGrid, line_interpolation
+    from quadnodes.linalg.multigrid import TwoGrid, line_interpolation
 
     compiled.wait()
     n = args.size
@@ -329,7 +330,7 @@ def solver_table(args: argparse.Namespace) -> None:
         + ([(f"two-grid, stride {s}", "two-grid", s) for s in args.strides] if grid and "two-grid" in chosen else []) \
         + ([("two-grid, its strides", "two-grid", None)] if grid and "two-grid" in chosen else []) \
         + ([("two-grid, structure lines", "two-grid", "lines")] if "lines" in chosen else []) \
-        + ([(f"two-grid, structure lines, stride {s}", "two-grid", ("lines", s)) for s in args.strides if s != 4]
+        + ([(f"two-grid, structure lines, stride {s}", "two-grid", ("lines", s)) for s in args.strides]
            if not grid and "lines" in chosen else []) \
         + ([("auto", "auto", None)] if "auto" in chosen else [])
     if not kinds:
@@ -359,8 +360,10 @@ def solver_table(args: argparse.Namespace) -> None:
         for _, kind, stride in kinds:
             on_lines = stride == "lines" or isinstance(stride, tuple)
             fairing.TwoGrid = TwoGrid if stride is None or on_lines else _strided(TwoGrid, stride)
-            along = stride[1] if isinstance(stride, tuple) else TWO_GRID_STRIDE  # (the lines' stride)
-            fairing.line_interpolation = lambda *lines, _s=along: line_interpolation(*lines, stride=_s)
+            # (the lines' stride: the solver's own, TWO_GRID_LINE_STRIDE or TWO_GRID_STRIDE by size, or forced)
+            along = stride[1] if isinstance(stride, tuple) else None
+            fairing.line_interpolation = lambda *lines, stride, _s=along: line_interpolation(
+                *lines, stride=stride if _s is None else _s)
             t0 = time.perf_counter()
             s = system(solver="cg", preconditioner=kind, lines=on_lines)
             x = s.solve(anchor)
