@@ -164,7 +164,7 @@ TWO_GRID_REMAINING_COARSE = 6_000
 #: stride of 3 halves the steps too but gains no time (1.38 against 1.48 s, 1.68 against 1.64 s at 10⁻⁴ and
 #: 10⁻⁶; ``--size 300 --strides 3 4 --columns two-grid``), so grids keep 4.
 TWO_GRID_LINE_STRIDE = 3
-#: ... and above this many unknowns every 4th line: the gain shrinks with the size (35 %, 19 % and 8 % at 15k,
+#: ... and above this many unknowns every 4th line: the gain shrinks with the size (21–28 %, 13–20 % and 8 % at 15k,
 #: 101k and 399k), and at 10⁶ a stride of 3 would make some 111,000 coarse nodes, above
 #: :data:`TWO_GRID_COARSE_MAX`.
 TWO_GRID_LINE_STRIDE_MAX = 450_000

@@ -1430,6 +1430,29 @@ def test_switch_check_extrapolates_the_residuals_decay():
     assert run(slow, remaining=4 * TWO_GRID_REMAINING) == (False, 4 * TWO_GRID_AFTER)  # (a dearer coarse space)
 
 
+def test_line_prolongation_keeps_every_third_line_up_to_its_size(monkeypatch):
+    """On a mesh that is no grid the two-grid coarse space keeps every TWO_GRID_LINE_STRIDE-th structure line up
+    to TWO_GRID_LINE_STRIDE_MAX unknowns and every TWO_GRID_STRIDE-th above: the unknowns' rows of
+    line_interpolation at that stride."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.multigrid import TWO_GRID_STRIDE, line_interpolation
+
+    m = l_shape_with_hole(60)
+    lines, free = m.topology.structure_lines, m.topology.window_middle
+    s = FairingSystem(m.vertices, m.topology.windows, free, 1e-6 / m.mean_edge_length**2, solver="cg",
+                      _lines=lines)
+    coarse = {}
+    for stride in (fairing_module.TWO_GRID_LINE_STRIDE, TWO_GRID_STRIDE):
+        P = line_interpolation(lines.indices, lines.offsets, lines.closed, m.n_vertices, stride=stride)[0]
+        P = P[s.free_index]
+        coarse[stride] = P[:, np.flatnonzero(P.getnnz(axis=0))]
+    assert fairing_module.TWO_GRID_LINE_STRIDE == 3 and s.n_free <= fairing_module.TWO_GRID_LINE_STRIDE_MAX
+    assert (s._line_prolongation() != coarse[3]).nnz == 0
+    monkeypatch.setattr(fairing_module, "TWO_GRID_LINE_STRIDE_MAX", s.n_free - 1)
+    assert (s._line_prolongation() != coarse[TWO_GRID_STRIDE]).nnz == 0
+    assert coarse[3].shape[1] > coarse[TWO_GRID_STRIDE].shape[1]
+
+
 def test_switch_remaining_grows_with_the_coarse_space():
     """A coarse space up to TWO_GRID_REMAINING_COARSE nodes is worth TWO_GRID_REMAINING Gauss–Seidel steps; a
     larger one more, with the square root of its size (its factor fills more per node)."""
