@@ -115,9 +115,9 @@ GAUSS_SEIDEL_CONTRAST = 30.0
 #: against 2.24 s (``python benchmarks/studies/multigrid.py --solver --size 300``).
 TWO_GRID_CONTRAST = 2e5
 #: "auto" takes the two-grid path only where its coarse space has at most this many nodes (a square grid up to
-#: about 1,100 × 1,100 at strides (4, 4), about 780² where an axis takes stride 2; on any other mesh about one
-#: unknown in 16 is a coarse node, so up to some 1.2 million unknowns, and its coarse space is checked before
-#: Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
+#: about 1,100 × 1,100 at strides (4, 4), about 780² where an axis takes stride 2; on any other mesh every 4th
+#: structure line makes about one coarse node in 16 unknowns, so up to some 1.2 million unknowns, and its coarse
+#: space is checked before Gauss–Seidel starts). The coarse matrix (cubic interpolation's Galerkin
 #: product, up to 81 couplings a row) is factorized, and its fill grows faster than its size: at 1000² (63,001
 #: coarse vertices) the factor holds 51 million entries and a solve of the three coordinates costs some nine
 #: Gauss–Seidel steps. There the two-grid path took 80–101 steps and 25–32 s from ω = 10⁻⁴ to 10⁻⁶, where
@@ -157,12 +157,13 @@ TWO_GRID_REMAINING_COARSE = 6_000
 #: On a mesh that is no grid the two-grid path keeps every this many structure lines (not
 #: :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`, the grids' 4) up to :data:`TWO_GRID_LINE_STRIDE_MAX`
 #: unknowns. Its compressed-row sweeps, residuals and transfers cost more per step than a grid's, so halving
-#: the steps pays for the larger coarse space there: on cube-spheres at ω = 10⁻⁵ 46 steps against 91–92, 3.51
-#: against 4.34 s at 101k vertices and 17.8 against 19.3 s at 399k; at 15k 0.30 and 0.34 s against 0.37 and
-#: 0.45 s at 10⁻⁴ and 10⁻⁶ (``python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 130
-#: --weights 0.00001 --strides 3 4 --columns lines``, ``--size 258``, ``--size 50``). On the 300² grid the
-#: stride of 3 halves the steps too but gains no time (1.38 against 1.48 s, 1.68 against 1.64 s at 10⁻⁴ and
-#: 10⁻⁶; ``--size 300 --strides 3 4 --columns two-grid``), so grids keep 4.
+#: the steps pays for the larger coarse space there: on cube-spheres at ω = 10⁻⁵ 46 steps against 91–92, 3.31
+#: against 4.09 s at 101k vertices and 17.8 against 19.3 s at 399k; at 15k 0.27 and 0.32 s against 0.37 and
+#: 0.42 s at 10⁻⁴ and 10⁻⁶ (``python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 130``,
+#: ``--size 258 --weights 0.00001 --columns lines``, ``--size 50``: the column "two-grid, structure lines, stride
+#: 4" beside the solver's). On the 300² grid the stride of 3 halves the steps too but gains no time (1.38 against
+#: 1.48 s, 1.68 against 1.64 s at 10⁻⁴ and 10⁻⁶; ``--size 300 --strides 3 4 --columns two-grid``), so grids keep
+#: 4 (a grid off the grid path, under 60 % free, takes the lines and so 3).
 TWO_GRID_LINE_STRIDE = 3
 #: ... and above this many unknowns every 4th line: the gain shrinks with the size (21–28 %, 13–20 % and 8 % at 15k,
 #: 101k and 399k), and at 10⁶ a stride of 3 would make some 111,000 coarse nodes, above
@@ -1005,7 +1006,7 @@ class FairingSystem:
                 self._coarse = int(np.prod([coarse_nodes(side, st, c).size
                                             for side, st, c in zip(shape, strides, wrap)]))
                 may_switch = min(shape) > TWO_GRID_MIN_SIDE and self._coarse <= TWO_GRID_COARSE_MAX
-            elif may_switch:  # any other mesh: coarse nodes along its structure lines, about one in TWO_GRID_STRIDE²
+            elif may_switch:  # any other mesh: coarse nodes along its structure lines (every 4th: one in about 16)
                 may_switch = (self._lines is not None
                               and TWO_GRID_MIN_SIDE**2 < k <= TWO_GRID_COARSE_MAX * TWO_GRID_STRIDE**2)
             wanted = wanted or may_switch
@@ -1095,8 +1096,8 @@ class FairingSystem:
     def _line_prolongation(self) -> sp.csr_matrix:
         """The unknowns' rows of :func:`~quadnodes.linalg.multigrid.line_interpolation` on the structure lines
         (coarse nodes that reach no unknown dropped): every :data:`TWO_GRID_LINE_STRIDE`-th line up to
-        :data:`TWO_GRID_LINE_STRIDE_MAX` unknowns, every
-        :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`-th above.
+        :data:`TWO_GRID_LINE_STRIDE_MAX` unknowns (unless that makes more than :data:`TWO_GRID_COARSE_MAX`
+        coarse nodes), every :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`-th otherwise.
 
         Raises
         ------
@@ -1104,14 +1105,18 @@ class FairingSystem:
             When the coarse nodes exceed :data:`TWO_GRID_COARSE_MAX` (lines too tangled for a coarse space).
         """
         lines = self._lines
-        stride = TWO_GRID_LINE_STRIDE if self.n_free <= TWO_GRID_LINE_STRIDE_MAX else TWO_GRID_STRIDE
-        P = line_interpolation(lines.indices, lines.offsets, lines.closed,  # type: ignore[union-attr]
-                               self._n_vertices, stride=stride)[0][self.free_index]
-        P = P[:, np.flatnonzero(P.getnnz(axis=0))].tocsr()
-        if P.shape[1] > TWO_GRID_COARSE_MAX:
-            raise InputError(f"preconditioner='two-grid': {P.shape[1]} coarse nodes along the structure lines, more "
-                             f"than {TWO_GRID_COARSE_MAX}; use 'auto'")
-        return P
+        # (every 3rd line makes one coarse node in 9 to 4 unknowns, as densely as the extraordinary vertices lie;
+        # where that exceeds the cap, every 4th line, one in about 16)
+        strides = ((TWO_GRID_LINE_STRIDE, TWO_GRID_STRIDE) if self.n_free <= TWO_GRID_LINE_STRIDE_MAX
+                   else (TWO_GRID_STRIDE,))
+        for stride in strides:
+            P = line_interpolation(lines.indices, lines.offsets, lines.closed,  # type: ignore[union-attr]
+                                   self._n_vertices, stride=stride)[0][self.free_index]
+            P = P[:, np.flatnonzero(P.getnnz(axis=0))].tocsr()
+            if P.shape[1] <= TWO_GRID_COARSE_MAX:
+                return P
+        raise InputError(f"preconditioner='two-grid': {P.shape[1]} coarse nodes along the structure lines, more "
+                         f"than {TWO_GRID_COARSE_MAX}; use 'auto' (Gauss–Seidel)")
 
     def _gauss_seidel(self, blocks: RowBlocks, kind: type) -> tuple:
         """``self._cg`` with symmetric Gauss–Seidel of ``kind`` on ``blocks``."""

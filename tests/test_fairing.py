@@ -1448,9 +1448,19 @@ def test_line_prolongation_keeps_every_third_line_up_to_its_size(monkeypatch):
         coarse[stride] = P[:, np.flatnonzero(P.getnnz(axis=0))]
     assert fairing_module.TWO_GRID_LINE_STRIDE == 3 and s.n_free <= fairing_module.TWO_GRID_LINE_STRIDE_MAX
     assert (s._line_prolongation() != coarse[3]).nnz == 0
+    monkeypatch.setattr(fairing_module, "TWO_GRID_LINE_STRIDE_MAX", s.n_free)  # (up to and with)
+    assert (s._line_prolongation() != coarse[3]).nnz == 0
     monkeypatch.setattr(fairing_module, "TWO_GRID_LINE_STRIDE_MAX", s.n_free - 1)
     assert (s._line_prolongation() != coarse[TWO_GRID_STRIDE]).nnz == 0
-    assert coarse[3].shape[1] > coarse[TWO_GRID_STRIDE].shape[1]
+    small, large = coarse[TWO_GRID_STRIDE].shape[1], coarse[3].shape[1]
+    assert large > small
+    # every 3rd line over the cap, every 4th within: every 4th; both over: refused (and "auto" keeps Gauss–Seidel)
+    monkeypatch.setattr(fairing_module, "TWO_GRID_LINE_STRIDE_MAX", s.n_free)
+    monkeypatch.setattr(fairing_module, "TWO_GRID_COARSE_MAX", large - 1)
+    assert (s._line_prolongation() != coarse[TWO_GRID_STRIDE]).nnz == 0
+    monkeypatch.setattr(fairing_module, "TWO_GRID_COARSE_MAX", small - 1)
+    with pytest.raises(InputError, match=f"{small} coarse nodes along the structure lines"):
+        s._line_prolongation()
 
 
 def test_switch_remaining_grows_with_the_coarse_space():

@@ -24,11 +24,12 @@ interpolated from the two coarse nodes on each side counted across the seam; the
 compressed rows' (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
 
 On any other quad mesh (extraordinary vertices, holes, a closed box) the coarse space comes from its
-structure lines (:func:`line_interpolation`): every 4th line, counted side by side from the lines that
-bound the grid-like patches, kept; coarse nodes where kept lines cross; cubic interpolation along the kept
+structure lines (:func:`line_interpolation`): every ``stride``-th line, counted side by side from the lines
+that bound the grid-like patches, kept; coarse nodes where kept lines cross; cubic interpolation along the kept
 lines, then along each other line between them. :class:`LineTwoGrid` is the same cycle on that ``P`` in
-compressed rows. On cube-spheres of 15,002 and 101,402 vertices fair's solve takes 75–103 steps with it from
-ω = 10⁻³ to 10⁻⁶, where Gauss–Seidel's go from 500 to 16,358
+compressed rows. On cube-spheres of 15,002 and 101,402 vertices fair's solve takes 38–53 steps with it from
+ω = 10⁻³ to 10⁻⁶ (every 3rd line, as fair keeps them up to 450,000 unknowns; every 4th: 75–103), where
+Gauss–Seidel's go from 500 to 16,358
 (``python benchmarks/studies/multigrid.py --solver --mesh cube-sphere --size 50``, ``--size 130``).
 
 Examples
