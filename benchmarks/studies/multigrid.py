@@ -55,6 +55,8 @@ boundary free and held): Gauss–Seidel against that cycle.
 SuperLU in minimum degree order (the solver's) and in nested dissection order (``factorize``'s default from 20,000
 unknowns on), and by CHOLMOD in its AMD order where scikit-sparse is installed (the ``bench`` extra; the solver's
 choice then): factor entries, set-up seconds (with the ordering) and a solve of three coordinates.
+``--mesh random`` (``--size`` seeded random points triangulated and split four times: extraordinary vertices
+every 8 edges, the same noise) is no grid either, with its lines far more tangled than the cube-sphere's.
 ``--columns`` picks the columns (``gauss-seidel``, ``two-grid``, ``lines``, ``auto``), e.g. none of Gauss–Seidel where
 it would run to its cap. ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
 "two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
@@ -68,6 +70,7 @@ Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [-
       python benchmarks/studies/multigrid.py --solver --mesh real --weights 0.001 0.000001
       python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.000001 --columns two-grid auto
       python benchmarks/studies/multigrid.py --coarse-factor --size 1000 --weights 0.000001
+      python benchmarks/studies/multigrid.py --solver --mesh random --size 300 --weights 0.00001 0.000001 --strides 2 4
 """
 
 from __future__ import annotations
@@ -258,9 +261,10 @@ def main() -> None:
     ap.add_argument("--strides", type=int, nargs="+", default=[4], help="two-grid coarse spacings (--solver)")
     ap.add_argument("--no-guard", action="store_true",
                     help="--solver: without fair's error guard at tiny weights (the residual stop alone)")
-    ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus", "cube-sphere", "real"], default="sheet",
+    ap.add_argument("--mesh", choices=["sheet", "cylinder", "torus", "cube-sphere", "random", "real"], default="sheet",
                     help="--solver: the bench sheet (open grid), a cylinder or a torus (closed grids), a cube-sphere "
-                         "(no grid: six --size × --size faces), or the tests' real meshes (a table of their own)")
+                         "(no grid: six --size × --size faces), a random quad mesh (no grid: --size points "
+                         "triangulated, split four times), or the tests' real meshes (a table of their own)")
     ap.add_argument("--aspect", type=float, default=None,
                     help="--mesh cylinder: the edges around this many times those along (default: radius 1)")
     ap.add_argument("--columns", nargs="+", choices=["gauss-seidel", "two-grid", "lines", "auto"],
@@ -318,13 +322,14 @@ def solver_table(args: argparse.Namespace) -> None:
     compiled.wait()
     n = args.size
     m = {"sheet": lambda: _common.noisy_grid(n, args.noise), "cylinder": lambda: _common.noisy_cylinder(n, n, aspect=args.aspect),
-         "torus": lambda: _common.noisy_torus(n, n), "cube-sphere": lambda: _common.noisy_cube_sphere(n)}[args.mesh]()
+         "torus": lambda: _common.noisy_torus(n, n), "cube-sphere": lambda: _common.noisy_cube_sphere(n),
+         "random": lambda: noisy_random_quads(n)}[args.mesh]()
     t = m.topology
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
     extent = float(np.ptp(m.vertices, axis=0).max())  # (the solver's and the tests' extent: the widest axis)
     if args.no_guard:
         fairing.ERROR_GUARD_CONTRAST = float("inf")
-    grid = args.mesh != "cube-sphere"
+    grid = args.mesh not in ("cube-sphere", "random")
     chosen = set(args.columns)
     kinds = ([("Gauss–Seidel", "gauss-seidel", None)] if "gauss-seidel" in chosen else []) \
         + ([(f"two-grid, stride {s}", "two-grid", s) for s in args.strides] if grid and "two-grid" in chosen else []) \
@@ -337,7 +342,9 @@ def solver_table(args: argparse.Namespace) -> None:
         raise SystemExit(f"--columns {' '.join(args.columns)}: no such column on --mesh {args.mesh} (on a mesh that "
                          "is no grid the two-grid column is 'lines')")
     what = (f"{n}×{n} sheet, {args.noise} noise" if args.mesh == "sheet"
-            else f"cube-sphere of six {n}×{n} faces ({m.n_vertices} vertices), broadband noise" if not grid
+            else f"cube-sphere of six {n}×{n} faces ({m.n_vertices} vertices), broadband noise"
+            if args.mesh == "cube-sphere"
+            else f"random quad mesh ({n} points split four times, {m.n_vertices} vertices), broadband noise" if not grid
             else f"{n}×{n} {args.mesh}, broadband noise")
     direct = m.n_vertices <= 450**2
     print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
@@ -371,6 +378,28 @@ def solver_table(args: argparse.Namespace) -> None:
             cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
         fairing.TwoGrid, fairing.line_interpolation = TwoGrid, line_interpolation
         print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
+
+
+def noisy_random_quads(points: int, seed: int = 0):  # type: ignore[no-untyped-def]
+    """A quad mesh with extraordinary vertices everywhere: the Delaunay triangulation of ``points`` seeded random
+    points of the unit square (z a gentle wave), split four times (each triangle into three quads, then each quad
+    into four: patches 8 edges wide between valence-3 to valence-9 vertices), plus broadband noise of 0.2 edge
+    lengths."""
+    from scipy.spatial import Delaunay
+
+    from quadnodes.mesh import QuadMesh
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+    from meshes import subdivide
+
+    rng = np.random.default_rng(seed)
+    xy = rng.random((points, 2))
+    v = np.column_stack([xy, 0.05 * np.sin(6 * xy[:, 0]) * np.cos(4 * xy[:, 1])])
+    polys = Delaunay(xy).simplices.tolist()
+    for _ in range(4):
+        v, polys = subdivide(v, polys)
+    m = QuadMesh(np.asarray(v), np.array(polys))
+    return m.with_vertices(m.vertices + rng.normal(scale=0.2 * m.mean_edge_length, size=m.vertices.shape))
 
 
 def coarse_factor(args: argparse.Namespace) -> None:
