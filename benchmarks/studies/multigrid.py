@@ -242,6 +242,13 @@ def pcg(M: sp.csr_matrix, b: np.ndarray, precond, rtol: float = 1e-9, maxiter: i
     return x, maxiter
 
 
+def sheet(n: int, noise: str):  # type: ignore[no-untyped-def]
+    """The bench sheet, its window middles (free) and fair's even line lengths (``line_spacing="fair"``)."""
+    m = _common.noisy_grid(n, noise)
+    t = m.topology
+    return m, detect(m, 0.0).free, even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
+
+
 def grid_system(m, free: np.ndarray, inverse: np.ndarray, w: float) -> sp.csr_matrix:  # type: ignore[no-untyped-def]
     """fair()'s normal matrix in the grid's numbering (fixed vertices as identity rows)."""
     t = m.topology
@@ -280,10 +287,7 @@ def main() -> None:
     if args.solver:
         return real_meshes(args) if args.mesh == "real" else solver_table(args)
     n = args.size
-    m = _common.noisy_grid(n, args.noise)
-    t = m.topology
-    free = detect(m, 0.0).free
-    inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
+    m, free, inverse = sheet(n, args.noise)
     kinds = {
         "none": lambda M: (lambda r: r, 1.0, 1.0),
         "SGS": lambda M: (symmetric_gauss_seidel(M), 1.0, 1.0),
@@ -405,13 +409,10 @@ def noisy_random_quads(points: int, seed: int = 0):  # type: ignore[no-untyped-d
 def coarse_factor(args: argparse.Namespace) -> None:
     """The ``--coarse-factor`` table (see the module)."""
     from quadnodes.linalg.direct import cholmod_available, factorize
-    from quadnodes.linalg.multigrid import grid_interpolation
+    from quadnodes.linalg.multigrid import coarse_matrix, grid_interpolation
 
     n = args.size
-    m = _common.noisy_grid(n, args.noise)
-    t = m.topology
-    free = detect(m, 0.0).free
-    inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
+    m, free, inverse = sheet(n, args.noise)
     print(f"{n}×{n} sheet, {args.noise} noise: the two-grid coarse matrix PᵀMP (stride 4); factor entries as L + U "
           f"(CHOLMOD's L counted twice, less the diagonal)\n")
     print("| ω | coarse nodes | couplings a row | order | factor entries (L + U) | factorize (s) | "
@@ -419,9 +420,7 @@ def coarse_factor(args: argparse.Namespace) -> None:
     print("|---:|---:|---:|---|---:|---:|---:|")
     for w in args.weights:
         M = grid_system(m, free, inverse, w)
-        P = grid_interpolation(n, n, 4, free)
-        C = (P.T.tocsr() @ (M @ P)).tocsr()
-        C = (C + sp.diags(1e-10 * C.diagonal())).tocsr()  # (as the solver makes it)
+        C = coarse_matrix(M, grid_interpolation(n, n, 4, free))  # (as the solver makes it)
         B = np.random.default_rng(0).normal(size=(C.shape[0], 3))
         for backend, order in [("superlu", "minimum_degree"), ("superlu", "nested_dissection")] + (
                 [("cholmod", "minimum_degree")] if cholmod_available() else []):

@@ -48,8 +48,8 @@ from .direct import Factorization, factorize
 from .gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, backward_solve, forward_solve, sweep_scratch
 from .threads import RowBlocks
 
-__all__ = ["TWO_GRID_STRIDE", "coarse_nodes", "cubic_interpolation", "grid_interpolation", "line_interpolation",
-           "TwoGrid", "LineTwoGrid"]
+__all__ = ["TWO_GRID_STRIDE", "coarse_matrix", "coarse_nodes", "cubic_interpolation", "grid_interpolation",
+           "line_interpolation", "TwoGrid", "LineTwoGrid"]
 
 #: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 18–23 steps but
 #: factorizes a quarter of the unknowns (4.2–6.5 s in all); 4 takes 77–107 steps (1.7–2.4 s); 8 takes 289–650
@@ -431,6 +431,37 @@ def line_interpolation(indices: np.ndarray, offsets: np.ndarray, closed: np.ndar
     return P, nodes
 
 
+def coarse_matrix(M: sp.spmatrix, P: sp.spmatrix) -> sp.csr_matrix:
+    """The two-grid cycle's coarse matrix: the Galerkin product ``PᵀMP`` made definite.
+
+    A coarse node whose every fine node is fixed (a zero column of ``P``) gets an identity row; every diagonal
+    entry gains 1e-10 of itself, for coarse nodes that see the same few free vertices (dependent columns of
+    ``P`` leave ``PᵀMP`` only semidefinite; a residual restricted by ``Pᵀ`` has no part along them, so the
+    shift changes nothing that ``P`` brings back).
+
+    Parameters
+    ----------
+    M : (n, n) sparse
+        Symmetric positive definite.
+    P : (n, m) sparse
+        The prolongation.
+
+    Returns
+    -------
+    (m, m) scipy.sparse.csr_matrix
+
+    Examples
+    --------
+    >>> C = coarse_matrix(sp.identity(3, format="csr"), sp.csr_matrix(np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 0.0]])))
+    >>> C.toarray().round(12).tolist()
+    [[2.0, 0.0], [0.0, 1.0]]
+    """
+    P = sp.csr_matrix(P)
+    C = (P.T.tocsr() @ (M @ P)).tocsr()
+    diagonal = C.diagonal()
+    return (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
+
+
 class _Cycle:
     """The symmetric two-grid cycle around Gauss–Seidel sweeps (see the module); subclasses give ``P``'s transfers."""
 
@@ -440,14 +471,8 @@ class _Cycle:
     _n: int
 
     def _factorize(self, M: sp.csr_matrix, P: sp.csr_matrix) -> None:
-        """``coarse``: ``PᵀMP`` factorized (with 1e-10 of its diagonal; an identity row where it is zero); the
-        cycle's vectors made on first use."""
-        C = (P.T.tocsr() @ (M @ P)).tocsr()
-        # a coarse node whose every fine node is fixed: an identity row; and 1e-10 of the diagonal on all, for
-        # coarse nodes that see the same few free vertices (dependent columns of P: C only semidefinite; a
-        # residual restricted by Pᵀ has no part along them, so the shift changes nothing that P brings back)
-        diagonal = C.diagonal()
-        C = (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
+        """``coarse``: :func:`coarse_matrix` factorized; the cycle's vectors made on first use."""
+        C = coarse_matrix(M, P)
         # minimum degree at any size: the Galerkin stencil (up to 81 couplings a row) fills less so than in nested
         # dissection (1000² sheet's 63,001 coarse nodes: 51 against 63 million entries, 4.3 against 10.6 s;
         # ``python benchmarks/studies/multigrid.py --coarse-factor --size 1000 --weights 0.000001``)
