@@ -33,6 +33,7 @@ from .linalg import factorize
 from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner,
                         PathLinePreconditioner, SymmetricDiagonalBlocks, block_cg, permuted)
 from .linalg import compiled as kernels
+from .linalg import spectral
 from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, gauss_seidel_cg
 from .linalg.grid import GridPattern
 from .linalg.heap import reused_heap
@@ -178,7 +179,7 @@ TWO_GRID_LINE_STRIDE_MAX = 450_000
 #: --strides 4``, and ``--aspect 6``, ``--aspect 1.5``; on 300² cylinders and tori, ``docs/fairing.md``).
 TWO_GRID_ANISOTROPY = 2.5
 #: ``FairingSystem(preconditioner=...)``'s choices.
-PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "none")
+PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "spectral", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
 #: fused CG passes and the line preconditioner) from this many unknowns on. Below, SciPy's
 #: diagonal kernel and NumPy: loading Numba and its cached kernels costs about a second per
@@ -195,6 +196,20 @@ HEAP_MIN_VERTICES = 10_000
 #: vertices is free (fixed vertices become identity rows there, so their rows cost too).
 GRID_MIN_FREE = 0.6
 
+#: "auto" preconditions CG on a mostly free vertex grid without the compiled kernels by
+#: :class:`~quadnodes.linalg.spectral.SpectralPreconditioner` where plain CG's work, unknowns × √(Gershgorin
+#: bound / ω), is at least this (at any size once SciPy's transforms are imported): importing ``scipy.fft``
+#: costs about 40 ms, which the fewer steps repay from here on.
+SPECTRAL_MIN_WORK = 6e5
+#: ... and only where at most this many fixed vertices lie off the grid's boundary: the transforms do not know them,
+#: and each costs steps (on the 300² sheet at the default weight 28 steps with none, 36 with 10, 43 with 100 and 86
+#: with 1 % of the vertices fixed at random, against plain CG's 87–154).
+SPECTRAL_MAX_PINS = 16
+#: ... and only where no unknown's fairing diagonal exceeds this many times the median one's: stiff spots (windows
+#: with a short edge under ``line_spacing="hold"``) are outliers that the constant coefficients miss. On 300²
+#: design surfaces with broadband noise the ratio is 1.9–2.6 under fair's even spacing (30–45 steps against plain
+#: CG's 95–128), 6.1 on a torus (41 against 225), and 55 under "hold" (204 against 325 steps, slower than plain CG).
+SPECTRAL_MAX_STIFFNESS = 12.0
 #: Default dimensionless penalty weight (in units of the mean edge length).
 #: Chosen from ``benchmarks/studies/weight_sweep.py``; see ``docs/fairing.md``.
 DEFAULT_WEIGHT = 0.3
@@ -584,6 +599,48 @@ def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
             half if along[1] * TWO_GRID_ANISOTROPY < along[0] else TWO_GRID_STRIDE)
 
 
+def _spectral_pays(unknowns: int, contrast: float) -> bool:
+    """Whether "auto" takes the spectral preconditioner on a grid without the compiled kernels: where plain
+    CG's work, ``unknowns · √contrast`` (its steps grow with the square root of the Gershgorin bound over ω),
+    is at least :data:`SPECTRAL_MIN_WORK`, or at any size once SciPy's transforms are imported."""
+    return spectral.loaded() or unknowns * np.sqrt(max(contrast, 0.0)) >= SPECTRAL_MIN_WORK
+
+
+def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float) -> float:
+    """The stiffest unknown's fairing diagonal (``AᵀA``'s, without ω) over the median unknown's, from a grid's
+    diagonal storage."""
+    d = data[int(np.flatnonzero(offsets == 0)[0])][free] - weight
+    median = float(np.median(d)) if d.size else 0.0
+    return float(d.max()) / median if median > 0 else np.inf
+
+
+def _pins(free: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool]) -> int:
+    """Fixed nodes of a grid off its boundary (the first and last row and column of an axis that does not close)."""
+    held = ~free.reshape(shape)
+    rows, cols = shape
+    inner = held[(0 if wrap[0] else 1) : rows - (0 if wrap[0] else 1), (0 if wrap[1] else 1) : cols - (0 if wrap[1] else 1)]
+    return int(np.count_nonzero(inner))
+
+
+def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool],
+                             weight: float, free: np.ndarray) -> "spectral.SpectralPreconditioner":
+    """:class:`~quadnodes.linalg.spectral.SpectralPreconditioner` of a grid's ``AᵀA + ωI`` in diagonal storage:
+    each family's coefficient the median magnitude of its ``±3`` diagonal (the product of a window's end
+    coefficients) over the windows that have one; a family without windows of four nodes gets 0."""
+    rows, cols = shape
+    found = {int(o): d for d, o in enumerate(offsets)}
+
+    def coefficient(offset: int, side: int) -> float:
+        if side < 4 or offset not in found:
+            return 0.0
+        ends = -data[found[offset]]
+        ends = ends[ends > 0]
+        return float(np.median(ends)) if ends.size else 0.0
+
+    return spectral.SpectralPreconditioner(shape, wrap, coefficient(3, cols), coefficient(3 * cols, rows), weight,
+                                           free)
+
+
 def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
     """Largest Gershgorin bound (absolute row sum) over ``rows`` (a mask) of a symmetric matrix
     in diagonal storage (a column sum there: ``data[d, j] = M[j - offset_d, j]``)."""
@@ -774,7 +831,7 @@ class FairingSystem:
     rtol : float
         CG stops when every coordinate's residual is below ``rtol`` times its
         right-hand side (the solution's relative error is then of the same order).
-    preconditioner : {"auto", "gauss-seidel", "two-grid", "lines", "none"}
+    preconditioner : {"auto", "gauss-seidel", "two-grid", "lines", "spectral", "none"}
         ``"auto"``: from :data:`COMPILED_MIN_UNKNOWNS` unknowns on (or wherever the compiled
         kernels are loaded), where the Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω,
         symmetric Gauss–Seidel in Eisenstat's form: 2.2–6.2× fewer steps than plain CG on two
@@ -788,7 +845,13 @@ class FairingSystem:
         a cylinder or a torus) its coarse grid (:class:`~quadnodes.linalg.multigrid.TwoGrid`), on any
         other mesh (``_lines`` given) coarse nodes along its structure lines
         (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`); either with at most
-        :data:`TWO_GRID_COARSE_MAX` coarse nodes. Elsewhere: block Jacobi at small weights, else none.
+        :data:`TWO_GRID_COARSE_MAX` coarse nodes. Without the compiled kernels, on a mostly free vertex grid
+        (``_topology`` given): the line operator with constant coefficients inverted by transforms
+        (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`, about 3× fewer steps than plain CG,
+        each about twice as dear) where plain CG's work is at least :data:`SPECTRAL_MIN_WORK` or SciPy's
+        transforms are imported, at most :data:`SPECTRAL_MAX_PINS` fixed vertices lie off the grid's
+        boundary and no stiff spot exceeds :data:`SPECTRAL_MAX_STIFFNESS`. Elsewhere: block Jacobi at
+        small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
         lines'; needs ``_topology`` or ``_lines``).
@@ -798,7 +861,8 @@ class FairingSystem:
         on any other mesh (``_lines`` given) the same along its structure lines
         (:class:`~quadnodes.linalg.cg.PathLinePreconditioner`); its step count barely
         depends on the noise or the size (59–60 steps on 300² and 1000² broadband
-        noise against 222 and 473). ``"none"``: plain CG.
+        noise against 222 and 473). ``"spectral"``: the transforms' preconditioner at any size and
+        weight (a mostly free vertex grid, ``_topology`` given). ``"none"``: plain CG.
 
     Attributes
     ----------
@@ -826,7 +890,7 @@ class FairingSystem:
         *,
         solver: Literal["auto", "direct", "cg"] = "auto",
         rtol: float = 1e-9,
-        preconditioner: Literal["auto", "gauss-seidel", "two-grid", "lines", "none"] = "auto",
+        preconditioner: Literal["auto", "gauss-seidel", "two-grid", "lines", "spectral", "none"] = "auto",
         _inverse_lengths: np.ndarray | None = None,
         _topology: object | None = None,
         _lines: object | None = None,
@@ -961,7 +1025,10 @@ class FairingSystem:
         is marked to switch to the two-grid cycle (:class:`~quadnodes.linalg.multigrid.TwoGrid`, or on the lines
         :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) in :meth:`solve` where its rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more; there the
-        kernels are loaded at any size. Otherwise:
+        kernels are loaded at any size. Otherwise, on a mostly free vertex grid, the spectral preconditioner
+        (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`) where :func:`_spectral_pays`, with at most
+        :data:`SPECTRAL_MAX_PINS` fixed vertices off the boundary and no stiff spot above
+        :data:`SPECTRAL_MAX_STIFFNESS`; else
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and
@@ -1038,7 +1105,18 @@ class FairingSystem:
                 return self._gauss_seidel(blocks, SymmetricGaussSeidel if open_grid else CsrGaussSeidel)
             if self.preconditioner in ("gauss-seidel", "two-grid"):
                 raise InputError(f"preconditioner={self.preconditioner!r} needs the compiled kernels (Numba); use 'auto'")
-            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto":
+            if self.preconditioner == "spectral" and not grid:
+                raise InputError("preconditioner='spectral' needs a mostly free vertex grid (the grid's numbering); "
+                                 "use 'auto'")
+            # on a grid the line operator with constant coefficients, inverted by transforms, in place of plain CG
+            # and of block Jacobi where the compiled sweeps are not used
+            use_spectral = grid and (self.preconditioner == "spectral"
+                                     or (self.preconditioner == "auto" and not wanted and _spectral_pays(k, contrast)
+                                         and _pins(self._grid[2], shape, wrap) <= SPECTRAL_MAX_PINS
+                                         and _stiffness(*grid_storage(), self._grid[2], self.weight)
+                                         <= SPECTRAL_MAX_STIFFNESS))
+            if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto" \
+                    and not use_spectral:
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = permuted(self.matrix, order)
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
@@ -1051,6 +1129,8 @@ class FairingSystem:
                         precond = _line_preconditioner(data, offsets, cols)
                     except np.linalg.LinAlgError as exc:  # a line block not positive definite
                         raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
+                elif use_spectral:
+                    precond = _spectral_preconditioner(offsets, data, shape, wrap, self.weight, self._grid[2])
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:

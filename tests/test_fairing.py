@@ -452,6 +452,7 @@ def test_grid_diagonal_path_only_when_it_pays(monkeypatch):
     assert isinstance(s._cg[0], RowBlocks) and not isinstance(s._cg[0], DiagonalBlocks)
     small = 0.003 / m.mean_edge_length**2
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # a fresh process, a small grid
+    monkeypatch.setattr(fairing_module.spectral, "loaded", lambda: False)  # (no transforms imported either)
     s = _grid_system(m, free, small)  # small weight: block-Jacobi CG
     s.solve(m.vertices[free])
     assert s._cg[1] is not None and not isinstance(s._cg[0], DiagonalBlocks)
@@ -675,6 +676,7 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     plain.solve(m.vertices[free])
     assert plain._cg[1] is None
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)  # (as in a fresh process)
+    monkeypatch.setattr(fairing_module.spectral, "loaded", lambda: False)  # (no transforms imported either)
     small = _grid_system(m, free, w)  # below COMPILED_MIN_UNKNOWNS: SciPy's kernel, no line solves
     small._cg_setup()
     assert small._cg[1] is None and not isinstance(small._cg[0], SymmetricDiagonalBlocks)
@@ -697,6 +699,106 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
     assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     with pytest.raises(InputError, match="preconditioner"):
         FairingSystem(m.vertices, m.topology.windows, free, w, preconditioner="multigrid")
+
+
+def _noisy(m, seed=5, share=0.2):
+    """``m`` with broadband noise: independent Gaussian offsets of ``share`` edge lengths, moved off the origin."""
+    rng = np.random.default_rng(seed)
+    m = m.with_vertices(m.vertices + rng.normal(scale=share * m.mean_edge_length, size=m.vertices.shape))
+    return m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("case", ["sheet", "boundary", "pins", "anisotropic", "cylinder", "torus"])
+def test_spectral_preconditioner_on_grids_equals_the_direct_solve(monkeypatch, threads, case):
+    """The transforms' preconditioner on open, closed and anisotropic grids, with the boundary or a few inner
+    vertices fixed: within 1e-8 of the mesh's size of the direct solve, fixed vertices unmoved, fewer steps
+    than plain CG."""
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+    from quadnodes.mesh import torus
+
+    base = {"cylinder": lambda: cylinder(30, 40, radius=500.0, height=900.0),
+            "torus": lambda: torus(24, 40, major=800.0, minor=200.0),
+            "anisotropic": lambda: QuadMesh(grid(40, 50, spacing=25.0).vertices * [1.0, 2.8, 1.0], grid(40, 50).faces)}.get(
+        case, lambda: grid(40, 50, spacing=25.0))()
+    m = _noisy(base)
+    free = m.topology.window_middle.copy()
+    if case == "boundary":
+        free &= ~m.topology.boundary_vertices
+    elif case == "pins":
+        free[np.random.default_rng(2).choice(np.flatnonzero(free), 5, replace=False)] = False
+    if threads > 1:
+        monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+        monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    w = 0.3 / m.mean_edge_length**2
+    s = _grid_system(m, free, w, preconditioner="spectral")
+    x = s.solve(m.vertices[free])
+    assert isinstance(s._cg[0], DiagonalBlocks) and isinstance(s._cg[1], SpectralPreconditioner)
+    assert len(s._cg[0].ranges) == threads and s.residual <= 1e-9
+    assert s._cg[1].wrap == s._grid[0].wrap
+    plain = _grid_system(m, free, w, preconditioner="none")
+    plain.solve(m.vertices[free])
+    assert s.iterations < plain.iterations
+    d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
+def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
+    """Without the compiled kernels, on a mostly free grid: where plain CG's work is large enough or the
+    transforms are imported, with few inner vertices fixed and no stiff spots; never on request off a grid."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg import spectral
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+
+    m = _noisy(grid(40, 50, spacing=25.0))
+    free = m.topology.window_middle.copy()
+    w = 0.3 / m.mean_edge_length**2
+
+    from quadnodes.zigzag import _window_geometry
+
+    t = m.topology
+    even = _window_geometry(m.vertices, t.windows, t.window_walk, even=True)[-2]  # fair's line_spacing="fair"
+
+    def pick(free=free, weight=w):
+        s = FairingSystem(m.vertices, t.windows, free, weight, solver="cg", _inverse_lengths=even, _topology=t)
+        return type(s._cg_setup()[1])
+
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)
+    monkeypatch.setattr(spectral, "loaded", lambda: False)
+    assert pick() is type(None)  # 1,996 unknowns: plain CG's work is below SPECTRAL_MIN_WORK (the import)
+    monkeypatch.setattr(fairing_module, "SPECTRAL_MIN_WORK", 1e4)
+    assert pick() is SpectralPreconditioner
+    monkeypatch.setattr(fairing_module, "SPECTRAL_MIN_WORK", 1e12)
+    monkeypatch.setattr(spectral, "loaded", lambda: True)  # imported already: at any size
+    assert pick() is SpectralPreconditioner
+    assert pick(weight=0.003 / m.mean_edge_length**2) is SpectralPreconditioner  # (in place of block Jacobi)
+    inner = np.flatnonzero(free & ~m.topology.boundary_vertices)
+    chosen = np.random.default_rng(0).choice(inner, fairing_module.SPECTRAL_MAX_PINS + 1, replace=False)
+    pins = free.copy()
+    pins[chosen[:-1]] = False
+    pins[m.topology.boundary_vertices] = False  # (fixed vertices on the boundary do not count)
+    assert pick(free=pins) is SpectralPreconditioner
+    pins[chosen[-1]] = False  # one more
+    assert pick(free=pins) is type(None)
+    # the boundary: the first and last row and column of an open axis
+    held = np.ones((5, 6), bool)
+    held[0, 2] = held[4, 5] = held[2, 0] = held[3, 3] = False
+    assert fairing_module._pins(held.reshape(-1), (5, 6), (False, False)) == 1
+    assert fairing_module._pins(held.reshape(-1), (5, 6), (True, False)) == 2
+    assert fairing_module._pins(held.reshape(-1), (5, 6), (True, True)) == 4
+    # a stiff spot: one very short edge under eq. 32's own lengths
+    v = m.vertices.copy()
+    v[1021] = v[1020] + 0.01 * (v[1021] - v[1020])
+    held = _window_geometry(v, t.windows, t.window_walk)[1]
+    stiff = FairingSystem(v, t.windows, free, w, solver="cg", _inverse_lengths=held, _topology=t)
+    assert type(stiff._cg_setup()[1]) is not SpectralPreconditioner
+    offsets, data = stiff._cg[0].offsets, stiff._cg[0].data
+    assert fairing_module._stiffness(offsets, data, stiff._grid[2], stiff.weight) > fairing_module.SPECTRAL_MAX_STIFFNESS
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)  # the compiled sweeps win where loaded
+    assert pick() is SymmetricGaussSeidel
+    with pytest.raises(InputError, match="spectral"):
+        FairingSystem(m.vertices, m.topology.windows, free, w, solver="cg", preconditioner="spectral")._cg_setup()
 
 
 @pytest.mark.parametrize("threads", [1, 2])

@@ -73,14 +73,19 @@ def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
 
         f = m.faces
         tm = trimesh.Trimesh(m.vertices.copy(), np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]), process=False)
-    # modules are loaded before the clock starts: a pipeline that re-runs has them
+    # the row's own module is loaded before the clock starts, and only it: a pipeline that re-runs has it. (Loading
+    # more would load more of SciPy before the clock: quadnodes.smoothing imports scipy.optimize and with it
+    # scipy.fft, which fair's spectral preconditioner otherwise imports inside the clock, as a fresh script does.)
     if os.environ.get("QUADNODES_BENCH_WARM"):  # --warm: the compiled kernels too, as a server or watch has them
         from quadnodes.linalg import compiled
 
         compiled.wait()
-    from quadnodes.fairing import fair
-    from quadnodes.smoothing import taubin
-    from quadnodes.topology import windows
+    if kind in ("fair", "fair_hold"):
+        from quadnodes.fairing import fair
+    elif kind == "taubin":
+        from quadnodes.smoothing import taubin
+    elif kind == "lines":
+        from quadnodes.topology import windows
 
     base = _common.rss_mb()
     t = time.perf_counter()
