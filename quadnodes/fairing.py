@@ -197,18 +197,22 @@ HEAP_MIN_VERTICES = 10_000
 GRID_MIN_FREE = 0.6
 
 #: "auto" preconditions CG on a mostly free vertex grid without the compiled kernels by
-#: :class:`~quadnodes.linalg.spectral.SpectralPreconditioner` where plain CG's work, unknowns × √(Gershgorin
-#: bound / ω), is at least this (at any size once SciPy's transforms are imported): importing ``scipy.fft``
-#: costs about 40 ms, which the fewer steps repay from here on.
+#: :class:`~quadnodes.linalg.spectral.SpectralPreconditioner` where the Gershgorin bound exceeds
+#: :data:`GAUSS_SEIDEL_CONTRAST` ω (below, plain CG's few steps cost less: at ω = 3 on the 300² sheet 28 plain steps
+#: took 0.085 s against 13 preconditioned ones' 0.092 s, ``benchmarks/studies/cg_weights.py --size 300 --noise
+#: broadband``) and plain CG's work, unknowns × √(Gershgorin bound / ω), is at least this (or at any size once SciPy's
+#: transforms are imported): importing ``scipy.fft`` costs about 40 ms, which the fewer steps repay from here on (in
+#: fresh processes 0.274 against 0.276 s at 300² and the default weight, work 1.2·10⁶;
+#: ``benchmarks/perf/bench_core.py --sizes 300 --only fair --noise broadband --against``).
 SPECTRAL_MIN_WORK = 6e5
 #: ... and only where at most this many fixed vertices lie off the grid's boundary: the transforms do not know them,
 #: and each costs steps (on the 300² sheet at the default weight 28 steps with none, 36 with 10, 43 with 100 and 86
-#: with 1 % of the vertices fixed at random, against plain CG's 87–154).
-SPECTRAL_MAX_PINS = 16
-#: ... and only where no unknown's fairing diagonal exceeds this many times the median one's: stiff spots (windows
-#: with a short edge under ``line_spacing="hold"``) are outliers that the constant coefficients miss. On 300²
-#: design surfaces with broadband noise the ratio is 1.9–2.6 under fair's even spacing (30–45 steps against plain
-#: CG's 95–128), 6.1 on a torus (41 against 225), and 55 under "hold" (204 against 325 steps, slower than plain CG).
+#: with 1 % of the vertices fixed at random, against plain CG's 87–154; a throwaway script).
+SPECTRAL_MAX_INNER_FIXED = 16
+#: ... and only where no unknown's fairing diagonal exceeds this many times the median one's: a stiff spot (a
+#: collapsed stretch of a line) is an outlier that the constant coefficients miss. The sampled design surfaces
+#: with broadband noise are at 1.9–2.6, a torus at 6.1 (a throwaway script's figures; the study prints its
+#: sheet's: ``cg_weights.py``).
 SPECTRAL_MAX_STIFFNESS = 12.0
 #: Default dimensionless penalty weight (in units of the mean edge length).
 #: Chosen from ``benchmarks/studies/weight_sweep.py``; see ``docs/fairing.md``.
@@ -600,10 +604,13 @@ def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
 
 
 def _spectral_pays(unknowns: int, contrast: float) -> bool:
-    """Whether "auto" takes the spectral preconditioner on a grid without the compiled kernels: where plain
-    CG's work, ``unknowns · √contrast`` (its steps grow with the square root of the Gershgorin bound over ω),
-    is at least :data:`SPECTRAL_MIN_WORK`, or at any size once SciPy's transforms are imported."""
-    return spectral.loaded() or unknowns * np.sqrt(max(contrast, 0.0)) >= SPECTRAL_MIN_WORK
+    """Whether "auto" takes the spectral preconditioner on a grid without the compiled kernels: where the
+    Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω and plain CG's work, ``unknowns · √contrast`` (its
+    steps grow with the square root of the bound over ω), is at least :data:`SPECTRAL_MIN_WORK` — or, that
+    bound exceeded, at any size once SciPy's transforms are imported."""
+    if contrast <= GAUSS_SEIDEL_CONTRAST:
+        return False
+    return spectral.loaded() or unknowns * np.sqrt(contrast) >= SPECTRAL_MIN_WORK
 
 
 def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float) -> float:
@@ -614,7 +621,7 @@ def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: 
     return float(d.max()) / median if median > 0 else np.inf
 
 
-def _pins(free: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool]) -> int:
+def _inner_fixed(free: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool]) -> int:
     """Fixed nodes of a grid off its boundary (the first and last row and column of an axis that does not close)."""
     held = ~free.reshape(shape)
     rows, cols = shape
@@ -845,13 +852,13 @@ class FairingSystem:
         a cylinder or a torus) its coarse grid (:class:`~quadnodes.linalg.multigrid.TwoGrid`), on any
         other mesh (``_lines`` given) coarse nodes along its structure lines
         (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`); either with at most
-        :data:`TWO_GRID_COARSE_MAX` coarse nodes. Without the compiled kernels, on a mostly free vertex grid
-        (``_topology`` given): the line operator with constant coefficients inverted by transforms
-        (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`, about 3× fewer steps than plain CG,
-        each about twice as dear) where plain CG's work is at least :data:`SPECTRAL_MIN_WORK` or SciPy's
-        transforms are imported, at most :data:`SPECTRAL_MAX_PINS` fixed vertices lie off the grid's
-        boundary and no stiff spot exceeds :data:`SPECTRAL_MAX_STIFFNESS`. Elsewhere: block Jacobi at
-        small weights, else none.
+        :data:`TWO_GRID_COARSE_MAX` coarse nodes. Without the compiled kernels (not loaded, or Numba
+        missing), on a mostly free vertex grid (``_topology`` given) whose windows are scaled third
+        differences (fair's even spacing): the line operator with constant coefficients inverted by
+        transforms (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`, 3–9× fewer steps than plain
+        CG, each two to three times as dear) where :func:`_spectral_pays`, at most
+        :data:`SPECTRAL_MAX_INNER_FIXED` fixed vertices lie off the grid's boundary and no stiff spot
+        exceeds :data:`SPECTRAL_MAX_STIFFNESS`. Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
         lines'; needs ``_topology`` or ``_lines``).
@@ -910,8 +917,13 @@ class FairingSystem:
         win = windows if active.all() else windows[active]
         if win is not windows:
             is_free, word = is_free[active], word[active]
+        # whether every window's row is a scaled third difference (its three edges at one length: fair's even
+        # spacing, line_spacing="fair"): the spectral preconditioner's model, which eq. 32's own lengths leave
+        self._third_differences = False
         if _inverse_lengths is not None:  # (w, 3) for all windows, from fair()'s detection pass
             coef_all = _coefficients(_inverse_lengths[:, 0], _inverse_lengths[:, 1], _inverse_lengths[:, 2])
+            self._third_differences = bool(np.array_equal(_inverse_lengths[:, 0], _inverse_lengths[:, 1])
+                                           and np.array_equal(_inverse_lengths[:, 1], _inverse_lengths[:, 2]))
         elif _topology is not None:  # the grid path needs every window's coefficients
             coef_all = window_coefficients(vertices, windows)
         else:
@@ -1025,9 +1037,10 @@ class FairingSystem:
         is marked to switch to the two-grid cycle (:class:`~quadnodes.linalg.multigrid.TwoGrid`, or on the lines
         :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) in :meth:`solve` where its rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more; there the
-        kernels are loaded at any size. Otherwise, on a mostly free vertex grid, the spectral preconditioner
+        kernels are loaded at any size. Otherwise, on a mostly free vertex grid whose windows are scaled third
+        differences, the spectral preconditioner
         (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`) where :func:`_spectral_pays`, with at most
-        :data:`SPECTRAL_MAX_PINS` fixed vertices off the boundary and no stiff spot above
+        :data:`SPECTRAL_MAX_INNER_FIXED` fixed vertices off the boundary and no stiff spot above
         :data:`SPECTRAL_MAX_STIFFNESS`; else
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
@@ -1106,13 +1119,16 @@ class FairingSystem:
             if self.preconditioner in ("gauss-seidel", "two-grid"):
                 raise InputError(f"preconditioner={self.preconditioner!r} needs the compiled kernels (Numba); use 'auto'")
             if self.preconditioner == "spectral" and not grid:
-                raise InputError("preconditioner='spectral' needs a mostly free vertex grid (the grid's numbering); "
-                                 "use 'auto'")
-            # on a grid the line operator with constant coefficients, inverted by transforms, in place of plain CG
-            # and of block Jacobi where the compiled sweeps are not used
+                raise InputError("preconditioner='spectral' needs the grid path: a complete vertex grid (rows and "
+                                 f"columns of at least 4 vertices) with at least {GRID_MIN_FREE:.0%} of its vertices "
+                                 "free; use 'auto'")
+            # on a grid whose windows are scaled third differences (fair's even spacing) the line operator with
+            # constant coefficients, inverted by transforms, in place of plain CG and of block Jacobi where the
+            # compiled sweeps are not used (not loaded, or Numba missing)
             use_spectral = grid and (self.preconditioner == "spectral"
-                                     or (self.preconditioner == "auto" and not wanted and _spectral_pays(k, contrast)
-                                         and _pins(self._grid[2], shape, wrap) <= SPECTRAL_MAX_PINS
+                                     or (self.preconditioner == "auto" and self._third_differences
+                                         and _spectral_pays(k, contrast) and not (wanted and kernels.wait())
+                                         and _inner_fixed(self._grid[2], shape, wrap) <= SPECTRAL_MAX_INNER_FIXED
                                          and _stiffness(*grid_storage(), self._grid[2], self.weight)
                                          <= SPECTRAL_MAX_STIFFNESS))
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto" \

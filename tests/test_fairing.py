@@ -748,6 +748,39 @@ def test_spectral_preconditioner_on_grids_equals_the_direct_solve(monkeypatch, t
     assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
 
 
+@pytest.mark.parametrize("loaded", [False, True])
+def test_fair_takes_the_spectral_preconditioner_with_its_even_spacing_only(monkeypatch, loaded):
+    """fair()'s default line_spacing="fair" gives every window one length (NumPy's and the compiled pass alike):
+    "auto" takes the transforms there without the compiled sweeps, and not under eq. 32's own lengths."""
+    from quadnodes.linalg import compiled, spectral
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+    from quadnodes.zigzag import _window_geometry
+
+    m = _noisy(grid(60, 70, spacing=25.0))
+    t = m.topology
+    if loaded:
+        assert compiled.wait()
+    monkeypatch.setattr(compiled, "ready", lambda: loaded)  # (the geometry pass's path: compiled or NumPy)
+    inv = _window_geometry(m.vertices, t.windows, t.window_walk, even=True)[-2]
+    assert np.array_equal(inv[:, 0], inv[:, 1]) and np.array_equal(inv[:, 1], inv[:, 2])
+    monkeypatch.setattr(compiled, "ready", lambda: False)  # (the solver: no compiled sweeps)
+    monkeypatch.setattr(spectral, "loaded", lambda: True)
+    picked = []
+    setup = FairingSystem._cg_setup
+
+    def record(self):
+        out = setup(self)
+        picked.append(type(out[1]))
+        return out
+
+    monkeypatch.setattr(FairingSystem, "_cg_setup", record)
+    out, rep = fair(m, threshold=0.0)
+    assert picked == [SpectralPreconditioner] and rep.iterations[0].residual <= 1e-9
+    picked.clear()
+    held, _ = fair(m, threshold=0.0, line_spacing="hold")
+    assert picked and SpectralPreconditioner not in picked
+
+
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     """Without the compiled kernels, on a mostly free grid: where plain CG's work is large enough or the
     transforms are imported, with few inner vertices fixed and no stiff spots; never on request off a grid."""
@@ -778,8 +811,20 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     monkeypatch.setattr(spectral, "loaded", lambda: True)  # imported already: at any size
     assert pick() is SpectralPreconditioner
     assert pick(weight=0.003 / m.mean_edge_length**2) is SpectralPreconditioner  # (in place of block Jacobi)
+    assert pick(weight=30.0 / m.mean_edge_length**2) is type(None)  # a large weight: plain CG's few steps
+    assert not fairing_module._spectral_pays(10**9, fairing_module.GAUSS_SEIDEL_CONTRAST)
+    # eq. 32's own lengths: the windows are no scaled third differences, which the transforms model
+    own = _window_geometry(m.vertices, t.windows, t.window_walk)[1]
+    s = FairingSystem(m.vertices, t.windows, free, w, solver="cg", _inverse_lengths=own, _topology=t)
+    assert not s._third_differences and type(s._cg_setup()[1]) is not SpectralPreconditioner
+    # the compiled kernels wanted but missing (no Numba): the transforms, not block Jacobi
+    monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 100)
+    wait = fairing_module.kernels.wait
+    monkeypatch.setattr(fairing_module.kernels, "wait", lambda: False)
+    assert pick(weight=0.003 / m.mean_edge_length**2) is SpectralPreconditioner
+    monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 250_000)
     inner = np.flatnonzero(free & ~m.topology.boundary_vertices)
-    chosen = np.random.default_rng(0).choice(inner, fairing_module.SPECTRAL_MAX_PINS + 1, replace=False)
+    chosen = np.random.default_rng(0).choice(inner, fairing_module.SPECTRAL_MAX_INNER_FIXED + 1, replace=False)
     pins = free.copy()
     pins[chosen[:-1]] = False
     pins[m.topology.boundary_vertices] = False  # (fixed vertices on the boundary do not count)
@@ -789,17 +834,18 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     # the boundary: the first and last row and column of an open axis
     held = np.ones((5, 6), bool)
     held[0, 2] = held[4, 5] = held[2, 0] = held[3, 3] = False
-    assert fairing_module._pins(held.reshape(-1), (5, 6), (False, False)) == 1
-    assert fairing_module._pins(held.reshape(-1), (5, 6), (True, False)) == 2
-    assert fairing_module._pins(held.reshape(-1), (5, 6), (True, True)) == 4
-    # a stiff spot: one very short edge under eq. 32's own lengths
+    assert fairing_module._inner_fixed(held.reshape(-1), (5, 6), (False, False)) == 1
+    assert fairing_module._inner_fixed(held.reshape(-1), (5, 6), (True, False)) == 2
+    assert fairing_module._inner_fixed(held.reshape(-1), (5, 6), (True, True)) == 4
+    # a stiff spot: a collapsed stretch of a line (three vertices pulled onto their neighbour)
     v = m.vertices.copy()
-    v[1021] = v[1020] + 0.01 * (v[1021] - v[1020])
-    held = _window_geometry(v, t.windows, t.window_walk)[1]
-    stiff = FairingSystem(v, t.windows, free, w, solver="cg", _inverse_lengths=held, _topology=t)
-    assert type(stiff._cg_setup()[1]) is not SpectralPreconditioner
+    v[1021:1024] = v[1020] + 0.01 * (v[1021:1024] - v[1020])
+    even_v = _window_geometry(v, t.windows, t.window_walk, even=True)[-2]
+    stiff = FairingSystem(v, t.windows, free, w, solver="cg", _inverse_lengths=even_v, _topology=t)
+    assert stiff._third_differences and type(stiff._cg_setup()[1]) is not SpectralPreconditioner
     offsets, data = stiff._cg[0].offsets, stiff._cg[0].data
     assert fairing_module._stiffness(offsets, data, stiff._grid[2], stiff.weight) > fairing_module.SPECTRAL_MAX_STIFFNESS
+    monkeypatch.setattr(fairing_module.kernels, "wait", wait)
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)  # the compiled sweeps win where loaded
     assert pick() is SymmetricGaussSeidel
     with pytest.raises(InputError, match="spectral"):

@@ -57,6 +57,10 @@ def test_fixed_nodes_get_zero_and_the_preconditioner_is_symmetric_positive_defin
     X[:, ~free] = Y[:, ~free] = 0.0
     PX, PY = _apply(P, X), _apply(P, Y)
     assert np.all(PX[:, ~free] == 0.0)
+    # P⁻¹ = S K⁻¹ S: whatever the input holds on fixed rows is ignored
+    noisy = X.copy()
+    noisy[:, ~free] = rng.normal(size=(2, int((~free).sum())))
+    np.testing.assert_allclose(_apply(P, noisy), PX, rtol=0, atol=1e-6 * np.abs(PX).max())
     a, b = np.einsum("ij,ij->i", PX, Y), np.einsum("ij,ij->i", X, PY)
     np.testing.assert_allclose(a, b, rtol=1e-5)
     assert np.all(np.einsum("ij,ij->i", PX, X) > 0)
@@ -78,9 +82,14 @@ def test_bad_arguments_are_named(kw, match):
 
 
 def test_loaded_says_whether_the_transforms_are_imported():
-    import scipy.fft  # noqa: F401
+    """In a fresh interpreter that has not imported them, ``loaded()`` is false; importing them makes it true."""
+    import subprocess
+    import sys
 
-    assert spectral.loaded()
+    code = ("import sys; from quadnodes.linalg import spectral; a = spectral.loaded(); import scipy.fft; "
+            "print(a, spectral.loaded(), 'scipy.fft' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "True", "True"]
 
 
 def test_parallel_transforms_equal_one_thread(monkeypatch):
