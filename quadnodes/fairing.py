@@ -1079,9 +1079,20 @@ class FairingSystem:
                 shape, wrap = (data.shape[1] // cols, cols), self._grid[0].wrap
                 if self.preconditioner == "two-grid" or contrast > TWO_GRID_CONTRAST:  # (only where it may be used)
                     strides = _two_grid_strides(data, self._grid[2])
+            # on a grid whose windows are scaled third differences (fair's even spacing) the line operator with
+            # constant coefficients, inverted by transforms, where it pays (_spectral_pays), with few fixed vertices
+            # off the boundary and no stiff spot: on a torus (closed both ways: no line ends, so its steps barely
+            # grow as the weight falls) in place of everything else; on other grids where the compiled sweeps are
+            # not used (not loaded, or Numba missing), in place of plain CG and of block Jacobi
+            def spectral_fits() -> bool:
+                return (self.preconditioner == "auto" and self._third_differences and _spectral_pays(k, contrast)
+                        and _inner_fixed(self._grid[2], shape, wrap) <= SPECTRAL_MAX_INNER_FIXED
+                        and _stiffness(*grid_storage(), self._grid[2], self.weight) <= SPECTRAL_MAX_STIFFNESS)
+
+            torus = grid and wrap == (True, True) and spectral_fits()
             # "auto" at a tiny weight where the coarse space is small enough (a grid's, or one along the structure
             # lines): Gauss–Seidel first, the two-grid cycle if it is slow; the kernels pay for that at any size
-            may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST
+            may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not torus
             if may_switch and shape is not None:
                 self._coarse = int(np.prod([coarse_nodes(side, st, c).size
                                             for side, st, c in zip(shape, strides, wrap)]))
@@ -1091,7 +1102,7 @@ class FairingSystem:
                               and TWO_GRID_MIN_SIDE**2 < k <= TWO_GRID_COARSE_MAX * TWO_GRID_STRIDE**2)
             wanted = wanted or may_switch
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
-            if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST)) \
+            if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST and not torus)) \
                     and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
                 # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights,
@@ -1122,15 +1133,8 @@ class FairingSystem:
                 raise InputError("preconditioner='spectral' needs the grid path: a complete vertex grid (rows and "
                                  f"columns of at least 4 vertices) with at least {GRID_MIN_FREE:.0%} of its vertices "
                                  "free; use 'auto'")
-            # on a grid whose windows are scaled third differences (fair's even spacing) the line operator with
-            # constant coefficients, inverted by transforms, in place of plain CG and of block Jacobi where the
-            # compiled sweeps are not used (not loaded, or Numba missing)
-            use_spectral = grid and (self.preconditioner == "spectral"
-                                     or (self.preconditioner == "auto" and self._third_differences
-                                         and _spectral_pays(k, contrast) and not (wanted and kernels.wait())
-                                         and _inner_fixed(self._grid[2], shape, wrap) <= SPECTRAL_MAX_INNER_FIXED
-                                         and _stiffness(*grid_storage(), self._grid[2], self.weight)
-                                         <= SPECTRAL_MAX_STIFFNESS))
+            use_spectral = grid and (self.preconditioner == "spectral" or torus
+                                     or (not (wanted and kernels.wait()) and spectral_fits()))
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto" \
                     and not use_spectral:
                 order = _patch_order(self._windows, self.free_index, 4)

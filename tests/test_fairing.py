@@ -781,6 +781,41 @@ def test_fair_takes_the_spectral_preconditioner_with_its_even_spacing_only(monke
     assert picked and SpectralPreconditioner not in picked
 
 
+@pytest.mark.parametrize("loaded", [False, True])
+def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, loaded):
+    """A torus has no line ends, so the transforms' steps barely grow as the weight falls: "auto" takes them with
+    or without the compiled kernels, from the default weight to 10⁻⁶ (no Gauss–Seidel, no two-grid switch), and
+    fair() keeps within 1e-8 of the mesh's size of the direct solve."""
+    from quadnodes.linalg import compiled, spectral
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+    from quadnodes.mesh import torus
+
+    m = _noisy(torus(48, 60, major=800.0, minor=200.0))
+    if loaded:
+        assert compiled.wait()
+    monkeypatch.setattr(compiled, "ready", lambda: loaded)
+    monkeypatch.setattr(spectral, "loaded", lambda: True)
+    picked = []
+    setup = FairingSystem._cg_setup
+
+    def record(self):
+        out = setup(self)
+        picked.append((type(out[1]), self._switch_to))
+        return out
+
+    monkeypatch.setattr(FairingSystem, "_cg_setup", record)
+    size = np.ptp(m.vertices, axis=0).max()
+    steps = []
+    for weight in (0.3, 1e-4, 1e-6):
+        picked.clear()
+        out, rep = fair(m, threshold=0.0, weight=weight, solver="cg", line_curvature="fair")
+        assert picked == [(SpectralPreconditioner, None)], (weight, picked)
+        steps.append(rep.iterations[0].cg_iterations)
+        ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", line_curvature="fair")
+        assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
+    assert steps[-1] < 3 * steps[0], steps  # (Gauss–Seidel's grow as 1/√ω: some 30× here)
+
+
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     """Without the compiled kernels, on a mostly free grid: where plain CG's work is large enough or the
     transforms are imported, with few inner vertices fixed and no stiff spots; never on request off a grid."""
