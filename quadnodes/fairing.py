@@ -107,7 +107,8 @@ ERROR_RMS = 1e-8
 GAUSS_SEIDEL_CONTRAST = 30.0
 #: Below a weight of about 10⁻⁴ Gauss–Seidel's steps (growing as 1/√ω) cost more than the two-grid cycle's
 #: (77–107 from 10⁻³ to 10⁻⁶, each some ten Gauss–Seidel steps' time, plus a coarse factorization once):
-#: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on a grid (open, a cylinder or a torus), and
+#: "auto" may take :class:`~quadnodes.linalg.multigrid.TwoGrid` on a grid (open, a cylinder, or a torus that the
+#: spectral preconditioner does not take: see :data:`SPECTRAL_MIN_WORK`), and
 #: :class:`~quadnodes.linalg.multigrid.LineTwoGrid` on any other mesh, where the Gershgorin bound exceeds this
 #: many times ω (about ω = 2.5·10⁻⁴ on the bench sheet, 10⁻³ on a cylinder or torus),
 #: where Gauss–Seidel's rate says it pays (:data:`TWO_GRID_AFTER`, :data:`TWO_GRID_REMAINING`). On the 300² sheet
@@ -604,7 +605,7 @@ def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
 
 
 def _spectral_pays(unknowns: int, contrast: float) -> bool:
-    """Whether "auto" takes the spectral preconditioner on a grid without the compiled kernels: where the
+    """Whether the spectral preconditioner pays for a grid's CG (the other conditions in ``_cg_setup``): where the
     Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω and plain CG's work, ``unknowns · √contrast`` (its
     steps grow with the square root of the bound over ω), is at least :data:`SPECTRAL_MIN_WORK` — or, that
     bound exceeded, at any size once SciPy's transforms are imported."""
@@ -844,7 +845,8 @@ class FairingSystem:
         symmetric Gauss–Seidel in Eisenstat's form: 2.2–6.2× fewer steps than plain CG on two
         threads, each step two sweeps and no product. An open grid takes the grid's fast sweeps
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
-        grid and any other mesh sweep compressed rows
+        grid (a torus where the spectral preconditioner below does not take it) and any other mesh sweep
+        compressed rows
         (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Where the bound exceeds
         :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and Gauss–Seidel's rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more, the
@@ -858,7 +860,10 @@ class FairingSystem:
         transforms (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`, 3–9× fewer steps than plain
         CG, each two to three times as dear) where :func:`_spectral_pays`, at most
         :data:`SPECTRAL_MAX_INNER_FIXED` fixed vertices lie off the grid's boundary and no stiff spot
-        exceeds :data:`SPECTRAL_MAX_STIFFNESS`. Elsewhere: block Jacobi at small weights, else none.
+        exceeds :data:`SPECTRAL_MAX_STIFFNESS`. On a torus grid (closed both ways: no line ends, so the
+        steps barely grow as the weight falls) the same at every weight, with or without the kernels, in
+        place of Gauss–Seidel and the two-grid switch (at a bound above :data:`TWO_GRID_CONTRAST` ω only
+        with no fixed vertex). Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
         lines'; needs ``_topology`` or ``_lines``).
@@ -1037,7 +1042,8 @@ class FairingSystem:
         is marked to switch to the two-grid cycle (:class:`~quadnodes.linalg.multigrid.TwoGrid`, or on the lines
         :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) in :meth:`solve` where its rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more; there the
-        kernels are loaded at any size. Otherwise, on a mostly free vertex grid whose windows are scaled third
+        kernels are loaded at any size — except on a torus grid that the spectral preconditioner takes (see
+        ``preconditioner`` in the class). Otherwise, on a mostly free vertex grid whose windows are scaled third
         differences, the spectral preconditioner
         (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`) where :func:`_spectral_pays`, with at most
         :data:`SPECTRAL_MAX_INNER_FIXED` fixed vertices off the boundary and no stiff spot above
@@ -1089,7 +1095,10 @@ class FairingSystem:
                         and _inner_fixed(self._grid[2], shape, wrap) <= SPECTRAL_MAX_INNER_FIXED
                         and _stiffness(*grid_storage(), self._grid[2], self.weight) <= SPECTRAL_MAX_STIFFNESS)
 
-            torus = grid and wrap == (True, True) and spectral_fits()
+            # (on a torus every fixed vertex is off the boundary, and at tiny weights each costs many steps: a 150²
+            # torus with 16 of them took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
+            torus = grid and wrap == (True, True) and spectral_fits() and (
+                contrast <= TWO_GRID_CONTRAST or _inner_fixed(self._grid[2], shape, wrap) == 0)
             # "auto" at a tiny weight where the coarse space is small enough (a grid's, or one along the structure
             # lines): Gauss–Seidel first, the two-grid cycle if it is slow; the kernels pay for that at any size
             may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not torus

@@ -786,7 +786,10 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
     """A torus has no line ends, so the transforms' steps barely grow as the weight falls: "auto" takes them with
     or without the compiled kernels, from the default weight to 10⁻⁶ (no Gauss–Seidel, no two-grid switch), and
     fair() keeps within 1e-8 of the mesh's size of the direct solve."""
+    import warnings
+
     from quadnodes.linalg import compiled, spectral
+    from quadnodes.linalg.cg import SymmetricDiagonalBlocks
     from quadnodes.linalg.spectral import SpectralPreconditioner
     from quadnodes.mesh import torus
 
@@ -800,7 +803,7 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
 
     def record(self):
         out = setup(self)
-        picked.append((type(out[1]), self._switch_to))
+        picked.append((type(out[1]), self._switch_to, isinstance(out[0], SymmetricDiagonalBlocks)))
         return out
 
     monkeypatch.setattr(FairingSystem, "_cg_setup", record)
@@ -808,12 +811,25 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
     steps = []
     for weight in (0.3, 1e-4, 1e-6):
         picked.clear()
-        out, rep = fair(m, threshold=0.0, weight=weight, solver="cg", line_curvature="fair")
-        assert picked == [(SpectralPreconditioner, None)], (weight, picked)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # (a fallback to the direct solve warns: here it is a failure)
+            out, rep = fair(m, threshold=0.0, weight=weight, solver="cg", line_curvature="fair")
+        assert picked == [(SpectralPreconditioner, None, loaded)], (weight, picked)
+        assert rep.iterations[0].solver == "cg" and rep.iterations[0].cg_iterations > 0
         steps.append(rep.iterations[0].cg_iterations)
         ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", line_curvature="fair")
         assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
     assert steps[-1] < 3 * steps[0], steps  # (Gauss–Seidel's grow as 1/√ω: some 30× here)
+    # at tiny weights a fixed vertex (off the boundary, as every one on a torus) sends it back to Gauss–Seidel and
+    # the two-grid switch: each costs the transforms many steps there
+    fixed = np.zeros(m.n_vertices, bool)
+    fixed[[100, 1700]] = True
+    picked.clear()
+    fair(m, threshold=0.0, weight=1e-6, fixed=fixed, solver="cg", line_curvature="fair")
+    assert picked and picked[0][0] is not SpectralPreconditioner
+    picked.clear()
+    fair(m, threshold=0.0, weight=0.3, fixed=fixed, solver="cg", line_curvature="fair")
+    assert picked[0][0] is SpectralPreconditioner
 
 
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):

@@ -82,8 +82,8 @@ def symmetric_diagonal_product(U: np.ndarray, offsets: np.ndarray, X: np.ndarray
     """``Y[:, lo:hi] = (M X)[:, lo:hi]`` for a symmetric ``M`` stored by its upper diagonals.
 
     ``U[d, i] = M[i, i + offsets[d]]`` (``(d, n)``, entries past the end zero) with
-    ``offsets[0] = 0`` and positive offsets after it, increasing; ``X``, ``Y`` are C-contiguous
-    ``(c, m)`` with ``m ≥ n`` (columns past ``n`` are neither read nor written). With 7
+    ``offsets[0] = 0`` and positive offsets after it, in any order (a closed grid's periodic pairs follow
+    its first 13); ``X``, ``Y`` are C-contiguous ``(c, m)`` with ``m ≥ n`` (columns past ``n`` are neither read nor written). With 7
     upper diagonals (an open grid's fairing matrix) the rows away from both ends take
     :func:`_seven_diagonal_product`.
     """

@@ -343,3 +343,34 @@ def test_path_line_preconditioner_refuses_a_band_that_is_not_positive_definite()
     M = sp.csr_matrix(np.array([[1.0, 2.0, 0], [2.0, 1.0, 0], [0, 0, 1.0]]))
     with pytest.raises(np.linalg.LinAlgError):
         PathLinePreconditioner(M, np.array([0, 1, 2]), np.array([True, False, False]))
+
+
+@pytest.mark.parametrize("kind", ["torus 7x9", "torus 48x60", "cylinder 12x30"])
+def test_symmetric_diagonal_storage_of_closed_grids_equals_the_full_product(kind):
+    """A cylinder's or torus's fairing matrix in diagonal storage (the periodic pairs after the first 13 offsets,
+    their upper offsets out of order): the compiled symmetric product equals SciPy's, whole and cut."""
+    from quadnodes.fairing import grid_pattern, window_coefficients
+    from quadnodes.linalg.cg import SymmetricDiagonalBlocks
+    from quadnodes.mesh import cylinder, torus
+
+    name, size = kind.split()
+    a, b = (int(v) for v in size.split("x"))
+    m = torus(a, b, major=800.0, minor=200.0) if name == "torus" else cylinder(a, b, radius=500.0, height=900.0)
+    rng = np.random.default_rng(3)
+    m = m.with_vertices(m.vertices + rng.normal(scale=0.2 * m.mean_edge_length, size=m.vertices.shape))
+    pattern = grid_pattern(m.topology)
+    assert pattern is not None and pattern.offsets.size > 13
+    offsets, data = pattern.normal_matrix(window_coefficients(m.vertices, m.topology.windows),
+                                          np.ones(m.n_vertices, bool), 0.3)
+    n = data.shape[1]
+    blocks = SymmetricDiagonalBlocks(offsets, data)
+    X = np.zeros((3, -(-n // 64) * 64))
+    X[:, :n] = rng.normal(size=(3, n))
+    ref = (sp.dia_matrix((data, offsets), shape=(n, n)) @ X[:, :n].T).T
+    Y = np.full_like(X, np.nan)
+    blocks.run(lambda lo, hi: blocks.matvec(X, Y, lo, hi))
+    np.testing.assert_allclose(Y[:, :n], ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+    Y2 = np.full_like(X, np.nan)
+    blocks.matvec(X, Y2, 0, n // 3)
+    blocks.matvec(X, Y2, n // 3, n)
+    np.testing.assert_allclose(Y2[:, :n], ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
