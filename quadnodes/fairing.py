@@ -625,9 +625,8 @@ def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: 
 def _inner_fixed(free: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool]) -> int:
     """Fixed nodes of a grid off its boundary (the first and last row and column of an axis that does not close)."""
     held = ~free.reshape(shape)
-    rows, cols = shape
-    inner = held[(0 if wrap[0] else 1) : rows - (0 if wrap[0] else 1), (0 if wrap[1] else 1) : cols - (0 if wrap[1] else 1)]
-    return int(np.count_nonzero(inner))
+    edge_r, edge_c = (0 if wrap[0] else 1), (0 if wrap[1] else 1)  # (an axis that closes has no boundary)
+    return int(np.count_nonzero(held[edge_r : shape[0] - edge_r, edge_c : shape[1] - edge_c]))
 
 
 def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool],
