@@ -1089,15 +1089,20 @@ class FairingSystem:
             # off the boundary and no stiff spot: on a torus (closed both ways: no line ends, so its steps barely
             # grow as the weight falls) in place of everything else; on other grids where the compiled sweeps are
             # not used (not loaded, or Numba missing), in place of plain CG and of block Jacobi
-            def spectral_fits() -> bool:
-                return (self.preconditioner == "auto" and self._third_differences and _spectral_pays(k, contrast)
-                        and _inner_fixed(self._grid[2], shape, wrap) <= SPECTRAL_MAX_INNER_FIXED
+            fits: list[int] = []  # (the checks once: the inner fixed vertices' count, or -1 where it cannot fit)
+
+            def spectral_fits(most_fixed: int = SPECTRAL_MAX_INNER_FIXED) -> bool:
+                if not fits:
+                    fits.append(_inner_fixed(self._grid[2], shape, wrap) if (
+                        self.preconditioner == "auto" and self._third_differences and _spectral_pays(k, contrast)
                         and _stiffness(*grid_storage(), self._grid[2], self.weight) <= SPECTRAL_MAX_STIFFNESS)
+                        else -1)
+                return 0 <= fits[0] <= most_fixed
 
             # (on a torus every fixed vertex is off the boundary, and at tiny weights each costs many steps: a 150²
             # torus with 16 of them took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            torus = grid and wrap == (True, True) and spectral_fits() and (
-                contrast <= TWO_GRID_CONTRAST or _inner_fixed(self._grid[2], shape, wrap) == 0)
+            torus = grid and wrap == (True, True) and spectral_fits(
+                SPECTRAL_MAX_INNER_FIXED if contrast <= TWO_GRID_CONTRAST else 0)
             # "auto" at a tiny weight where the coarse space is small enough (a grid's, or one along the structure
             # lines): Gauss–Seidel first, the two-grid cycle if it is slow; the kernels pay for that at any size
             may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not torus

@@ -173,12 +173,11 @@ class SpectralPreconditioner:
         lam_r = _eigenvalues(cols, self._transforms[1])  # along a row (the column index)
         if free is not None and np.asarray(free).shape != (rows * cols,):
             raise ValueError(f"free: expected shape ({rows * cols},), got {np.asarray(free).shape}")
-        self._fixed = None if free is None else np.flatnonzero(~np.asarray(free, dtype=bool))
+        self._fixed = np.empty(0, np.int64) if free is None else np.flatnonzero(~np.asarray(free, dtype=bool))
         eig = column_coefficient * lam_c[:, None] ** 3 + row_coefficient * lam_r[None, :] ** 3 + weight
         # 1/eig in single precision as ω/eig ∈ (0, 1] (no underflow whatever the units), 1/ω applied in double;
         # the unnormalized forward and inverse FFTs' scales cancel
         self._inverse = (weight / eig).astype(np.float32)
-        self._inverse_scale = 1.0 / float(weight)
 
     def operator(self) -> sp.csr_matrix:
         """``K`` as a sparse matrix in the grid's row-major order (for tests and checks).
@@ -216,23 +215,15 @@ class SpectralPreconditioner:
         scale[~(np.isfinite(scale) & (scale > 0))] = 1.0
         G = np.empty(X.shape, dtype=np.float32)
         np.multiply(X, (1.0 / scale)[:, None], out=G, casting="same_kind")
-        if self._fixed is not None and self._fixed.size:
-            G[:, self._fixed] = 0.0  # (S on the way in too: P⁻¹ = S K⁻¹ S whatever R holds there)
+        G[:, self._fixed] = 0.0  # (S on the way in too: P⁻¹ = S K⁻¹ S whatever R holds there)
         workers = _threads.thread_count() if n >= PARALLEL_MIN_NODES else 1
         G = self._forward(G.reshape(-1, rows, cols), fft, workers)
         G *= self._inverse
         G = self._backward(G, fft, workers).reshape(-1, n)
-        back = (scale * self._inverse_scale)[:, None]
-        if columns:
-            np.multiply(G, back, out=Z[:, :n])
-            Z[:, n:] = 0.0
-            if self._fixed is not None and self._fixed.size:
-                Z[:, self._fixed] = 0.0
-        else:
-            Z[:n] = (G * back).T
-            Z[n:] = 0.0
-            if self._fixed is not None and self._fixed.size:
-                Z[self._fixed] = 0.0
+        out = Z[:, :n] if columns else Z[:n].T  # (c, n), a view of Z either way
+        np.multiply(G, (scale / self.weight)[:, None], out=out)
+        out[:, self._fixed] = 0.0
+        (Z[:, n:] if columns else Z[n:])[...] = 0.0
 
     def _order(self) -> list[int]:
         """The axes in the forward transforms' order: a real Fourier transform first."""
