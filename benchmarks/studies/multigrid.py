@@ -274,7 +274,7 @@ def main() -> None:
                          "triangulated, split four times), or the tests' real meshes (a table of their own)")
     ap.add_argument("--aspect", type=float, default=None,
                     help="--mesh cylinder: the edges around this many times those along (default: radius 1)")
-    ap.add_argument("--columns", nargs="+", choices=["gauss-seidel", "two-grid", "lines", "auto"],
+    ap.add_argument("--columns", nargs="+", choices=["gauss-seidel", "two-grid", "lines", "spectral", "auto"],
                     default=["gauss-seidel", "two-grid", "lines", "auto"],
                     help="--solver: which columns (e.g. no Gauss–Seidel where it would take its 20,000-step cap)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
@@ -341,6 +341,7 @@ def solver_table(args: argparse.Namespace) -> None:
         + ([("two-grid, structure lines", "two-grid", "lines")] if "lines" in chosen else []) \
         + ([(f"two-grid, structure lines, stride {s}", "two-grid", ("lines", s)) for s in args.strides]
            if not grid and "lines" in chosen else []) \
+        + ([("spectral", "spectral", None)] if grid and "spectral" in chosen else []) \
         + ([("auto", "auto", None)] if "auto" in chosen else [])
     if not kinds:
         raise SystemExit(f"--columns {' '.join(args.columns)}: no such column on --mesh {args.mesh} (on a mesh that "

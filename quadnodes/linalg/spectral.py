@@ -1,20 +1,25 @@
-"""A grid's line operator with constant coefficients, inverted by discrete cosine and Fourier transforms.
+"""A grid's line operator with constant coefficients, inverted by the lines' own eigenvectors and by transforms.
 
 On a vertex grid the fairing matrix is a sum of per-line operators: every structure line's windows
 of four consecutive nodes give ``c Dᵀ D`` (``D`` the line's third differences) with coefficients
 ``c`` that vary from window to window, plus ``ω`` on the diagonal. With one coefficient per family
-(rows, columns) and the Neumann Laplacian ``L`` (``−1, 2, −1``; ``1, −1`` at a line's ends) in place of
-the line's ``Dᵀ D`` through ``L³``, the operator is ``K = c_r (I ⊗ L³) + c_c (L³ ⊗ I) + ωI``,
-which the two-dimensional discrete cosine transform (type II) diagonalizes; along an axis that closes
-around (a cylinder or torus grid) the lines are periodic and the Fourier transform does the same with
-the circulant ``L``. :class:`SpectralPreconditioner` applies ``K⁻¹`` in ``O(n log n)``, no set-up
-but the eigenvalues.
+(rows, columns) the operator is ``K = c_r (I ⊗ B_r) + c_c (B_c ⊗ I) + ωI``, ``B = DᵀD`` of a grid row or
+column, which the lines' eigenvectors diagonalize: along an axis that closes around (a cylinder or torus
+grid) ``B`` is the cube of the circulant Laplacian ``L`` and the Fourier transform does it in
+``O(n log n)``; along an open axis ``B``'s eigenvectors are dense (``open_lines="exact"``: two matrix
+products of half the line's length each way, ``B`` being symmetric about the line's middle), or the
+discrete cosine transform diagonalizes the Neumann Laplacian's cube ``L³`` in its place
+(``open_lines="cosine"``), which also charges a line's first and last slopes and curvatures.
+:class:`SpectralPreconditioner` applies ``K⁻¹`` on the unknowns: a box holding every unknown is
+transformed (the fixed lines around it left out, so ``B`` is its principal part there), and up to
+:data:`MAX_CORRECTED` fixed nodes inside the box are inverted around exactly, by a capacitance
+correction (Woodbury's formula; more are only zeroed).
 
-``K`` and the fairing matrix agree up to the coefficients' spread and the lines' ends (``L³`` also
-charges a line's first and last slopes and curvatures, which ``Dᵀ D`` leaves free), so preconditioned
-conjugate gradients take steps that do not grow with the grid's size: on 300² sheets with broadband
-noise 28 at the default weight against plain CG's 90 (``benchmarks/studies/cg_weights.py``). The
-ends' mismatch grows as the weight falls, so the steps do too, more slowly than plain CG's.
+``K`` and the fairing matrix of fair's even spacing are sums of the same windows' terms with other
+coefficients, so with the exact lines ``c_min K ≤ A ≤ c_max K`` and preconditioned conjugate gradients
+take steps bounded by the coefficients' spread whatever the weight and the grid's size: on 300² sheets
+with broadband noise 15–25 from ω = 0.3 to 10⁻⁶ (``benchmarks/studies/cg_weights.py``). With the cosine
+lines the ends' mismatch grows as the weight falls, and the steps with it.
 
 Examples
 --------
@@ -22,25 +27,42 @@ Examples
 >>> R = np.zeros((1, 20)); R[0, 7] = 1.0
 >>> Z = np.zeros_like(R)
 >>> P.apply(R, Z, 0, 20, True)
->>> bool(np.allclose(P.operator() @ Z[0], R[0], atol=1e-6))  # (single precision)
+>>> bool(np.allclose(P.operator() @ Z[0], R[0], atol=1e-5))  # (single precision)
 True
 """
 
 from __future__ import annotations
 
+import functools
 import sys
 from types import ModuleType
+from typing import Literal
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
 from . import threads as _threads
 
-__all__ = ["SpectralPreconditioner", "line_laplacian", "loaded"]
+__all__ = ["SpectralPreconditioner", "line_laplacian", "line_third_differences", "loaded", "MAX_CORRECTED",
+           "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES"]
 
-#: Grids of at least this many nodes transform on the solver's threads (``workers``); below, one thread is
-#: faster (300²: 1.5 against 2.3 ms a step, 1000²: 28 against 12 ms, a throwaway timing of ``dctn``/``idctn``).
+#: Grids of at least this many nodes transform on the solver's threads; below, one thread is faster (300²: 1.5
+#: against 2.3 ms a step, 1000²: 28 against 12 ms, a throwaway timing of ``dctn``/``idctn``).
 PARALLEL_MIN_NODES = 250_000
+#: Fixed nodes inside the unknowns' box up to which the preconditioner inverts around them exactly (a
+#: capacitance correction: one transform of that many columns at set-up, a product with them per step) ...
+MAX_CORRECTED = 64
+#: ... while the correction's stored columns (fixed nodes × the box's nodes) stay within this many values.
+CORRECTION_MAX_VALUES = 32_000_000
+#: ... in double precision where ``K``'s condition (its largest eigenvalue over ω) exceeds this: the correction
+#: subtracts the near-null modes that the fixed nodes hold (sizes up to ``1/ω``) from the rest, so single precision
+#: would leave errors of its rounding (6·10⁻⁸) times that condition (already 2.5·10⁻³ at a condition of 2·10⁵ on a
+#: small grid, ``tests/linalg/test_spectral.py``); the products cost about twice as much there.
+CORRECTION_SINGLE_MAX = 1e4
+#: ``open_lines="exact"`` holds an open line's eigenvectors (dense, half the line's length squared twice) up to
+#: this many nodes; a longer line raises (its products cost ``O(n)`` a node each way).
+EXACT_MAX_SIDE = 8192
 
 
 def loaded() -> bool:
@@ -96,22 +118,163 @@ def line_laplacian(n: int, closed: bool = False) -> sp.csr_matrix:
     return sp.csr_matrix(D.T @ D)
 
 
-def _eigenvalues(n: int, transform: str) -> np.ndarray:
-    """``L``'s eigenvalues in the order of the transform along the axis (``"dct"``, ``"rfft"`` or ``"fft"``)."""
+def line_third_differences(n: int, closed: bool = False) -> sp.csr_matrix:
+    """``B = DᵀD`` of a line's third differences ``D`` (rows ``−1, 3, −3, 1`` on every four consecutive nodes).
+
+    On a closed line of at least four nodes the windows go around and ``B = L³`` (:func:`line_laplacian`); an open
+    line of fewer than four nodes has no window (``B = 0``).
+
+    Parameters
+    ----------
+    n : int
+        Nodes on the line.
+    closed : bool
+        Whether the line closes around.
+
+    Returns
+    -------
+    (n, n) scipy.sparse.csr_matrix
+
+    Raises
+    ------
+    ValueError
+        If ``n < 1``.
+
+    Examples
+    --------
+    >>> line_third_differences(4).toarray()[0].tolist()
+    [1.0, -3.0, 3.0, -1.0]
+    >>> bool((line_third_differences(6, closed=True) != line_laplacian(6, closed=True) ** 3).nnz == 0)
+    True
+    """
+    if n < 1:
+        raise ValueError(f"n: expected at least one node, got {n}")
+    if closed:
+        L = line_laplacian(n, closed=True)
+        return sp.csr_matrix(L @ L @ L)
+    if n < 4:
+        return sp.csr_matrix((n, n))
+    D = sp.diags([-1.0, 3.0, -3.0, 1.0], [0, 1, 2, 3], shape=(n - 3, n), format="csr")
+    return sp.csr_matrix(D.T @ D)
+
+
+@functools.lru_cache(maxsize=8)
+def _line_basis(n: int, lo: int, hi: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The eigenvalues and forward matrices of an open line's ``B[lo:hi, lo:hi]`` (:func:`line_third_differences`).
+
+    Where the span is symmetric about the line's middle (``B`` persymmetric there) the eigenvectors are even or
+    odd about it: with ``h = ⌊len/2⌋``, ``s = x[:h] + x[::-1][:h]`` (and the middle node, for an odd length) and
+    ``a = x[:h] − x[::-1][:h]``, the coordinates are ``(s Fₛ, a Fₐ)``, ``F`` the halves' eigenvectors with the
+    ``1/√2`` folded in. Otherwise one dense ``F``. Eigenvalues (clipped at 0) in the coordinates' order; float64.
+    Cached: a square grid's two axes, and fair's iterations, share them.
+    """
+    B = line_third_differences(n)[lo:hi, lo:hi].toarray()
+    size = hi - lo
+    h = size // 2
+    if size >= 2 and lo == n - hi:
+        J = B[:h, ::-1][:, :h]  # (B's top-right block, read backwards: the coupling to the mirrored nodes)
+        top = B[:h, :h]
+        blocks = []
+        Bs = top + J
+        if size % 2:  # the middle node: (x_h) with weight 1, the pairs with 1/√2
+            col = B[:h, h] * np.sqrt(2.0)
+            Bs = np.block([[Bs, col[:, None]], [col[None, :], B[h:h + 1, h:h + 1]]])
+        lam_s, Vs = np.linalg.eigh(Bs)
+        lam_a, Va = np.linalg.eigh(top - J)
+        scale = np.full(Bs.shape[0], np.sqrt(0.5))
+        if size % 2:
+            scale[h] = 1.0
+        blocks = [Vs * scale[:, None], Va * np.sqrt(0.5)]
+        lam = np.concatenate([lam_s, lam_a])
+    else:
+        lam, V = np.linalg.eigh(B)
+        blocks = [V]
+    return np.maximum(lam, 0.0), blocks
+
+
+def _fourier_eigenvalues(n: int, transform: str) -> np.ndarray:
+    """``L``'s eigenvalues in the order of a transform along the axis: ``"dct"`` (the Neumann ``L``), ``"rfft"``
+    or ``"fft"`` (the circulant ``L``)."""
     if transform == "dct":
         return 2.0 - 2.0 * np.cos(np.pi * np.arange(n) / n)
     k = np.arange(n // 2 + 1 if transform == "rfft" else n)
     return 2.0 - 2.0 * np.cos(2.0 * np.pi * k / n)
 
 
-class SpectralPreconditioner:
-    """``P⁻¹ = S K⁻¹ S`` on a ``rows × cols`` grid in row-major order, by transforms (see the module).
+class _Axis:
+    """One axis's transform: ``kind`` (``"exact"``, ``"dct"``, ``"rfft"``, ``"fft"``), the span ``lo:hi`` of nodes it
+    transforms, ``B``'s eigenvalues in the transform's order, and for ``"exact"`` the forward matrices in float32
+    (:func:`_line_basis`)."""
 
-    ``K = c_r (I ⊗ L_r³) + c_c (L_c³ ⊗ I) + ωI`` with ``L`` the Laplacian of a grid row (``cols`` nodes,
-    coefficient ``c_r``) or column (``rows`` nodes, ``c_c``), periodic where the axis closes around;
-    ``S`` selects the unknowns (fixed nodes' rows of ``Z`` are zero). Symmetric positive definite on
-    the unknowns for any ``ω > 0``. Applied to all columns of the residual at once (``whole``), in
-    single precision: it only steers the search directions, and halves the transforms' time.
+    def __init__(self, kind: str, n: int, lo: int, hi: int) -> None:
+        self.kind, self.n, self.lo, self.hi = kind, n, lo, hi
+        self.blocks32: list[np.ndarray] = []
+        self.blocks64: list[np.ndarray] = []
+        if kind == "exact":
+            lam, self.blocks64 = _line_basis(n, lo, hi)
+            self.blocks32 = [F.astype(np.float32) for F in self.blocks64]
+            self.eigenvalues = lam
+        else:
+            self.eigenvalues = _fourier_eigenvalues(hi - lo, kind) ** 3
+
+    @property
+    def size(self) -> int:
+        return self.hi - self.lo
+
+
+def _exact(G: np.ndarray, axis: int, blocks: list[np.ndarray], forward: bool, out: np.ndarray) -> None:
+    """``out = G`` transformed along ``axis`` (1 or 2 of a ``(c, rows, cols)`` array) by an exact axis's ``blocks``
+    (forward: into its coordinates; backward: back to the nodes)."""
+    size = G.shape[axis]
+
+    def cut(a: np.ndarray, s: slice) -> np.ndarray:
+        return a[:, s] if axis == 1 else a[:, :, s]
+
+    def times(a: np.ndarray, F: np.ndarray, transpose: bool, o: np.ndarray) -> None:
+        if axis == 2:
+            np.matmul(a, F.T if transpose else F, out=o)
+        else:
+            np.matmul(F if transpose else F.T, a, out=o)
+
+    if len(blocks) == 1:
+        times(G, blocks[0], not forward, out)
+        return
+    h = size // 2
+    ns = blocks[0].shape[0]  # h, or h + 1 with the middle node
+    mirrored = slice(size - 1, size - 1 - h, -1)  # (the last h nodes backwards; size − 1 − h ≥ 0 as size ≥ 2)
+    if forward:
+        top, bottom = cut(G, slice(0, h)), cut(G, mirrored)
+        s = np.empty(cut(G, slice(0, ns)).shape, G.dtype)
+        np.add(top, bottom, out=cut(s, slice(0, h)))
+        if ns > h:  # (the middle node of an odd length)
+            cut(s, slice(h, ns))[...] = cut(G, slice(h, ns))
+        times(s, blocks[0], False, cut(out, slice(0, ns)))
+        times(top - bottom, blocks[1], False, cut(out, slice(ns, size)))
+    else:
+        us = np.empty(cut(G, slice(0, ns)).shape, G.dtype)
+        ua = np.empty(cut(G, slice(ns, size)).shape, G.dtype)
+        times(cut(G, slice(0, ns)), blocks[0], True, us)
+        times(cut(G, slice(ns, size)), blocks[1], True, ua)
+        ush = cut(us, slice(0, h))
+        np.add(ush, ua, out=cut(out, slice(0, h)))
+        np.subtract(ush, ua, out=cut(out, mirrored))
+        if ns > h:
+            cut(out, slice(h, ns))[...] = cut(us, slice(h, ns))
+
+
+class SpectralPreconditioner:
+    """``P⁻¹ = E K_ff⁻¹ Eᵀ`` on a ``rows × cols`` grid in row-major order, by transforms (see the module).
+
+    ``K = c_r (I ⊗ B_r) + c_c (B_c ⊗ I) + ωI`` with ``B`` a grid row's (``cols`` nodes, coefficient ``c_r``) or
+    column's (``rows`` nodes, ``c_c``) third differences' ``DᵀD`` (:func:`line_third_differences`; with
+    ``open_lines="cosine"`` the cube of an open line's Laplacian, :func:`line_laplacian`), periodic where the axis
+    closes around; ``E`` selects the unknowns (``free``) and ``K_ff`` is ``K``'s part on them. Exact where the
+    unknowns fill a box (the nodes off it fixed: e.g. a fixed boundary) but for at most :data:`MAX_CORRECTED` fixed
+    nodes inside it; with more, ``P⁻¹ = E (K_box⁻¹)_ff Eᵀ``, their rows only zeroed (still symmetric positive
+    definite, less close to ``K_ff⁻¹``). Applied to all columns of the residual at once (``whole``), in single
+    precision (double where a correction meets a large condition, :data:`CORRECTION_SINGLE_MAX`): it only steers
+    the search directions; the exact lines' products on the solver's threads (BLAS held to one thread each, as
+    everywhere in the solver).
 
     Parameters
     ----------
@@ -126,12 +289,16 @@ class SpectralPreconditioner:
     weight : float
         ``ω > 0``.
     free : (rows · cols,) bool, optional
-        The unknowns; default all.
+        The unknowns; default all. At least one.
+    open_lines : {"exact", "cosine"}
+        An open axis's line operator: its third differences (dense eigenvectors, up to :data:`EXACT_MAX_SIDE`
+        nodes; the box is cut to the unknowns along it) or the Neumann Laplacian's cube (the cosine transform;
+        the whole axis).
 
     Raises
     ------
     ValueError
-        If the shape, coefficients or weight are out of range.
+        If the shape, coefficients, weight, unknowns or ``open_lines`` are out of range.
 
     Examples
     --------
@@ -146,10 +313,13 @@ class SpectralPreconditioner:
     """
 
     whole = True  # applied once per step to every row (block_cg)
-    blas_free = True  # SciPy's transforms call no BLAS: nothing to pin
+    #: Whether it calls no BLAS (only SciPy's transforms): then block_cg need not pin BLAS. The exact lines'
+    #: products and the correction are BLAS calls (on the solver's threads, one BLAS thread each).
+    blas_free = True
 
     def __init__(self, shape: tuple[int, int], wrap: tuple[bool, bool], row_coefficient: float,
-                 column_coefficient: float, weight: float, free: np.ndarray | None = None) -> None:
+                 column_coefficient: float, weight: float, free: np.ndarray | None = None,
+                 open_lines: Literal["exact", "cosine"] = "exact") -> None:
         rows, cols = (int(s) for s in shape)
         if rows < 1 or cols < 1:
             raise ValueError(f"shape: expected positive sides, got {shape}")
@@ -158,29 +328,66 @@ class SpectralPreconditioner:
         for name, c in (("row_coefficient", row_coefficient), ("column_coefficient", column_coefficient)):
             if not (np.isfinite(c) and c >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {c}")
+        if open_lines not in ("exact", "cosine"):
+            raise ValueError(f"open_lines: expected 'exact' or 'cosine', got {open_lines!r}")
+        if free is not None and np.asarray(free).shape != (rows * cols,):
+            raise ValueError(f"free: expected shape ({rows * cols},), got {np.asarray(free).shape}")
+        mask = np.ones((rows, cols), bool) if free is None else np.asarray(free, dtype=bool).reshape(rows, cols)
+        if not mask.any():
+            raise ValueError("free: expected at least one unknown")
         self.shape = (rows, cols)
         self.wrap = (bool(wrap[0]), bool(wrap[1]))
         self.coefficients = (float(row_coefficient), float(column_coefficient))
         self.weight = float(weight)
-        # the transform along each axis: orthonormal DCT-II along an open one; along a closed one the real
-        # Fourier transform on the real data (done first), a full one on the other closed axis after it
-        self._transforms = ["fft" if c else "dct" for c in self.wrap]
-        if self.wrap[1]:
-            self._transforms[1] = "rfft"
-        elif self.wrap[0]:
-            self._transforms[0] = "rfft"
-        lam_c = _eigenvalues(rows, self._transforms[0])  # along a column (the row index)
-        lam_r = _eigenvalues(cols, self._transforms[1])  # along a row (the column index)
-        if free is not None and np.asarray(free).shape != (rows * cols,):
-            raise ValueError(f"free: expected shape ({rows * cols},), got {np.asarray(free).shape}")
-        self._fixed = np.empty(0, np.int64) if free is None else np.flatnonzero(~np.asarray(free, dtype=bool))
-        eig = column_coefficient * lam_c[:, None] ** 3 + row_coefficient * lam_r[None, :] ** 3 + weight
+        self.open_lines = open_lines
+        # each axis's kind and span: an open one exact (cut to the unknowns) or cosine (whole); along a closed one
+        # the real Fourier transform where it is the only closed one or the rows', the full one on the other
+        axes = []
+        for axis, (n, closed) in enumerate(zip(self.shape, self.wrap)):
+            if closed:
+                kind = "rfft" if axis == 1 or not self.wrap[1] else "fft"
+                axes.append(_Axis(kind, n, 0, n))
+            elif open_lines == "exact":
+                if n > EXACT_MAX_SIDE:
+                    raise ValueError(f"open_lines='exact': at most {EXACT_MAX_SIDE} nodes along an open axis, "
+                                     f"got {n}; use 'cosine'")
+                held = np.flatnonzero(mask.any(axis=1 - axis))
+                axes.append(_Axis("exact", n, int(held[0]), int(held[-1]) + 1))
+            else:
+                axes.append(_Axis("dct", n, 0, n))
+        self._axes = axes
+        box = mask[axes[0].lo:axes[0].hi, axes[1].lo:axes[1].hi]
+        self._box_shape = box.shape
+        eig = (self.coefficients[1] * axes[0].eigenvalues[:, None] + self.coefficients[0] * axes[1].eigenvalues[None, :]
+               + self.weight)
         # 1/eig in single precision as ω/eig ∈ (0, 1] (no underflow whatever the units), 1/ω applied in double;
         # the unnormalized forward and inverse FFTs' scales cancel
-        self._inverse = (weight / eig).astype(np.float32)
+        self._inverse64 = self.weight / eig
+        self._inverse = self._inverse64.astype(np.float32)
+        self._inner = np.flatnonzero(~box.ravel())  # fixed nodes inside the box (box numbering)
+        self._correction: tuple[np.ndarray, tuple] | None = None
+        self._dtype: type = np.float32
+        if 0 < self._inner.size <= MAX_CORRECTED and self._inner.size * box.size <= CORRECTION_MAX_VALUES:
+            if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
+                self._dtype = np.float64
+            self._correct()
+        self.blas_free = self._correction is None and all(a.kind != "exact" for a in axes)
+
+    def _correct(self) -> None:
+        """Set up the capacitance correction: ``W = ω K_box⁻¹ E_x`` (float64, stored float32) and ``C = W_x``."""
+        p = self._inner.size
+        E = np.zeros((p,) + self._box_shape)
+        E.reshape(p, -1)[np.arange(p), self._inner] = 1.0
+        W = self._solve_box(E, np.float64).reshape(p, -1)
+        C = W[:, self._inner]
+        try:
+            factor = sla.cho_factor(0.5 * (C + C.T))
+        except np.linalg.LinAlgError:  # (rounding made it indefinite: the fixed rows are only zeroed)
+            return
+        self._correction = (W.astype(self._dtype), factor)
 
     def operator(self) -> sp.csr_matrix:
-        """``K`` as a sparse matrix in the grid's row-major order (for tests and checks).
+        """``K`` on the whole grid in its row-major order (``P⁻¹`` inverts its part on the unknowns where exact).
 
         Returns
         -------
@@ -188,14 +395,17 @@ class SpectralPreconditioner:
 
         Examples
         --------
-        >>> SpectralPreconditioner((2, 3), (False, False), 1.0, 0.0, 0.5).operator()[0, :3].toarray().tolist()
-        [[5.5, -9.0, 4.0]]
+        >>> SpectralPreconditioner((2, 4), (False, False), 1.0, 0.0, 0.5).operator()[0, :4].toarray().tolist()
+        [[1.5, -3.0, 3.0, -1.0]]
         """
         rows, cols = self.shape
         c_r, c_c = self.coefficients
-        Lr, Lc = line_laplacian(cols, self.wrap[1]), line_laplacian(rows, self.wrap[0])
-        K = (c_r * sp.kron(sp.eye(rows), Lr @ Lr @ Lr) + c_c * sp.kron(Lc @ Lc @ Lc, sp.eye(cols))
-             + self.weight * sp.eye(rows * cols))
+        if self.open_lines == "exact":
+            Br, Bc = line_third_differences(cols, self.wrap[1]), line_third_differences(rows, self.wrap[0])
+        else:
+            Lr, Lc = line_laplacian(cols, self.wrap[1]), line_laplacian(rows, self.wrap[0])
+            Br, Bc = Lr @ Lr @ Lr, Lc @ Lc @ Lc
+        K = c_r * sp.kron(sp.eye(rows), Br) + c_c * sp.kron(Bc, sp.eye(cols)) + self.weight * sp.eye(rows * cols)
         return sp.csr_matrix(K)
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
@@ -204,47 +414,66 @@ class SpectralPreconditioner:
         ``R``, ``Z``: ``(c, k)`` arrays (``columns``) or ``(k, c)``, ``k ≥ rows · cols`` (rows past the
         grid, the CG vectors' padding, get zeros).
         """
-        import scipy.fft as fft  # (here: importing it costs about 40 ms, paid only by a caller that uses it)
-
         rows, cols = self.shape
         n = rows * cols
+        (r0, r1), (c0, c1) = (self._axes[0].lo, self._axes[0].hi), (self._axes[1].lo, self._axes[1].hi)
         X = R[:, :n] if columns else R[:n].T  # (c, n)
+        Xb = X.reshape(-1, rows, cols)[:, r0:r1, c0:c1]
         # each column scaled to at most 1 in single precision (no overflow or underflow whatever the units),
         # the scales and the eigenvalues' put back on the way out
-        scale = np.maximum(X.max(axis=1), -X.min(axis=1))  # (two reductions: no |X| temporary)
+        scale = np.maximum(Xb.max(axis=(1, 2)), -Xb.min(axis=(1, 2)))  # (two reductions: no |X| temporary)
         scale[~(np.isfinite(scale) & (scale > 0))] = 1.0
-        G = np.empty(X.shape, dtype=np.float32)
-        np.multiply(X, (1.0 / scale)[:, None], out=G, casting="same_kind")
-        G[:, self._fixed] = 0.0  # (S on the way in too: P⁻¹ = S K⁻¹ S whatever R holds there)
-        workers = _threads.thread_count() if n >= PARALLEL_MIN_NODES else 1
-        G = self._forward(G.reshape(-1, rows, cols), fft, workers)
-        G *= self._inverse
-        G = self._backward(G, fft, workers).reshape(-1, n)
+        G = np.empty(Xb.shape, dtype=self._dtype)
+        np.multiply(Xb, (1.0 / scale)[:, None, None], out=G, casting="same_kind")
+        inner = self._inner
+        G.reshape(G.shape[0], -1)[:, inner] = 0.0  # (E on the way in too: whatever R holds there)
+        G = self._solve_box(G, self._dtype)
+        flat = G.reshape(G.shape[0], -1)
+        if self._correction is not None:  # Woodbury: K_ff⁻¹ = K⁻¹ − K⁻¹E (EᵀK⁻¹E)⁻¹ EᵀK⁻¹ on the unknowns
+            W, factor = self._correction
+            mu = sla.cho_solve(factor, flat[:, inner].T.astype(np.float64))  # (p, c)
+            flat -= mu.T.astype(flat.dtype) @ W
+        flat[:, inner] = 0.0
         out = Z[:, :n] if columns else Z[:n].T  # (c, n), a view of Z either way
-        np.multiply(G, (scale / self.weight)[:, None], out=out)
-        out[:, self._fixed] = 0.0
+        if (r1 - r0, c1 - c0) != self.shape:
+            out[...] = 0.0
+        np.multiply(G, (scale / self.weight)[:, None, None], out=out.reshape(-1, rows, cols)[:, r0:r1, c0:c1])
         (Z[:, n:] if columns else Z[n:])[...] = 0.0
 
-    def _order(self) -> list[int]:
-        """The axes in the forward transforms' order: a real Fourier transform first."""
-        return [2, 1] if self._transforms[1] == "rfft" else [1, 2]
+    def _solve_box(self, G: np.ndarray, dtype: type) -> np.ndarray:
+        """``ω K_box⁻¹ G`` for a ``(c, box rows, box cols)`` array (overwritten) in ``dtype``."""
+        import scipy.fft as fft  # (here: importing it costs about 40 ms, paid only by a caller that uses it)
 
-    def _forward(self, G: np.ndarray, _fft: ModuleType, workers: int) -> np.ndarray:
-        for axis in self._order():
-            kind = self._transforms[axis - 1]
-            if kind == "dct":
-                G = _fft.dct(G, type=2, axis=axis, norm="ortho", overwrite_x=True, workers=workers)
-            else:
-                G = (_fft.rfft if kind == "rfft" else _fft.fft)(G, axis=axis, overwrite_x=True, workers=workers)
+        workers = _threads.thread_count() if G[0].size >= PARALLEL_MIN_NODES else 1
+        axes = self._axes
+        # the real transforms first (exact products and cosine transforms keep real data), then rfft, then fft
+        order = sorted((1, 2), key=lambda a: ("exact", "dct", "rfft", "fft").index(axes[a - 1].kind))
+        for axis in order:
+            G = self._transform(G, axis, True, fft, workers, dtype)
+        G *= self._inverse if dtype == np.float32 else self._inverse64
+        for axis in order[::-1]:
+            G = self._transform(G, axis, False, fft, workers, dtype)
         return G
 
-    def _backward(self, G: np.ndarray, _fft: ModuleType, workers: int) -> np.ndarray:
-        for axis in self._order()[::-1]:
-            kind, size = self._transforms[axis - 1], self.shape[axis - 1]
-            if kind == "dct":
-                G = _fft.idct(G, type=2, axis=axis, norm="ortho", overwrite_x=True, workers=workers)
-            elif kind == "rfft":
-                G = _fft.irfft(G, n=size, axis=axis, overwrite_x=True, workers=workers)
-            else:
-                G = _fft.ifft(G, axis=axis, overwrite_x=True, workers=workers)
-        return G
+    def _transform(self, G: np.ndarray, axis: int, forward: bool, fft: ModuleType, workers: int,
+                   dtype: type) -> np.ndarray:
+        ax = self._axes[axis - 1]
+        if ax.kind == "exact":
+            blocks = ax.blocks32 if dtype == np.float32 else ax.blocks64
+            out = np.empty_like(G)
+            parts = _threads.split_ranges(G.shape[3 - axis], parts=workers)  # (the other axis, cut per thread)
+
+            def task(lo: int, hi: int) -> None:
+                cut = (slice(None), slice(lo, hi)) if axis == 2 else (slice(None), slice(None), slice(lo, hi))
+                _exact(G[cut], axis, blocks, forward, out[cut])
+
+            _threads.run_tasks(task, parts)
+            return out
+        if ax.kind == "dct":
+            f = fft.dct if forward else fft.idct
+            return f(G, type=2, axis=axis, norm="ortho", overwrite_x=True, workers=workers)
+        if ax.kind == "rfft":
+            if forward:
+                return fft.rfft(G, axis=axis, overwrite_x=True, workers=workers)
+            return fft.irfft(G, n=ax.size, axis=axis, overwrite_x=True, workers=workers)
+        return (fft.fft if forward else fft.ifft)(G, axis=axis, overwrite_x=True, workers=workers)

@@ -1,4 +1,4 @@
-"""The spectral preconditioner: ``K⁻¹`` by cosine and Fourier transforms on open and closed grids."""
+"""The spectral preconditioner: ``K_ff⁻¹`` by the lines' eigenvectors and by transforms on open and closed grids."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from quadnodes.linalg import spectral
-from quadnodes.linalg.spectral import SpectralPreconditioner, line_laplacian
+from quadnodes.linalg.spectral import SpectralPreconditioner, line_laplacian, line_third_differences
 
 
 def _apply(P, R, columns=True):
@@ -18,12 +18,20 @@ def _apply(P, R, columns=True):
     return Z
 
 
-@settings(max_examples=60, deadline=None)
+def _third_differences(n):
+    D = np.zeros((max(n - 3, 0), n))
+    for i in range(n - 3):
+        D[i, i:i + 4] = (-1.0, 3.0, -3.0, 1.0)
+    return D.T @ D
+
+
+@settings(max_examples=80, deadline=None)
 @given(rows=st.integers(1, 12), cols=st.integers(1, 12), wrap=st.tuples(st.booleans(), st.booleans()),
-       c_r=st.floats(0.0, 5.0), c_c=st.floats(0.0, 5.0), weight=st.floats(0.05, 3.0), seed=st.integers(0, 2**16))
-def test_it_inverts_the_constant_coefficient_operator(rows, cols, wrap, c_r, c_c, weight, seed):
+       c_r=st.floats(0.0, 5.0), c_c=st.floats(0.0, 5.0), weight=st.floats(0.05, 3.0), seed=st.integers(0, 2**16),
+       open_lines=st.sampled_from(["exact", "cosine"]))
+def test_it_inverts_the_constant_coefficient_operator(rows, cols, wrap, c_r, c_c, weight, seed, open_lines):
     """``K P⁻¹ r = r`` to single precision, for any shape (one-wide included), open or closed axes."""
-    P = SpectralPreconditioner((rows, cols), wrap, c_r, c_c, weight)
+    P = SpectralPreconditioner((rows, cols), wrap, c_r, c_c, weight, open_lines=open_lines)
     n = rows * cols
     R = np.random.default_rng(seed).normal(size=(3, n + 4))
     R[:, n:] = 0.0
@@ -37,33 +45,106 @@ def test_it_inverts_the_constant_coefficient_operator(rows, cols, wrap, c_r, c_c
     np.testing.assert_allclose(Zt.T, Z, rtol=0, atol=1e-6 * np.abs(Z).max())
 
 
-def test_the_operator_is_the_line_laplacians_cubed():
-    """``K = c_r (I ⊗ L³) + c_c (L³ ⊗ I) + ωI`` with ``L`` the rows' and columns' Laplacians, periodic where closed."""
+@settings(max_examples=80, deadline=None)
+@given(rows=st.integers(1, 14), cols=st.integers(1, 14), wrap=st.tuples(st.booleans(), st.booleans()),
+       ring=st.tuples(*[st.integers(0, 3)] * 4), share=st.floats(0.0, 0.3), weight=st.sampled_from([1.0, 1e-3, 1e-6]),
+       seed=st.integers(0, 2**16))
+def test_it_inverts_the_operator_on_the_unknowns(rows, cols, wrap, ring, share, weight, seed):
+    """With fixed nodes (a fixed band along the open sides, up to MAX_CORRECTED scattered inside): ``P⁻¹ = E K_ff⁻¹ Eᵀ``
+    exactly, at any weight; its rows and columns at fixed nodes are zero."""
+    rng = np.random.default_rng(seed)
+    free = np.ones((rows, cols), bool)
+    top, bottom, left, right = ring
+    if not wrap[0]:
+        free[:top] = False
+        free[rows - bottom:] = False
+    if not wrap[1]:
+        free[:, :left] = False
+        free[:, cols - right:] = False
+    free &= rng.random((rows, cols)) >= share
+    free = free.ravel()
+    if not free.any():
+        free[rng.integers(rows * cols)] = True
+    P = SpectralPreconditioner((rows, cols), wrap, 2.0, 1.5, weight, free)
+    n = rows * cols
+    R = rng.normal(size=(2, n))
+    Z = _apply(P, R)
+    assert np.all(Z[:, ~free] == 0.0)
+    Kff = P.operator()[free][:, free].toarray()
+    expected = np.linalg.solve(Kff, R[:, free].T).T
+    # single precision: the error relative to the result's size, amplified by at most K_ff's condition over the
+    # near-null modes that the fixed nodes hold (they leave their own ill-conditioned correction)
+    assert np.abs(Z[:, free] - expected).max() <= 2e-3 * np.abs(expected).max(), P._correction is not None
+
+
+def test_the_exact_operator_is_the_lines_third_differences_and_the_cosine_one_the_laplacians_cube():
+    """``K = c_r (I ⊗ B_r) + c_c (B_c ⊗ I) + ωI``; ``B = DᵀD`` (periodic where closed: ``L³``), or ``L³`` with cosine."""
     P = SpectralPreconditioner((5, 7), (True, False), 2.0, 3.0, 0.5)
-    Lr, Lc = line_laplacian(7).toarray(), line_laplacian(5, closed=True).toarray()
+    Lc = line_laplacian(5, closed=True).toarray()
+    K = 2.0 * np.kron(np.eye(5), _third_differences(7)) + 3.0 * np.kron(np.linalg.matrix_power(Lc, 3), np.eye(7))
+    np.testing.assert_allclose(P.operator().toarray(), K + 0.5 * np.eye(35))
+    P = SpectralPreconditioner((5, 7), (True, False), 2.0, 3.0, 0.5, open_lines="cosine")
+    Lr = line_laplacian(7).toarray()
     K = 2.0 * np.kron(np.eye(5), np.linalg.matrix_power(Lr, 3)) + 3.0 * np.kron(np.linalg.matrix_power(Lc, 3), np.eye(7))
     np.testing.assert_allclose(P.operator().toarray(), K + 0.5 * np.eye(35))
-    # a line of third differences with constant coefficients differs from L³ only near its ends
-    D = sp.diags([-1.0, 3.0, -3.0, 1.0], [0, 1, 2, 3], shape=(17, 20)).toarray()
+    # a line of third differences differs from L³ only near its ends
     L3 = np.linalg.matrix_power(line_laplacian(20).toarray(), 3)
-    np.testing.assert_allclose((D.T @ D)[3:-3, 3:-3], L3[3:-3, 3:-3])
+    np.testing.assert_allclose(_third_differences(20)[3:-3, 3:-3], L3[3:-3, 3:-3])
 
 
-def test_fixed_nodes_get_zero_and_the_preconditioner_is_symmetric_positive_definite():
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 9, 16])
+def test_line_third_differences(n):
+    np.testing.assert_allclose(line_third_differences(n).toarray(), _third_differences(n))
+    L = line_laplacian(n, closed=True).toarray()
+    np.testing.assert_allclose(line_third_differences(n, closed=True).toarray(), np.linalg.matrix_power(L, 3))
+
+
+@pytest.mark.parametrize("n, lo, hi", [(2, 0, 2), (7, 0, 7), (8, 0, 8), (9, 1, 8), (10, 2, 8), (9, 0, 6), (12, 1, 12)])
+def test_the_line_basis_diagonalizes_the_span(n, lo, hi):
+    """Even and odd halves where the span is symmetric about the line's middle, one dense basis otherwise."""
+    lam, blocks = spectral._line_basis(n, lo, hi)
+    size = hi - lo
+    assert len(blocks) == (2 if lo == n - hi else 1)
+    X = np.eye(size)[None]  # the basis applied to every unit vector: T (forward) with T B Tᵀ = Λ, T Tᵀ = I
+    T = np.empty_like(X)
+    spectral._exact(X, 2, blocks, True, T)
+    T = T[0].T  # (coordinate, node)
+    B = _third_differences(n)[lo:hi, lo:hi]
+    np.testing.assert_allclose(T @ T.T, np.eye(size), atol=1e-12)
+    np.testing.assert_allclose(T @ B @ T.T, np.diag(lam), atol=1e-9 * max(1.0, lam.max()))
+    back = np.empty_like(X)
+    spectral._exact(T.T[None].copy(), 2, blocks, False, back)  # backward undoes forward
+    np.testing.assert_allclose(back[0], np.eye(size), atol=1e-12)
+
+
+@pytest.mark.parametrize("open_lines", ["exact", "cosine"])
+def test_fixed_nodes_get_zero_and_the_preconditioner_is_symmetric_positive_definite(open_lines):
     rng = np.random.default_rng(4)
-    free = rng.random(48) > 0.2
-    P = SpectralPreconditioner((6, 8), (False, True), 1.5, 0.7, 0.2, free)
-    X, Y = rng.normal(size=(2, 48)), rng.normal(size=(2, 48))
-    X[:, ~free] = Y[:, ~free] = 0.0
-    PX, PY = _apply(P, X), _apply(P, Y)
-    assert np.all(PX[:, ~free] == 0.0)
-    # P⁻¹ = S K⁻¹ S: whatever the input holds on fixed rows is ignored
-    noisy = X.copy()
-    noisy[:, ~free] = rng.normal(size=(2, int((~free).sum())))
-    np.testing.assert_allclose(_apply(P, noisy), PX, rtol=0, atol=1e-6 * np.abs(PX).max())
-    a, b = np.einsum("ij,ij->i", PX, Y), np.einsum("ij,ij->i", X, PY)
-    np.testing.assert_allclose(a, b, rtol=1e-5)
-    assert np.all(np.einsum("ij,ij->i", PX, X) > 0)
+    for share in (0.2, 0.75):  # (with many fixed nodes, above MAX_CORRECTED at 0.75 of 120, they are only zeroed)
+        free = rng.random(120) > share
+        P = SpectralPreconditioner((12, 10), (False, True), 1.5, 0.7, 0.2, free, open_lines=open_lines)
+        assert (P._correction is not None) == (open_lines == "exact" or True) or share > 0.5
+        X, Y = rng.normal(size=(2, 120)), rng.normal(size=(2, 120))
+        X[:, ~free] = Y[:, ~free] = 0.0
+        PX, PY = _apply(P, X), _apply(P, Y)
+        assert np.all(PX[:, ~free] == 0.0)
+        # whatever the input holds on fixed rows is ignored
+        noisy = X.copy()
+        noisy[:, ~free] = rng.normal(size=(2, int((~free).sum())))
+        np.testing.assert_allclose(_apply(P, noisy), PX, rtol=0, atol=1e-6 * np.abs(PX).max())
+        a, b = np.einsum("ij,ij->i", PX, Y), np.einsum("ij,ij->i", X, PY)
+        np.testing.assert_allclose(a, b, rtol=1e-4)
+        assert np.all(np.einsum("ij,ij->i", PX, X) > 0)
+
+
+def test_many_fixed_nodes_are_zeroed_not_corrected(monkeypatch):
+    free = np.ones(100, bool)
+    free[np.arange(11, 89, 7)] = False  # 12 inside the box
+    assert SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free)._correction is not None
+    monkeypatch.setattr(spectral, "MAX_CORRECTED", 11)
+    P = SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free)
+    assert P._correction is None and P.blas_free is False  # (the exact lines' products are BLAS calls)
+    assert SpectralPreconditioner((10, 10), (True, True), 1.0, 1.0, 0.1, free).blas_free
 
 
 @pytest.mark.parametrize("kw, match", [
@@ -73,12 +154,22 @@ def test_fixed_nodes_get_zero_and_the_preconditioner_is_symmetric_positive_defin
     (dict(row_coefficient=-1.0), "row_coefficient"),
     (dict(column_coefficient=np.inf), "column_coefficient"),
     (dict(free=np.ones(5, bool)), "free"),
+    (dict(free=np.zeros(12, bool)), "at least one unknown"),
+    (dict(open_lines="dense"), "open_lines"),
 ])
 def test_bad_arguments_are_named(kw, match):
     args = dict(shape=(3, 4), wrap=(False, False), row_coefficient=1.0, column_coefficient=1.0, weight=0.3)
     args.update(kw)
     with pytest.raises(ValueError, match=match):
         SpectralPreconditioner(**args)
+
+
+def test_a_side_longer_than_the_exact_limit_is_named(monkeypatch):
+    monkeypatch.setattr(spectral, "EXACT_MAX_SIDE", 8)
+    with pytest.raises(ValueError, match="at most 8 nodes"):
+        SpectralPreconditioner((9, 4), (False, False), 1.0, 1.0, 0.3)
+    SpectralPreconditioner((9, 4), (True, False), 1.0, 1.0, 0.3)  # (a closed axis: the Fourier transform)
+    SpectralPreconditioner((9, 4), (False, False), 1.0, 1.0, 0.3, open_lines="cosine")
 
 
 def test_loaded_says_whether_the_transforms_are_imported():
@@ -92,10 +183,13 @@ def test_loaded_says_whether_the_transforms_are_imported():
     assert out == ["False", "True", "True"]
 
 
-def test_parallel_transforms_equal_one_thread(monkeypatch):
+@pytest.mark.parametrize("wrap", [(False, True), (False, False), (True, True)])
+def test_parallel_transforms_equal_one_thread(monkeypatch, wrap):
     from quadnodes.linalg import threads
 
-    P = SpectralPreconditioner((30, 40), (False, True), 1.0, 2.0, 0.3)
+    free = np.ones(1200, bool)
+    free[[0, 1, 500, 777]] = False
+    P = SpectralPreconditioner((30, 40), wrap, 1.0, 2.0, 0.3, free)
     R = np.random.default_rng(1).normal(size=(3, 1200))
     one = _apply(P, R)
     monkeypatch.setattr(spectral, "PARALLEL_MIN_NODES", 10)
@@ -103,13 +197,18 @@ def test_parallel_transforms_equal_one_thread(monkeypatch):
     np.testing.assert_allclose(_apply(P, R), one, rtol=0, atol=1e-6 * np.abs(one).max())
 
 
+@pytest.mark.parametrize("open_lines", ["exact", "cosine"])
 @pytest.mark.parametrize("units", [1e-30, 1.0, 1e30])
-def test_any_units_stay_within_single_precision(units):
+def test_any_units_stay_within_single_precision(units, open_lines):
     """Coefficients, weight and residual of any magnitude: no overflow or underflow in the float32 transforms."""
-    P = SpectralPreconditioner((9, 7), (False, True), 2.0 * units, 3.0 * units, 0.4 * units)
+    free = np.ones(63, bool)
+    free[[10, 20]] = False
+    P = SpectralPreconditioner((9, 7), (False, True), 2.0 * units, 3.0 * units, 0.4 * units, free,
+                               open_lines=open_lines)
     R = np.random.default_rng(2).normal(size=(3, 63)) * (1.0 / units)
     R[2] = 0.0  # (a converged column)
+    R[:, ~free] = 0.0
     Z = _apply(P, R)
     assert np.all(np.isfinite(Z)) and np.all(Z[2] == 0.0)
-    K = P.operator()
-    assert np.abs(K @ Z[:2].T - R[:2].T).max() <= 1e-4 * np.abs(R).max()
+    Kff = P.operator()[free][:, free]
+    assert np.abs(Kff @ Z[:2, free].T - R[:2, free].T).max() <= 1e-4 * np.abs(R).max()
