@@ -44,7 +44,8 @@ import scipy.sparse as sp
 
 from . import threads as _threads
 
-__all__ = ["SpectralPreconditioner", "line_laplacian", "line_third_differences", "loaded", "MAX_CORRECTED",
+__all__ = ["SpectralPreconditioner", "box", "fixed_inside", "line_laplacian", "line_third_differences", "loaded",
+           "MAX_CORRECTED", "CORRECTION_MAX_VALUES", "CORRECTION_SINGLE_MAX",
            "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES"]
 
 #: Grids of at least this many nodes transform on the solver's threads; below, one thread is faster (300²: 1.5
@@ -59,7 +60,7 @@ CORRECTION_MAX_VALUES = 32_000_000
 #: subtracts the near-null modes that the fixed nodes hold (sizes up to ``1/ω``) from the rest, so single precision
 #: would leave errors of its rounding (6·10⁻⁸) times that condition (already 2.5·10⁻³ at a condition of 2·10⁵ on a
 #: small grid, ``tests/linalg/test_spectral.py``); the products cost about twice as much there.
-CORRECTION_SINGLE_MAX = 1e4
+CORRECTION_SINGLE_MAX = 1e6
 #: ``open_lines="exact"`` holds an open line's eigenvectors (dense, half the line's length squared twice) up to
 #: this many nodes; a longer line raises (its products cost ``O(n)`` a node each way).
 EXACT_MAX_SIDE = 8192
@@ -190,6 +191,48 @@ def _line_basis(n: int, lo: int, hi: int) -> tuple[np.ndarray, list[np.ndarray]]
         lam, V = np.linalg.eigh(B)
         blocks = [V]
     return np.maximum(lam, 0.0), blocks
+
+
+def box(free: np.ndarray, wrap: tuple[bool, bool]) -> tuple[tuple[int, int], tuple[int, int]]:
+    """The box the preconditioner transforms: along each open axis the span of the unknowns, a closed axis whole.
+
+    Parameters
+    ----------
+    free : (rows, cols) bool
+        The unknowns, at least one.
+    wrap : (bool, bool)
+        Whether each axis closes around.
+
+    Returns
+    -------
+    ((int, int), (int, int))
+        ``(lo, hi)`` of the rows and of the columns.
+
+    Examples
+    --------
+    >>> free = np.zeros((5, 6), bool); free[1:4, 1:5] = True; free[2, 2] = False
+    >>> box(free, (False, False)), box(free, (True, False))
+    (((1, 4), (1, 5)), ((0, 5), (1, 5)))
+    """
+    spans = []
+    for axis, closed in enumerate(wrap):
+        held = np.flatnonzero(free.any(axis=1 - axis))
+        spans.append((0, free.shape[axis]) if closed else (int(held[0]), int(held[-1]) + 1))
+    return spans[0], spans[1]
+
+
+def fixed_inside(free: np.ndarray, wrap: tuple[bool, bool]) -> int:
+    """Fixed nodes inside :func:`box`: those that the capacitance correction (or, above :data:`MAX_CORRECTED`, the
+    zeroing) handles.
+
+    Examples
+    --------
+    >>> free = np.zeros((5, 6), bool); free[1:4, 1:5] = True; free[2, 2] = False
+    >>> fixed_inside(free, (False, False)), fixed_inside(free, (True, False))
+    (1, 9)
+    """
+    (r0, r1), (c0, c1) = box(free, wrap)
+    return int(np.count_nonzero(~free[r0:r1, c0:c1]))
 
 
 def _fourier_eigenvalues(n: int, transform: str) -> np.ndarray:
@@ -340,34 +383,33 @@ class SpectralPreconditioner:
         self.coefficients = (float(row_coefficient), float(column_coefficient))
         self.weight = float(weight)
         self.open_lines = open_lines
-        # each axis's kind and span: an open one exact (cut to the unknowns) or cosine (whole); along a closed one
-        # the real Fourier transform where it is the only closed one or the rows', the full one on the other
+        # each axis's kind over the box's span: an open one exact or cosine; along a closed one (never cut) the real
+        # Fourier transform where it is the only closed one or the rows', the full one on the other
+        spans = box(mask, self.wrap)
         axes = []
-        for axis, (n, closed) in enumerate(zip(self.shape, self.wrap)):
+        for axis, (n, closed, (lo, hi)) in enumerate(zip(self.shape, self.wrap, spans)):
             if closed:
-                kind = "rfft" if axis == 1 or not self.wrap[1] else "fft"
-                axes.append(_Axis(kind, n, 0, n))
+                axes.append(_Axis("rfft" if axis == 1 or not self.wrap[1] else "fft", n, lo, hi))
             elif open_lines == "exact":
                 if n > EXACT_MAX_SIDE:
                     raise ValueError(f"open_lines='exact': at most {EXACT_MAX_SIDE} nodes along an open axis, "
                                      f"got {n}; use 'cosine'")
-                held = np.flatnonzero(mask.any(axis=1 - axis))
-                axes.append(_Axis("exact", n, int(held[0]), int(held[-1]) + 1))
+                axes.append(_Axis("exact", n, lo, hi))
             else:
-                axes.append(_Axis("dct", n, 0, n))
+                axes.append(_Axis("dct", n, lo, hi))
         self._axes = axes
-        box = mask[axes[0].lo:axes[0].hi, axes[1].lo:axes[1].hi]
-        self._box_shape = box.shape
+        inside = mask[axes[0].lo:axes[0].hi, axes[1].lo:axes[1].hi]
+        self._box_shape = inside.shape
         eig = (self.coefficients[1] * axes[0].eigenvalues[:, None] + self.coefficients[0] * axes[1].eigenvalues[None, :]
                + self.weight)
         # 1/eig in single precision as ω/eig ∈ (0, 1] (no underflow whatever the units), 1/ω applied in double;
         # the unnormalized forward and inverse FFTs' scales cancel
         self._inverse64 = self.weight / eig
         self._inverse = self._inverse64.astype(np.float32)
-        self._inner = np.flatnonzero(~box.ravel())  # fixed nodes inside the box (box numbering)
+        self._inner = np.flatnonzero(~inside.ravel())  # fixed nodes inside the box (box numbering)
         self._correction: tuple[np.ndarray, tuple] | None = None
         self._dtype: type = np.float32
-        if 0 < self._inner.size <= MAX_CORRECTED and self._inner.size * box.size <= CORRECTION_MAX_VALUES:
+        if 0 < self._inner.size <= MAX_CORRECTED and self._inner.size * inside.size <= CORRECTION_MAX_VALUES:
             if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
                 self._dtype = np.float64
             self._correct()
@@ -387,7 +429,12 @@ class SpectralPreconditioner:
         self._correction = (W.astype(self._dtype), factor)
 
     def operator(self) -> sp.csr_matrix:
-        """``K`` on the whole grid in its row-major order (``P⁻¹`` inverts its part on the unknowns where exact).
+        """``K`` on the box, ``ωI`` off it, in the grid's row-major order (``P⁻¹`` inverts its part on the unknowns
+        where exact).
+
+        On the box ``K = c_r (I ⊗ B_r) + c_c (B_c ⊗ I) + ωI`` with each axis's ``B`` over the box's span: the
+        principal part of :func:`line_third_differences` (exact), the span's own ``L³`` (cosine), the whole closed
+        line's ``L³``. With exact lines that is the whole grid's ``K``'s part on the box.
 
         Returns
         -------
@@ -400,13 +447,20 @@ class SpectralPreconditioner:
         """
         rows, cols = self.shape
         c_r, c_c = self.coefficients
-        if self.open_lines == "exact":
-            Br, Bc = line_third_differences(cols, self.wrap[1]), line_third_differences(rows, self.wrap[0])
-        else:
-            Lr, Lc = line_laplacian(cols, self.wrap[1]), line_laplacian(rows, self.wrap[0])
-            Br, Bc = Lr @ Lr @ Lr, Lc @ Lc @ Lc
-        K = c_r * sp.kron(sp.eye(rows), Br) + c_c * sp.kron(Bc, sp.eye(cols)) + self.weight * sp.eye(rows * cols)
-        return sp.csr_matrix(K)
+        lines = []
+        for ax, closed in zip(self._axes, self.wrap):
+            if ax.kind == "exact":
+                lines.append(line_third_differences(ax.n)[ax.lo:ax.hi, ax.lo:ax.hi])
+            else:
+                L = line_laplacian(ax.size, closed)
+                lines.append(L @ L @ L)
+        (m, n), (Bc, Br) = self._box_shape, lines
+        K = c_r * sp.kron(sp.eye(m), Br) + c_c * sp.kron(Bc, sp.eye(n))
+        nodes = np.arange(rows * cols).reshape(rows, cols)[self._axes[0].lo:self._axes[0].hi,
+                                                           self._axes[1].lo:self._axes[1].hi].ravel()
+        K = sp.coo_matrix(K)
+        embedded = sp.csr_matrix((K.data, (nodes[K.row], nodes[K.col])), shape=(rows * cols, rows * cols))
+        return sp.csr_matrix(embedded + self.weight * sp.eye(rows * cols))
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
         """``Z = P⁻¹ R`` on every row (``lo``, ``hi`` are ignored: the transforms need the whole grid).
