@@ -206,10 +206,12 @@ GRID_MIN_FREE = 0.6
 #: fresh processes 0.274 against 0.276 s at 300² and the default weight, work 1.2·10⁶;
 #: ``benchmarks/perf/bench_core.py --sizes 300 --only fair --noise broadband --against``).
 SPECTRAL_MIN_WORK = 6e5
-#: ... and only where at most this many fixed vertices lie off the grid's boundary: the transforms do not know them,
-#: and each costs steps (on the 300² sheet at the default weight 28 steps with none, 36 with 10, 43 with 100 and 86
-#: with 1 % of the vertices fixed at random, against plain CG's 87–154; a throwaway script).
-SPECTRAL_MAX_INNER_FIXED = 16
+#: "auto" takes the spectral preconditioner (its exact lines) on a grid that it fits (below) in place of Gauss–Seidel
+#: and the two-grid switch where the Gershgorin bound exceeds this many times ω (a weight below about 1.7·10⁻³ on the
+#: bench sheet with broadband noise, 1.3·10⁻³ with zigzag noise): its steps do not grow as the weight falls, Gauss–Seidel's
+#: do as 1/√ω, and at about this bound the two tie on the 300² sheet and Gauss–Seidel has lost on 1000² (both
+#: tables: ``docs/fairing.md``, "Exact lines").
+SPECTRAL_CONTRAST = 3e4
 #: ... and only where no unknown's fairing diagonal exceeds this many times the median one's: a stiff spot (a
 #: collapsed stretch of a line) is an outlier that the constant coefficients miss. The sampled design surfaces
 #: with broadband noise are at 1.9–2.6, a torus at 6.1 (a throwaway script's figures; the study prints its
@@ -622,18 +624,12 @@ def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: 
     return float(d.max()) / median if median > 0 else np.inf
 
 
-def _inner_fixed(free: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool]) -> int:
-    """Fixed nodes of a grid off its boundary (the first and last row and column of an axis that does not close)."""
-    held = ~free.reshape(shape)
-    edge_r, edge_c = (0 if wrap[0] else 1), (0 if wrap[1] else 1)  # (an axis that closes has no boundary)
-    return int(np.count_nonzero(held[edge_r : shape[0] - edge_r, edge_c : shape[1] - edge_c]))
-
-
 def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool],
                              weight: float, free: np.ndarray) -> "spectral.SpectralPreconditioner":
     """:class:`~quadnodes.linalg.spectral.SpectralPreconditioner` of a grid's ``AᵀA + ωI`` in diagonal storage:
     each family's coefficient the median magnitude of its ``±3`` diagonal (the product of a window's end
-    coefficients) over the windows that have one; a family without windows of four nodes gets 0."""
+    coefficients) over the windows that have one; a family without windows of four nodes gets 0. Exact lines, or
+    cosine ones where an open side is longer than :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE`."""
     rows, cols = shape
     found = {int(o): d for d, o in enumerate(offsets)}
 
@@ -644,8 +640,9 @@ def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple
         ends = ends[ends > 0]
         return float(np.median(ends)) if ends.size else 0.0
 
+    exact = all(closed or side <= spectral.EXACT_MAX_SIDE for side, closed in zip(shape, wrap))
     return spectral.SpectralPreconditioner(shape, wrap, coefficient(3, cols), coefficient(3 * cols, rows), weight,
-                                           free)
+                                           free, open_lines="exact" if exact else "cosine")
 
 
 def _gershgorin(data: np.ndarray, rows: np.ndarray) -> float:
@@ -844,8 +841,7 @@ class FairingSystem:
         symmetric Gauss–Seidel in Eisenstat's form: 2.2–6.2× fewer steps than plain CG on two
         threads, each step two sweeps and no product. An open grid takes the grid's fast sweeps
         (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`); a cylinder or torus
-        grid (a torus where the spectral preconditioner below does not take it) and any other mesh sweep
-        compressed rows
+        grid and any other mesh sweep compressed rows
         (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Where the bound exceeds
         :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and Gauss–Seidel's rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more, the
@@ -855,14 +851,15 @@ class FairingSystem:
         (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`); either with at most
         :data:`TWO_GRID_COARSE_MAX` coarse nodes. Without the compiled kernels (not loaded, or Numba
         missing), on a mostly free vertex grid (``_topology`` given) whose windows are scaled third
-        differences (fair's even spacing): the line operator with constant coefficients inverted by
-        transforms (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`, 3–9× fewer steps than plain
-        CG, each two to three times as dear) where :func:`_spectral_pays`, at most
-        :data:`SPECTRAL_MAX_INNER_FIXED` fixed vertices lie off the grid's boundary and no stiff spot
-        exceeds :data:`SPECTRAL_MAX_STIFFNESS`. On a torus grid (closed both ways: no line ends, so the
-        steps barely grow as the weight falls) the same at every weight, with or without the kernels, in
-        place of Gauss–Seidel and the two-grid switch (at a bound above :data:`TWO_GRID_CONTRAST` ω only
-        with no fixed vertex). Elsewhere: block Jacobi at small weights, else none.
+        differences (fair's even spacing): the line operator with constant coefficients inverted by its
+        lines' eigenvectors and transforms (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`,
+        exact lines; 6–9× fewer steps than plain CG, each two to four times as dear) where
+        :func:`_spectral_pays`, every fixed vertex inside the unknowns' box is inverted around exactly
+        (:func:`~quadnodes.linalg.spectral.inverts_exactly`) and no stiff spot exceeds
+        :data:`SPECTRAL_MAX_STIFFNESS`. Its steps do not grow as the weight falls (15–25 from the default
+        weight to 10⁻⁶), so on such a grid it also takes a torus at every weight and any grid where the bound
+        exceeds :data:`SPECTRAL_CONTRAST` ω (a weight below about 1.7·10⁻³), with or without the kernels, in place of Gauss–Seidel and the
+        two-grid switch. Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
         lines'; needs ``_topology`` or ``_lines``).
@@ -1041,11 +1038,11 @@ class FairingSystem:
         is marked to switch to the two-grid cycle (:class:`~quadnodes.linalg.multigrid.TwoGrid`, or on the lines
         :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) in :meth:`solve` where its rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more; there the
-        kernels are loaded at any size — except on a torus grid that the spectral preconditioner takes (see
-        ``preconditioner`` in the class). Otherwise, on a mostly free vertex grid whose windows are scaled third
-        differences, the spectral preconditioner
-        (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`) where :func:`_spectral_pays`, with at most
-        :data:`SPECTRAL_MAX_INNER_FIXED` fixed vertices off the boundary and no stiff spot above
+        kernels are loaded at any size — except where the spectral preconditioner takes the grid (see
+        ``preconditioner`` in the class: a torus, or a grid above :data:`SPECTRAL_CONTRAST` ω). Otherwise, on a
+        mostly free vertex grid whose windows are scaled third differences, the spectral preconditioner
+        (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`) where :func:`_spectral_pays`, every fixed
+        vertex inside the unknowns' box inverted around exactly and no stiff spot above
         :data:`SPECTRAL_MAX_STIFFNESS`; else
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
@@ -1084,28 +1081,26 @@ class FairingSystem:
                 shape, wrap = (data.shape[1] // cols, cols), self._grid[0].wrap
                 if self.preconditioner == "two-grid" or contrast > TWO_GRID_CONTRAST:  # (only where it may be used)
                     strides = _two_grid_strides(data, self._grid[2])
-            # on a grid whose windows are scaled third differences (fair's even spacing) the line operator with
-            # constant coefficients, inverted by transforms, where it pays (_spectral_pays), with few fixed vertices
-            # off the boundary and no stiff spot: on a torus (closed both ways: no line ends, so its steps barely
-            # grow as the weight falls) in place of everything else; on other grids where the compiled sweeps are
-            # not used (not loaded, or Numba missing), in place of plain CG and of block Jacobi
-            fits: list[int] = []  # (the checks once: the inner fixed vertices' count, or -1 where it cannot fit)
+            # on a grid whose windows are scaled third differences (fair's even spacing), with no stiff spot and
+            # every fixed vertex inside the unknowns' box inverted around exactly: the line operator with constant
+            # coefficients by the lines' eigenvectors and transforms. Its steps do not grow as the weight falls, so
+            # it takes a torus at every weight and any grid at tiny weights (above SPECTRAL_CONTRAST) in place of
+            # everything else; at larger weights, where the compiled sweeps are not used (not loaded, or Numba
+            # missing) and it pays (_spectral_pays), in place of plain CG and of block Jacobi
+            fits: list[bool] = []  # (the checks once)
 
-            def spectral_fits(most_fixed: int = SPECTRAL_MAX_INNER_FIXED) -> bool:
+            def spectral_fits() -> bool:
                 if not fits:
-                    fits.append(_inner_fixed(self._grid[2], shape, wrap) if (
-                        self.preconditioner == "auto" and self._third_differences and _spectral_pays(k, contrast)
-                        and _stiffness(*grid_storage(), self._grid[2], self.weight) <= SPECTRAL_MAX_STIFFNESS)
-                        else -1)
-                return 0 <= fits[0] <= most_fixed
+                    fits.append(self.preconditioner == "auto" and self._third_differences
+                                and spectral.inverts_exactly(self._grid[2].reshape(shape), wrap)
+                                and _stiffness(*grid_storage(), self._grid[2], self.weight) <= SPECTRAL_MAX_STIFFNESS)
+                return fits[0]
 
-            # (on a torus every fixed vertex is off the boundary, and at tiny weights each costs many steps: a 150²
-            # torus with 16 of them took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            torus = grid and wrap == (True, True) and spectral_fits(
-                SPECTRAL_MAX_INNER_FIXED if contrast <= TWO_GRID_CONTRAST else 0)
-            # "auto" at a tiny weight where the coarse space is small enough (a grid's, or one along the structure
-            # lines): Gauss–Seidel first, the two-grid cycle if it is slow; the kernels pay for that at any size
-            may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not torus
+            # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
+            # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
+            spectral_only = grid and (wrap == (True, True) or contrast > SPECTRAL_CONTRAST) \
+                and _spectral_pays(k, contrast) and spectral_fits()
+            may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not spectral_only
             if may_switch and shape is not None:
                 self._coarse = int(np.prod([coarse_nodes(side, st, c).size
                                             for side, st, c in zip(shape, strides, wrap)]))
@@ -1115,7 +1110,8 @@ class FairingSystem:
                               and TWO_GRID_MIN_SIDE**2 < k <= TWO_GRID_COARSE_MAX * TWO_GRID_STRIDE**2)
             wanted = wanted or may_switch
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
-            if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST and not torus)) \
+            if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST
+                           and not spectral_only)) \
                     and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
                 # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights,
@@ -1146,8 +1142,9 @@ class FairingSystem:
                 raise InputError("preconditioner='spectral' needs the grid path: a complete vertex grid (rows and "
                                  f"columns of at least 4 vertices) with at least {GRID_MIN_FREE:.0%} of its vertices "
                                  "free; use 'auto'")
-            use_spectral = grid and (self.preconditioner == "spectral" or torus
-                                     or (not (wanted and kernels.wait()) and spectral_fits()))
+            use_spectral = grid and (self.preconditioner == "spectral" or spectral_only
+                                     or (not (wanted and kernels.wait()) and _spectral_pays(k, contrast)
+                                         and spectral_fits()))
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto" \
                     and not use_spectral:
                 order = _patch_order(self._windows, self.free_index, 4)

@@ -820,16 +820,70 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
         ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", line_curvature="fair")
         assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
     assert steps[-1] < 3 * steps[0], steps  # (Gauss–Seidel's grow as 1/√ω: some 30× here)
-    # at tiny weights a fixed vertex (off the boundary, as every one on a torus) sends it back to Gauss–Seidel and
-    # the two-grid switch: each costs the transforms many steps there
+    # fixed vertices (off the boundary, as every one on a torus) are inverted around exactly: still the transforms
+    # at tiny weights, as few steps, the same accuracy
     fixed = np.zeros(m.n_vertices, bool)
-    fixed[[100, 1700]] = True
+    fixed[[100, 1700, 2000]] = True
+    for weight in (1e-6, 0.3):
+        picked.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            out, rep = fair(m, threshold=0.0, weight=weight, fixed=fixed, solver="cg", line_curvature="fair")
+        assert picked[0][0] is SpectralPreconditioner and rep.iterations[0].cg_iterations < 2 * steps[-1]
+        ref, _ = fair(m, threshold=0.0, weight=weight, fixed=fixed, solver="direct", line_curvature="fair")
+        assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
+        assert np.array_equal(out.vertices[fixed], m.vertices[fixed])
+
+
+@pytest.mark.parametrize("fix", ["corners", "boundary"])
+def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch, fix):
+    """With the compiled kernels at hand, below a weight of about 2.5·10⁻⁴ (a Gershgorin bound above
+    SPECTRAL_CONTRAST ω) an open grid takes the exact lines' transforms in place of Gauss–Seidel and the two-grid
+    switch: steps that barely grow as the weight falls, within 1e-8 of the mesh's size of the direct solve, the
+    fixed vertices (corners, or the whole boundary: the box shrinks to the interior) unmoved."""
+    import warnings
+
+    from quadnodes.linalg import compiled, spectral
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+
+    assert compiled.wait()
+    m = _noisy(grid(48, 60, spacing=25.0))
+    monkeypatch.setattr(compiled, "ready", lambda: True)
+    monkeypatch.setattr(spectral, "loaded", lambda: True)
+    picked = []
+    setup = FairingSystem._cg_setup
+
+    def record(self):
+        out = setup(self)
+        picked.append(out[1])
+        return out
+
+    monkeypatch.setattr(FairingSystem, "_cg_setup", record)
+    size = np.ptp(m.vertices, axis=0).max()
+    steps = []
+    for weight in (1e-4, 1e-6, 1e-8):
+        picked.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # (a fallback to the direct solve warns: here it is a failure)
+            out, rep = fair(m, threshold=0.0, weight=weight, solver="cg", fix=fix)
+        assert [type(p) for p in picked] == [SpectralPreconditioner], (weight, picked)
+        assert picked[0]._axes[0].kind == picked[0]._axes[1].kind == "exact"
+        if fix == "boundary":
+            assert picked[0]._box_shape == (46, 58) and picked[0]._inner.size == 0
+        else:  # (the four corners and a vertex or so line_gaps holds, inside the box, inverted around)
+            assert 4 <= picked[0]._inner.size <= 8 and picked[0]._correction is not None
+        steps.append(rep.iterations[0].cg_iterations)
+        assert rep.iterations[0].residual <= 1e-9
+        if weight >= 1e-6:  # (below, the direct solve's own rounding, some 10⁻¹⁶ times the condition, is larger)
+            ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix=fix)
+            assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
+        held = m.topology.boundary_vertices if fix == "boundary" else m.topology.corner_vertices
+        assert np.array_equal(out.vertices[held], m.vertices[held])
+    assert steps[-1] < 2 * steps[0], steps
     picked.clear()
-    fair(m, threshold=0.0, weight=1e-6, fixed=fixed, solver="cg", line_curvature="fair")
-    assert picked and picked[0][0] is not SpectralPreconditioner
-    picked.clear()
-    fair(m, threshold=0.0, weight=0.3, fixed=fixed, solver="cg", line_curvature="fair")
-    assert picked[0][0] is SpectralPreconditioner
+    fair(m, threshold=0.0, weight=0.3, solver="cg", fix=fix)  # the default weight: Gauss–Seidel
+    assert isinstance(picked[0], SymmetricGaussSeidel)
 
 
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
@@ -875,19 +929,13 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     assert pick(weight=0.003 / m.mean_edge_length**2) is SpectralPreconditioner
     monkeypatch.setattr(fairing_module, "COMPILED_MIN_UNKNOWNS", 250_000)
     inner = np.flatnonzero(free & ~m.topology.boundary_vertices)
-    chosen = np.random.default_rng(0).choice(inner, fairing_module.SPECTRAL_MAX_INNER_FIXED + 1, replace=False)
+    chosen = np.random.default_rng(0).choice(inner, spectral.MAX_CORRECTED + 1, replace=False)
     pins = free.copy()
     pins[chosen[:-1]] = False
-    pins[m.topology.boundary_vertices] = False  # (fixed vertices on the boundary do not count)
+    pins[m.topology.boundary_vertices] = False  # (fixed vertices around the unknowns' box do not count)
     assert pick(free=pins) is SpectralPreconditioner
-    pins[chosen[-1]] = False  # one more
+    pins[chosen[-1]] = False  # one more than the correction takes
     assert pick(free=pins) is type(None)
-    # the boundary: the first and last row and column of an open axis
-    held = np.ones((5, 6), bool)
-    held[0, 2] = held[4, 5] = held[2, 0] = held[3, 3] = False
-    assert fairing_module._inner_fixed(held.reshape(-1), (5, 6), (False, False)) == 1
-    assert fairing_module._inner_fixed(held.reshape(-1), (5, 6), (True, False)) == 2
-    assert fairing_module._inner_fixed(held.reshape(-1), (5, 6), (True, True)) == 4
     # a stiff spot: a collapsed stretch of a line (three vertices pulled onto their neighbour)
     v = m.vertices.copy()
     v[1021:1024] = v[1020] + 0.01 * (v[1021:1024] - v[1020])

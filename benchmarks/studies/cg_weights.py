@@ -1,5 +1,5 @@
 """Conjugate gradients across weights: plain CG (free-index CSR, and the grid's diagonal storage)
-against block-Jacobi CG and the spectral preconditioner on the same system.
+against block-Jacobi CG and the spectral preconditioner (exact lines, and cosine lines) on the same system.
 
 Backs the tables in docs/fairing.md "Speed" (small weights: block-Jacobi preconditioning) and "The spectral
 preconditioner" (``fairing.SPECTRAL_MIN_WORK``).
@@ -9,7 +9,8 @@ every window-middle vertex free, builds the one-iteration system at normalized w
 solves it (x, y, z together, rtol 1e-9, from the anchor) three ways: plain CG on the free-index CSR
 matrix (any mesh), plain CG on the 13 diagonals in the grid's numbering (complete vertex grids), and
 block-Jacobi CG (``quadnodes.fairing.BLOCK_JACOBI_RATIO`` and ``GRID_BLOCK_JACOBI_RATIO``), and CG preconditioned by
-``quadnodes.linalg.spectral.SpectralPreconditioner`` on the grid's diagonals. Prints steps and the wall time of
+``quadnodes.linalg.spectral.SpectralPreconditioner`` on the grid's diagonals, with its exact lines (the solver's) and
+with cosine lines (``open_lines="cosine"``). Prints steps and the wall time of
 system + solve (best of ``--repeat`` runs; SciPy's transforms imported before the clock, so the spectral
 column leaves out their import, about 40 ms once per process), and which one the default rule picks for this
 grid in a fresh process without the compiled kernels. Checks that the column the default picks is within 1e-8
@@ -43,9 +44,11 @@ import _common  # noqa: E402
 WEIGHTS = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
 
 
-def _run(m, free, w, ratio, repeat, grid=False, inverse=None, preconditioner="auto"):
+def _run(m, free, w, ratio, repeat, grid=False, inverse=None, preconditioner="auto", open_lines="exact"):
     default = fairing.BLOCK_JACOBI_RATIO, fairing.GRID_BLOCK_JACOBI_RATIO
     fairing.BLOCK_JACOBI_RATIO = fairing.GRID_BLOCK_JACOBI_RATIO = ratio
+    made = fairing.spectral.SpectralPreconditioner
+    fairing.spectral.SpectralPreconditioner = lambda *a, **kw: made(*a, **{**kw, "open_lines": open_lines})
     try:
         best, x, s = np.inf, None, None
         for _ in range(repeat):
@@ -58,6 +61,7 @@ def _run(m, free, w, ratio, repeat, grid=False, inverse=None, preconditioner="au
         return best, s.iterations, x
     finally:
         fairing.BLOCK_JACOBI_RATIO, fairing.GRID_BLOCK_JACOBI_RATIO = default
+        fairing.spectral.SpectralPreconditioner = made
 
 
 def main() -> None:
@@ -84,19 +88,22 @@ def main() -> None:
           f"{int(free.sum())} free vertices; stiffest diagonal / median {stiffness:.1f}; windows are scaled third "
           f"differences: {probe._third_differences}")
     print("| ω (normalized) | plain CG: steps | CSR time (s) | grid diagonals time (s) "
-          "| block-Jacobi CG: steps | time (s) | spectral CG: steps | time (s) | default picks (fresh process) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+          "| block-Jacobi CG: steps | time (s) | spectral CG: steps | time (s) | cosine lines: steps | time (s) "
+          "| default picks (fresh process) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     late: list[str] = []
     for w in WEIGHTS:
         tp, sp_, xp = _run(m, free, w, np.inf, args.repeat, inverse=inverse, preconditioner="none")
         tg, sg, xg = _run(m, free, w, np.inf, args.repeat, grid=True, inverse=inverse, preconditioner="none")
         tb, sb, xb = _run(m, free, w, 0.0, args.repeat, inverse=inverse)
         ts, ss, xs = _run(m, free, w, np.inf, args.repeat, grid=True, inverse=inverse, preconditioner="spectral")
+        tc, sc, xc = _run(m, free, w, np.inf, args.repeat, grid=True, inverse=inverse, preconditioner="spectral",
+                          open_lines="cosine")
         # each within 1e-8 of the extent of a reference solved to rtol 1e-13
         ref = FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, solver="cg", _topology=t,
                             _inverse_lengths=inverse, preconditioner="none", rtol=1e-13).solve(m.vertices[free])
-        errors = dict(zip(("plain CSR", "grid diagonals", "block-Jacobi", "spectral"),
-                          (np.abs(x - ref).max() / extent for x in (xp, xg, xb, xs))))
+        errors = dict(zip(("plain CSR", "grid diagonals", "block-Jacobi", "spectral", "cosine lines"),
+                          (np.abs(x - ref).max() / extent for x in (xp, xg, xb, xs, xc))))
         asked = []  # (the rule as in a fresh process: nothing loaded; the kernels' load only noted, not done)
         saved = (kernels.ready, kernels.wait, spectral.loaded)
         kernels.ready, spectral.loaded = (lambda: False), (lambda: False)
@@ -119,7 +126,8 @@ def main() -> None:
         assert errors.get(pick, 0.0) <= 1e-8, (pick, errors)
         late += [f"ω = {w:g}: {k} ended {e:.1e} of the extent from the reference" for k, e in errors.items() if e > 1e-8]
         steps = str(sp_) if sg == sp_ else f"{sp_} (grid {sg})"  # (rounding: the two orders may differ by a step)
-        print(f"| {w:g} | {steps} | {tp:.3f} | {tg:.3f} | {sb} | {tb:.3f} | {ss} | {ts:.3f} | {pick} |", flush=True)
+        print(f"| {w:g} | {steps} | {tp:.3f} | {tg:.3f} | {sb} | {tb:.3f} | {ss} | {ts:.3f} | {sc} | {tc:.3f} "
+              f"| {pick} |", flush=True)
     for line in late:
         print(line)
 

@@ -37,7 +37,9 @@ vertices, the compiled kernels loaded before the clock), solved by symmetric Gau
 "gauss-seidel"``, its stop tightened at tiny weights) and by :class:`quadnodes.linalg.multigrid.TwoGrid`
 (``"two-grid"``, at each ``--strides``) and by ``"auto"`` (Gauss–Seidel, switching to the two-grid cycle where it is
 slow), each against the direct solve (``--size`` ≤ 450; above, the two-grid cycle to rtol 1e-12): steps, seconds
-(set-up and solve, one run), and the largest difference over the sheet's extent. ``--fixed`` also fixes a share
+(set-up and solve, one run), and the largest difference over the sheet's extent. The unknowns are every window
+middle (``--free detect``) or as fair() frees them (``--free fair``: ``line_gaps``, fewer fixed vertices, so the
+spectral column's correction takes them; its column: ``"spectral"``). ``--fixed`` also fixes a share
 of the vertices at random (as a zigzag detection leaves some fixed), one block of rows each; ``--no-guard`` turns
 fair's error guard at tiny weights off (``ERROR_GUARD_CONTRAST = inf``: the residual stop alone). ``--mesh cylinder``
 (``--size`` rows of ``--size`` vertices around, radius 1, height 2) and ``--mesh torus`` (``--size`` × ``--size``)
@@ -89,7 +91,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import _common  # noqa: E402
 
 from quadnodes.fairing import FairingSystem, even_lengths  # noqa: E402
-from quadnodes.zigzag import _window_geometry, detect  # noqa: E402
+from quadnodes.zigzag import _window_geometry, detect, line_gaps  # noqa: E402
 
 COARSEST = 400  # vertices at most on the level solved directly
 
@@ -277,6 +279,8 @@ def main() -> None:
     ap.add_argument("--columns", nargs="+", choices=["gauss-seidel", "two-grid", "lines", "spectral", "auto"],
                     default=["gauss-seidel", "two-grid", "lines", "auto"],
                     help="--solver: which columns (e.g. no Gauss–Seidel where it would take its 20,000-step cap)")
+    ap.add_argument("--free", choices=["detect", "fair"], default="detect",
+                    help="--solver: the unknowns: every window middle (detect at 0) or as fair() frees them (line_gaps)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
     ap.add_argument("--coarse-factor", action="store_true",
@@ -357,7 +361,9 @@ def solver_table(args: argparse.Namespace) -> None:
     print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
     print("|---:|---:|" + "---:|" * len(kinds))
     for share, w in ((share, w) for share in args.fixed for w in args.weights):
-        free = detect(m, 0.0).free & (np.random.default_rng(0).random(m.n_vertices) >= share)
+        found = detect(m, 0.0)
+        free = line_gaps(found.free, t.windows, found.fixed) if args.free == "fair" else found.free
+        free = free & (np.random.default_rng(0).random(m.n_vertices) >= share)
         def system(lines: bool = False, **kw):  # type: ignore[no-untyped-def]  # (lines: no grid path, as fair() off a grid)
             return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, _inverse_lengths=inverse,
                                  _topology=None if lines else t, _lines=t.structure_lines, **kw)

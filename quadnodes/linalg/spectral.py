@@ -44,7 +44,7 @@ import scipy.sparse as sp
 
 from . import threads as _threads
 
-__all__ = ["SpectralPreconditioner", "box", "fixed_inside", "line_laplacian", "line_third_differences", "loaded",
+__all__ = ["SpectralPreconditioner", "box", "fixed_inside", "inverts_exactly", "line_laplacian", "line_third_differences", "loaded",
            "MAX_CORRECTED", "CORRECTION_MAX_VALUES", "CORRECTION_SINGLE_MAX",
            "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES"]
 
@@ -235,6 +235,37 @@ def fixed_inside(free: np.ndarray, wrap: tuple[bool, bool]) -> int:
     return int(np.count_nonzero(~free[r0:r1, c0:c1]))
 
 
+def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool]) -> bool:
+    """Whether the preconditioner with exact lines is ``K_ff⁻¹`` on these unknowns: its open sides within
+    :data:`EXACT_MAX_SIDE` and its fixed nodes inside :func:`box` corrected (at most :data:`MAX_CORRECTED`, their
+    stored columns within :data:`CORRECTION_MAX_VALUES`).
+
+    Parameters
+    ----------
+    free : (rows, cols) bool
+        The unknowns, at least one.
+    wrap : (bool, bool)
+        Whether each axis closes around.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    A fixed first row is off the box of an open grid, and inside a closed one's (50 more fixed nodes there):
+
+    >>> free = np.ones((40, 50), bool); free[0] = False; free[20, ::2] = False
+    >>> inverts_exactly(free, (False, False)), inverts_exactly(free, (True, False))
+    (True, False)
+    """
+    if any(n > EXACT_MAX_SIDE for n, closed in zip(free.shape, wrap) if not closed):
+        return False
+    (r0, r1), (c0, c1) = box(free, wrap)
+    p = int(np.count_nonzero(~free[r0:r1, c0:c1]))
+    return p == 0 or (p <= MAX_CORRECTED and p * (r1 - r0) * (c1 - c0) <= CORRECTION_MAX_VALUES)
+
+
 def _fourier_eigenvalues(n: int, transform: str) -> np.ndarray:
     """``L``'s eigenvalues in the order of a transform along the axis: ``"dct"`` (the Neumann ``L``), ``"rfft"``
     or ``"fft"`` (the circulant ``L``)."""
@@ -410,6 +441,7 @@ class SpectralPreconditioner:
         self._correction: tuple[np.ndarray, tuple] | None = None
         self._dtype: type = np.float32
         if 0 < self._inner.size <= MAX_CORRECTED and self._inner.size * inside.size <= CORRECTION_MAX_VALUES:
+            # (the same test as inverts_exactly's)
             if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
                 self._dtype = np.float64
             self._correct()
