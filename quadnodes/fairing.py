@@ -207,11 +207,21 @@ GRID_MIN_FREE = 0.6
 #: ``benchmarks/perf/bench_core.py --sizes 300 --only fair --noise broadband --against``).
 SPECTRAL_MIN_WORK = 6e5
 #: "auto" takes the spectral preconditioner (its exact lines) on a grid that it fits (below) in place of Gauss–Seidel
-#: and the two-grid switch where the Gershgorin bound exceeds this many times ω (a weight below about 1.7·10⁻³ on the
-#: bench sheet with broadband noise, 1.3·10⁻³ with zigzag noise): its steps do not grow as the weight falls, Gauss–Seidel's
-#: do as 1/√ω, and at about this bound the two tie on the 300² sheet and Gauss–Seidel has lost on 1000² (both
-#: tables: ``docs/fairing.md``, "Exact lines").
-SPECTRAL_CONTRAST = 3e4
+#: and the two-grid switch where the Gershgorin bound exceeds this many times ω (a weight below about 5·10⁻³ on the
+#: bench sheet with broadband noise, 3.8·10⁻³ with zigzag noise): its steps do not grow as the weight falls,
+#: Gauss–Seidel's do as 1/√ω. Fair's first-iteration system on the 300² sheet at ω = 0.01 (a bound of 5,000 ω): 18
+#: steps 0.24 s against Gauss–Seidel's 163, 0.22–0.30 s; at 0.003: 18 · 0.17 s against 265 · 0.33–0.38 s (``python
+#: benchmarks/studies/multigrid.py --solver --size 300 --free fair --columns gauss-seidel two-grid spectral auto``);
+#: on 1000² at 0.003 20 · 3.41 s against 268 · 5.10 s (``--size 1000``), at 0.01 19 · 4.1 s against 153 · 3.0 s (a
+#: throwaway script).
+SPECTRAL_CONTRAST = 1e4
+#: The spectral preconditioner takes its exact lines where the Gershgorin bound exceeds this many times ω, and cosine
+#: lines (``open_lines="cosine"``) below: their steps cost half as much, and where few are needed the exact lines'
+#: fewer steps do not repay that and their set-up. On the 300² sheet with broadband noise (in-process, transforms
+#: imported): 15 exact steps 0.206 s against 24 cosine ones 0.171 s at the default weight (a bound of 168 ω), 16
+#: against 31, 0.208 against 0.227 s at ω = 0.1, 17 against 43, 0.195 against 0.240 s at 0.03 (``python
+#: benchmarks/studies/cg_weights.py --size 300 --noise broadband``).
+SPECTRAL_EXACT_CONTRAST = 1e3
 #: ... and only where no unknown's fairing diagonal exceeds this many times the median one's: a stiff spot (a
 #: collapsed stretch of a line) is an outlier that the constant coefficients miss. The sampled design surfaces
 #: with broadband noise are at 1.9–2.6, a torus at 6.1 (a throwaway script's figures; the study prints its
@@ -625,11 +635,12 @@ def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: 
 
 
 def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool],
-                             weight: float, free: np.ndarray) -> "spectral.SpectralPreconditioner":
+                             weight: float, free: np.ndarray, exact: bool = True) -> "spectral.SpectralPreconditioner":
     """:class:`~quadnodes.linalg.spectral.SpectralPreconditioner` of a grid's ``AᵀA + ωI`` in diagonal storage:
     each family's coefficient the median magnitude of its ``±3`` diagonal (the product of a window's end
-    coefficients) over the windows that have one; a family without windows of four nodes gets 0. Exact lines, or
-    cosine ones where an open side is longer than :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE`."""
+    coefficients) over the windows that have one; a family without windows of four nodes gets 0. Exact lines
+    (``exact``), or cosine ones (also where an open side is longer than
+    :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE`)."""
     rows, cols = shape
     found = {int(o): d for d, o in enumerate(offsets)}
 
@@ -640,7 +651,7 @@ def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple
         ends = ends[ends > 0]
         return float(np.median(ends)) if ends.size else 0.0
 
-    exact = all(closed or side <= spectral.EXACT_MAX_SIDE for side, closed in zip(shape, wrap))
+    exact = exact and all(closed or side <= spectral.EXACT_MAX_SIDE for side, closed in zip(shape, wrap))
     return spectral.SpectralPreconditioner(shape, wrap, coefficient(3, cols), coefficient(3 * cols, rows), weight,
                                            free, open_lines="exact" if exact else "cosine")
 
@@ -858,8 +869,9 @@ class FairingSystem:
         (:func:`~quadnodes.linalg.spectral.inverts_exactly`) and no stiff spot exceeds
         :data:`SPECTRAL_MAX_STIFFNESS`. Its steps do not grow as the weight falls (15–25 from the default
         weight to 10⁻⁶), so on such a grid it also takes a torus at every weight and any grid where the bound
-        exceeds :data:`SPECTRAL_CONTRAST` ω (a weight below about 1.7·10⁻³), with or without the kernels, in place of Gauss–Seidel and the
-        two-grid switch. Elsewhere: block Jacobi at small weights, else none.
+        exceeds :data:`SPECTRAL_CONTRAST` ω (a weight below about 5·10⁻³), with or without the kernels, in
+        place of Gauss–Seidel and the two-grid switch; cosine lines where the bound is at most
+        :data:`SPECTRAL_EXACT_CONTRAST` ω. Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
         lines'; needs ``_topology`` or ``_lines``).
@@ -1159,8 +1171,10 @@ class FairingSystem:
                         precond = _line_preconditioner(data, offsets, cols)
                     except np.linalg.LinAlgError as exc:  # a line block not positive definite
                         raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
-                elif use_spectral:
-                    precond = _spectral_preconditioner(offsets, data, shape, wrap, self.weight, self._grid[2])
+                elif use_spectral:  # (cosine lines where the exact ones' dearer steps do not pay: SPECTRAL_EXACT_CONTRAST)
+                    precond = _spectral_preconditioner(offsets, data, shape, wrap, self.weight, self._grid[2],
+                                                       exact=contrast > SPECTRAL_EXACT_CONTRAST
+                                                       or self.preconditioner == "spectral")
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:

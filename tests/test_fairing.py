@@ -837,7 +837,7 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
 
 @pytest.mark.parametrize("fix", ["corners", "boundary"])
 def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch, fix):
-    """With the compiled kernels at hand, below a weight of about 2.5·10⁻⁴ (a Gershgorin bound above
+    """With the compiled kernels at hand, below a weight of about 5·10⁻³ (a Gershgorin bound above
     SPECTRAL_CONTRAST ω) an open grid takes the exact lines' transforms in place of Gauss–Seidel and the two-grid
     switch: steps that barely grow as the weight falls, within 1e-8 of the mesh's size of the direct solve, the
     fixed vertices (corners, or the whole boundary: the box shrinks to the interior) unmoved."""
@@ -903,9 +903,12 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     t = m.topology
     even = _window_geometry(m.vertices, t.windows, t.window_walk, even=True)[-2]  # fair's line_spacing="fair"
 
-    def pick(free=free, weight=w):
+    def pick(free=free, weight=w, kinds=None):
         s = FairingSystem(m.vertices, t.windows, free, weight, solver="cg", _inverse_lengths=even, _topology=t)
-        return type(s._cg_setup()[1])
+        precond = s._cg_setup()[1]
+        if kinds is not None:  # (the open axes' lines: cosine at large weights, exact at small ones)
+            kinds.extend(ax.kind for ax in precond._axes)
+        return type(precond)
 
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)
     monkeypatch.setattr(spectral, "loaded", lambda: False)
@@ -915,7 +918,11 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     monkeypatch.setattr(fairing_module, "SPECTRAL_MIN_WORK", 1e12)
     monkeypatch.setattr(spectral, "loaded", lambda: True)  # imported already: at any size
     assert pick() is SpectralPreconditioner
-    assert pick(weight=0.003 / m.mean_edge_length**2) is SpectralPreconditioner  # (in place of block Jacobi)
+    kinds = []
+    assert pick(kinds=kinds) is SpectralPreconditioner and kinds == ["dct", "dct"]
+    kinds.clear()
+    assert pick(weight=0.003 / m.mean_edge_length**2, kinds=kinds) is SpectralPreconditioner  # (not block Jacobi)
+    assert kinds == ["exact", "exact"]  # (a bound above SPECTRAL_EXACT_CONTRAST ω)
     assert pick(weight=30.0 / m.mean_edge_length**2) is type(None)  # a large weight: plain CG's few steps
     assert not fairing_module._spectral_pays(10**9, fairing_module.GAUSS_SEIDEL_CONTRAST)
     # eq. 32's own lengths: the windows are no scaled third differences, which the transforms model
