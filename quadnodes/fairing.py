@@ -215,13 +215,18 @@ SPECTRAL_MIN_WORK = 6e5
 #: on 1000² at 0.003 20 · 3.41 s against 268 · 5.10 s (``--size 1000``), at 0.01 19 · 4.1 s against 153 · 3.0 s (a
 #: throwaway script).
 SPECTRAL_CONTRAST = 1e4
+#: ... times (longest open side / this)² above this side: an exact line costs ``O(side)`` a node a step, so the
+#: Gauss–Seidel steps it must save grow with the side (an extrapolation from the 300² and 1000² sheets, where the
+#: crossover was the same; nothing larger was measured), and only up to
+#: :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE` nodes an open side.
+SPECTRAL_CONTRAST_SIDE = 1000
 #: The spectral preconditioner takes its exact lines where the Gershgorin bound exceeds this many times ω, and cosine
 #: lines (``open_lines="cosine"``) below: their steps cost half as much, and where few are needed the exact lines'
 #: fewer steps do not repay that and their set-up. On the 300² sheet with broadband noise (in-process, transforms
 #: imported): 15 exact steps 0.206 s against 24 cosine ones 0.171 s at the default weight (a bound of 168 ω), 16
-#: against 31, 0.208 against 0.227 s at ω = 0.1, 17 against 43, 0.195 against 0.240 s at 0.03 (``python
+#: against 31, 0.208 against 0.227 s at ω = 0.1 (a bound of about 500 ω), 17 against 43, 0.195 against 0.240 s at 0.03 (``python
 #: benchmarks/studies/cg_weights.py --size 300 --noise broadband``).
-SPECTRAL_EXACT_CONTRAST = 1e3
+SPECTRAL_EXACT_CONTRAST = 3e2
 #: ... and only where no unknown's fairing diagonal exceeds this many times the median one's: a stiff spot (a
 #: collapsed stretch of a line) is an outlier that the constant coefficients miss. The sampled design surfaces
 #: with broadband noise are at 1.9–2.6, a torus at 6.1 (a throwaway script's figures; the study prints its
@@ -1110,8 +1115,10 @@ class FairingSystem:
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            spectral_only = grid and (wrap == (True, True) or contrast > SPECTRAL_CONTRAST) \
-                and _spectral_pays(k, contrast) and spectral_fits()
+            open_side = max([side for side, closed in zip(shape, wrap) if not closed], default=0) if grid else 0
+            tiny = contrast > SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2 \
+                and open_side <= spectral.EXACT_MAX_SIDE
+            spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
             may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not spectral_only
             if may_switch and shape is not None:
                 self._coarse = int(np.prod([coarse_nodes(side, st, c).size

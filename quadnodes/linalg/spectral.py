@@ -159,7 +159,6 @@ def line_third_differences(n: int, closed: bool = False) -> sp.csr_matrix:
     return sp.csr_matrix(D.T @ D)
 
 
-@functools.lru_cache(maxsize=8)
 def _line_basis(n: int, lo: int, hi: int) -> tuple[np.ndarray, list[np.ndarray]]:
     """The eigenvalues and forward matrices of an open line's ``B[lo:hi, lo:hi]`` (:func:`line_third_differences`).
 
@@ -167,8 +166,17 @@ def _line_basis(n: int, lo: int, hi: int) -> tuple[np.ndarray, list[np.ndarray]]
     odd about it: with ``h = ⌊len/2⌋``, ``s = x[:h] + x[::-1][:h]`` (and the middle node, for an odd length) and
     ``a = x[:h] − x[::-1][:h]``, the coordinates are ``(s Fₛ, a Fₐ)``, ``F`` the halves' eigenvectors with the
     ``1/√2`` folded in. Otherwise one dense ``F``. Eigenvalues (clipped at 0) in the coordinates' order; float64.
-    Cached: a square grid's two axes, and fair's iterations, share them.
+    The span's part of ``B`` depends only on its length and on up to three nodes before and after it (a window
+    reaches three nodes on): cached on those (:func:`_span_basis`), so a square grid's two axes and fair's
+    iterations share it.
     """
+    return _span_basis(min(lo, 3), hi - lo, min(n - hi, 3))
+
+
+@functools.lru_cache(maxsize=4)
+def _span_basis(head: int, size: int, tail: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """:func:`_line_basis` of a span of ``size`` nodes with ``head`` and ``tail`` (each at most 3) nodes beside it."""
+    n, lo, hi = head + size + tail, head, head + size
     B = line_third_differences(n)[lo:hi, lo:hi].toarray()
     size = hi - lo
     h = size // 2
@@ -236,9 +244,9 @@ def fixed_inside(free: np.ndarray, wrap: tuple[bool, bool]) -> int:
 
 
 def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool]) -> bool:
-    """Whether the preconditioner with exact lines is ``K_ff⁻¹`` on these unknowns: its open sides within
-    :data:`EXACT_MAX_SIDE` and its fixed nodes inside :func:`box` corrected (at most :data:`MAX_CORRECTED`, their
-    stored columns within :data:`CORRECTION_MAX_VALUES`).
+    """Whether the preconditioner is ``K_ff⁻¹`` on these unknowns: its fixed nodes inside :func:`box` corrected (at
+    most :data:`MAX_CORRECTED`, their stored columns within :data:`CORRECTION_MAX_VALUES`; a correction whose
+    Cholesky factorization fails, which rounding alone could cause, falls back to zeroing them).
 
     Parameters
     ----------
@@ -259,8 +267,6 @@ def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool]) -> bool:
     >>> inverts_exactly(free, (False, False)), inverts_exactly(free, (True, False))
     (True, False)
     """
-    if any(n > EXACT_MAX_SIDE for n, closed in zip(free.shape, wrap) if not closed):
-        return False
     (r0, r1), (c0, c1) = box(free, wrap)
     p = int(np.count_nonzero(~free[r0:r1, c0:c1]))
     return p == 0 or (p <= MAX_CORRECTED and p * (r1 - r0) * (c1 - c0) <= CORRECTION_MAX_VALUES)
@@ -366,8 +372,8 @@ class SpectralPreconditioner:
         The unknowns; default all. At least one.
     open_lines : {"exact", "cosine"}
         An open axis's line operator: its third differences (dense eigenvectors, up to :data:`EXACT_MAX_SIDE`
-        nodes; the box is cut to the unknowns along it) or the Neumann Laplacian's cube (the cosine transform;
-        the whole axis).
+        nodes) or the Neumann Laplacian's cube (the cosine transform). Either way the box is cut to the
+        unknowns' span along an open axis.
 
     Raises
     ------
@@ -452,7 +458,8 @@ class SpectralPreconditioner:
         p = self._inner.size
         E = np.zeros((p,) + self._box_shape)
         E.reshape(p, -1)[np.arange(p), self._inner] = 1.0
-        W = self._solve_box(E, np.float64).reshape(p, -1)
+        with _threads.blas_pinned():  # (the exact lines' products on the solver's threads, as in block_cg)
+            W = self._solve_box(E, np.float64).reshape(p, -1)
         C = W[:, self._inner]
         try:
             factor = sla.cho_factor(0.5 * (C + C.T))
@@ -513,7 +520,7 @@ class SpectralPreconditioner:
         np.multiply(Xb, (1.0 / scale)[:, None, None], out=G, casting="same_kind")
         inner = self._inner
         G.reshape(G.shape[0], -1)[:, inner] = 0.0  # (E on the way in too: whatever R holds there)
-        G = self._solve_box(G, self._dtype)
+        G = np.ascontiguousarray(self._solve_box(G, self._dtype))  # (so that flat is a view of G)
         flat = G.reshape(G.shape[0], -1)
         if self._correction is not None:  # Woodbury: K_ff⁻¹ = K⁻¹ − K⁻¹E (EᵀK⁻¹E)⁻¹ EᵀK⁻¹ on the unknowns
             W, factor = self._correction
