@@ -33,6 +33,7 @@ True
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
 from types import ModuleType
@@ -393,8 +394,10 @@ class SpectralPreconditioner:
     """
 
     whole = True  # applied once per step to every row (block_cg)
-    #: Whether it calls no BLAS (only SciPy's transforms): then block_cg need not pin BLAS. The exact lines'
-    #: products and the correction are BLAS calls (on the solver's threads, one BLAS thread each).
+    #: Whether it calls no BLAS (only SciPy's transforms; the correction then one column at a time, and its p × p
+    #: Cholesky solve too small for BLAS's threads): then block_cg need not pin BLAS (whose first pin scans the
+    #: process's libraries, some 20 ms). The exact lines' products are BLAS calls (on the solver's threads, one
+    #: BLAS thread each).
     blas_free = True
 
     def __init__(self, shape: tuple[int, int], wrap: tuple[bool, bool], row_coefficient: float,
@@ -451,15 +454,16 @@ class SpectralPreconditioner:
             if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
                 self._dtype = np.float64
             self._correct()
-        self.blas_free = self._correction is None and all(a.kind != "exact" for a in axes)
+        self.blas_free = all(a.kind != "exact" for a in axes)
 
     def _correct(self) -> None:
         """Set up the capacitance correction: ``W = ω K_box⁻¹ E_x`` (float64, stored float32) and ``C = W_x``."""
         p = self._inner.size
         E = np.zeros((p,) + self._box_shape)
         E.reshape(p, -1)[np.arange(p), self._inner] = 1.0
-        with _threads.blas_pinned():  # (the exact lines' products on the solver's threads, as in block_cg)
-            W = self._solve_box(E, np.float64).reshape(p, -1)
+        exact = any(a.kind == "exact" for a in self._axes)
+        with _threads.blas_pinned() if exact else contextlib.nullcontext():  # (the exact lines' products on the
+            W = self._solve_box(E, np.float64).reshape(p, -1)                # solver's threads, as in block_cg)
         C = W[:, self._inner]
         try:
             factor = sla.cho_factor(0.5 * (C + C.T))
@@ -524,8 +528,12 @@ class SpectralPreconditioner:
         flat = G.reshape(G.shape[0], -1)
         if self._correction is not None:  # Woodbury: K_ff⁻¹ = K⁻¹ − K⁻¹E (EᵀK⁻¹E)⁻¹ EᵀK⁻¹ on the unknowns
             W, factor = self._correction
-            mu = sla.cho_solve(factor, flat[:, inner].T.astype(np.float64))  # (p, c)
-            flat -= mu.T.astype(flat.dtype) @ W
+            mu = sla.cho_solve(factor, flat[:, inner].T.astype(np.float64)).astype(flat.dtype)  # (p, c)
+            if self.blas_free:  # (cosine and Fourier lines call no BLAS: nor does the correction, one column at a time)
+                for i in range(mu.shape[0]):
+                    flat -= mu[i][:, None] * W[i]
+            else:
+                flat -= mu.T @ W
         flat[:, inner] = 0.0
         out = Z[:, :n] if columns else Z[:n].T  # (c, n), a view of Z either way
         if (r1 - r0, c1 - c0) != self.shape:

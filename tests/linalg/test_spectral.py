@@ -144,7 +144,10 @@ def test_many_fixed_nodes_are_zeroed_not_corrected(monkeypatch):
     monkeypatch.setattr(spectral, "MAX_CORRECTED", 11)
     P = SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free)
     assert P._correction is None and P.blas_free is False  # (the exact lines' products are BLAS calls)
-    assert SpectralPreconditioner((10, 10), (True, True), 1.0, 1.0, 0.1, free).blas_free
+    torus = SpectralPreconditioner((10, 10), (True, True), 1.0, 1.0, 0.1, free)
+    assert torus.blas_free and torus._correction is None  # (12 fixed nodes inside, above the 11 allowed: zeroed)
+    cosine = SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free, open_lines="cosine")
+    assert cosine.blas_free and cosine._correction is None
 
 
 @pytest.mark.parametrize("kw, match", [
