@@ -1105,19 +1105,22 @@ class FairingSystem:
             # everything else; at larger weights, where the compiled sweeps are not used (not loaded, or Numba
             # missing) and it pays (_spectral_pays), in place of plain CG and of block Jacobi
             fits: list[bool] = []  # (the checks once)
+            open_side = max([side for side, closed in zip(shape, wrap) if not closed], default=0) if grid else 0
+            # exact lines where the bound exceeds SPECTRAL_EXACT_CONTRAST ω (or on request), cosine ones below
+            exact_lines = (contrast > SPECTRAL_EXACT_CONTRAST or self.preconditioner == "spectral") \
+                and open_side <= spectral.EXACT_MAX_SIDE
 
             def spectral_fits() -> bool:
                 if not fits:
                     fits.append(self.preconditioner == "auto" and self._third_differences
-                                and spectral.inverts_exactly(self._grid[2].reshape(shape), wrap)
+                                and spectral.inverts_exactly(self._grid[2].reshape(shape), wrap,
+                                                             "exact" if exact_lines else "cosine")
                                 and _stiffness(*grid_storage(), self._grid[2], self.weight) <= SPECTRAL_MAX_STIFFNESS)
                 return fits[0]
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            open_side = max([side for side, closed in zip(shape, wrap) if not closed], default=0) if grid else 0
-            tiny = contrast > SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2 \
-                and open_side <= spectral.EXACT_MAX_SIDE
+            tiny = contrast > SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2 and exact_lines
             spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
             may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not spectral_only
             if may_switch and shape is not None:
@@ -1180,8 +1183,7 @@ class FairingSystem:
                         raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
                 elif use_spectral:  # (cosine lines where the exact ones' dearer steps do not pay: SPECTRAL_EXACT_CONTRAST)
                     precond = _spectral_preconditioner(offsets, data, shape, wrap, self.weight, self._grid[2],
-                                                       exact=contrast > SPECTRAL_EXACT_CONTRAST
-                                                       or self.preconditioner == "spectral")
+                                                       exact=exact_lines)
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:

@@ -872,7 +872,7 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
         if fix == "boundary":
             assert picked[0]._box_shape == (46, 58) and picked[0]._inner.size == 0
         else:  # (the four corners and a vertex or so line_gaps holds, inside the box, inverted around)
-            assert 4 <= picked[0]._inner.size <= 8 and picked[0]._correction is not None
+            assert 4 <= picked[0]._inner.size <= 8 and picked[0]._factored is not None
         steps.append(rep.iterations[0].cg_iterations)
         assert rep.iterations[0].residual <= 1e-9
         if weight >= 1e-6:  # (below, the direct solve's own rounding, some 10⁻¹⁶ times the condition, is larger)
@@ -884,6 +884,21 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
     picked.clear()
     fair(m, threshold=0.0, weight=0.3, solver="cg", fix=fix)  # the default weight: Gauss–Seidel
     assert isinstance(picked[0], SymmetricGaussSeidel)
+    # many fixed vertices scattered inside (far above the 64 that stored columns take): the exact lines correct
+    # them in their own coordinates, in single precision, at any weight
+    fixed = np.zeros(m.n_vertices, bool)
+    fixed[np.random.default_rng(3).choice(m.n_vertices, 150, replace=False)] = True
+    for weight in (1e-4, 1e-8):
+        picked.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            out, rep = fair(m, threshold=0.0, weight=weight, solver="cg", fix=fix, fixed=fixed)
+        assert picked and all(type(p) is SpectralPreconditioner and p._factored is not None for p in picked)
+        assert picked[0]._dtype == np.float32 and rep.iterations[0].cg_iterations < 2 * steps[-1]
+        if weight >= 1e-6:
+            ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix=fix, fixed=fixed)
+            assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
+        assert np.array_equal(out.vertices[fixed], m.vertices[fixed])
 
 
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):

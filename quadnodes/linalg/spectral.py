@@ -52,11 +52,19 @@ __all__ = ["SpectralPreconditioner", "box", "fixed_inside", "inverts_exactly", "
 #: Grids of at least this many nodes transform on the solver's threads; below, one thread is faster (300²: 1.5
 #: against 2.3 ms a step, 1000²: 28 against 12 ms, a throwaway timing of ``dctn``/``idctn``).
 PARALLEL_MIN_NODES = 250_000
-#: Fixed nodes inside the unknowns' box up to which the preconditioner inverts around them exactly (a
-#: capacitance correction: one transform of that many columns at set-up, a product with them per step) ...
+#: Fixed nodes inside the unknowns' box up to which the preconditioner inverts around them exactly where an axis
+#: closes around or its lines are cosine ones (a capacitance correction: ``K⁻¹`` of that many columns at set-up, a
+#: product with them per step) ...
 MAX_CORRECTED = 64
 #: ... while the correction's stored columns (fixed nodes × the box's nodes) stay within this many values.
 CORRECTION_MAX_VALUES = 32_000_000
+#: With exact lines on both axes (an open grid) the correction works in the lines' coordinates, where a fixed node is
+#: the outer product of two columns of the axes' transforms: nothing stored but those, ``2 p N`` flops a step for
+#: ``p`` fixed nodes in a box of ``N``, and the capacitance matrix in ``p² N`` flops at set-up. Up to this many fixed
+#: nodes ...
+MAX_CORRECTED_EXACT = 1024
+#: ... while the set-up's ``p² N`` stays within this many flops (some 0.3 s; 1000²: up to 141 fixed nodes).
+CORRECTION_MAX_WORK = 2e10
 #: ... in double precision where ``K``'s condition (its largest eigenvalue over ω) exceeds this: the correction
 #: subtracts the near-null modes that the fixed nodes hold (sizes up to ``1/ω``) from the rest, so single precision
 #: would leave errors of its rounding (6·10⁻⁸) times that condition (already 2.5·10⁻³ at a condition of 2·10⁵ on a
@@ -244,10 +252,12 @@ def fixed_inside(free: np.ndarray, wrap: tuple[bool, bool]) -> int:
     return int(np.count_nonzero(~free[r0:r1, c0:c1]))
 
 
-def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool]) -> bool:
-    """Whether the preconditioner is ``K_ff⁻¹`` on these unknowns: its fixed nodes inside :func:`box` corrected (at
-    most :data:`MAX_CORRECTED`, their stored columns within :data:`CORRECTION_MAX_VALUES`; a correction whose
-    Cholesky factorization fails, which rounding alone could cause, falls back to zeroing them).
+def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool],
+                    open_lines: Literal["exact", "cosine"] = "exact") -> bool:
+    """Whether the preconditioner is ``K_ff⁻¹`` on these unknowns: its fixed nodes inside :func:`box` corrected — on
+    an open grid with exact lines up to :data:`MAX_CORRECTED_EXACT` within :data:`CORRECTION_MAX_WORK`, else up to
+    :data:`MAX_CORRECTED` within :data:`CORRECTION_MAX_VALUES` (a correction whose Cholesky factorization fails,
+    which rounding alone could cause, falls back to zeroing them).
 
     Parameters
     ----------
@@ -255,6 +265,8 @@ def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool]) -> bool:
         The unknowns, at least one.
     wrap : (bool, bool)
         Whether each axis closes around.
+    open_lines : {"exact", "cosine"}
+        As :class:`SpectralPreconditioner`'s.
 
     Returns
     -------
@@ -270,7 +282,15 @@ def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool]) -> bool:
     """
     (r0, r1), (c0, c1) = box(free, wrap)
     p = int(np.count_nonzero(~free[r0:r1, c0:c1]))
-    return p == 0 or (p <= MAX_CORRECTED and p * (r1 - r0) * (c1 - c0) <= CORRECTION_MAX_VALUES)
+    return p == 0 or _corrects(p, (r1 - r0) * (c1 - c0), open_lines == "exact" and not any(wrap))
+
+
+def _corrects(p: int, size: int, exact_both: bool) -> bool:
+    """Whether ``p`` fixed nodes in a box of ``size`` nodes get the correction: in the lines' coordinates
+    (``exact_both``: exact lines on both axes) or by stored columns."""
+    if exact_both:
+        return p <= MAX_CORRECTED_EXACT and p * p * size <= CORRECTION_MAX_WORK
+    return p <= MAX_CORRECTED and p * size <= CORRECTION_MAX_VALUES
 
 
 def _fourier_eigenvalues(n: int, transform: str) -> np.ndarray:
@@ -301,6 +321,15 @@ class _Axis:
     @property
     def size(self) -> int:
         return self.hi - self.lo
+
+    def columns(self, nodes: np.ndarray) -> np.ndarray:
+        """An exact axis's forward transform of unit vectors at ``nodes`` (span numbering): ``(size, len(nodes))``
+        float64, the columns of its orthogonal matrix."""
+        units = np.zeros((1, nodes.size, self.size))
+        units[0, np.arange(nodes.size), nodes] = 1.0
+        out = np.empty_like(units)
+        _exact(units, 2, self.blocks64, True, out)
+        return out[0].T.copy()
 
 
 def _exact(G: np.ndarray, axis: int, blocks: list[np.ndarray], forward: bool, out: np.ndarray) -> None:
@@ -447,14 +476,52 @@ class SpectralPreconditioner:
         self._inverse64 = self.weight / eig
         self._inverse = self._inverse64.astype(np.float32)
         self._inner = np.flatnonzero(~inside.ravel())  # fixed nodes inside the box (box numbering)
-        self._correction: tuple[np.ndarray, tuple] | None = None
+        self._correction: tuple[np.ndarray, tuple] | None = None  # (stored columns W, C's Cholesky factor)
+        self._factored: tuple[np.ndarray, np.ndarray, tuple] | None = None  # (U, V, C's Cholesky factor)
         self._dtype: type = np.float32
-        if 0 < self._inner.size <= MAX_CORRECTED and self._inner.size * inside.size <= CORRECTION_MAX_VALUES:
-            # (the same test as inverts_exactly's)
-            if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
-                self._dtype = np.float64
-            self._correct()
+        exact_both = all(a.kind == "exact" for a in axes)
+        if self._inner.size and _corrects(self._inner.size, inside.size, exact_both):  # (as inverts_exactly)
+            if exact_both:
+                self._correct_factored()
+            else:
+                if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
+                    self._dtype = np.float64
+                self._correct()
         self.blas_free = all(a.kind != "exact" for a in axes)
+
+    def _correct_factored(self) -> None:
+        """Set up the correction in the exact lines' coordinates: ``U``, ``V`` the axes' transforms' columns at the
+        fixed nodes (a fixed node's coordinates are ``U[:, i] ⊗ V[:, i]``) and ``C = ω Eᵀ K⁻¹ E``,
+        ``C_ij = Σ_kl U_ki U_kj (ω/λ_kl) V_li V_lj`` (float64; in chunks of rows of about 4·10⁶ values)."""
+        m, n = self._box_shape
+        rows, cols = np.divmod(self._inner, n)
+        U, V = self._axes[0].columns(rows), self._axes[1].columns(cols)
+        p = U.shape[1]
+        C = np.empty((p, p))
+        step = max(1, int(4e6 // (p * max(m, n))))
+        with _threads.blas_pinned():  # (the products on BLAS's one thread, as every solve)
+            for lo in range(0, p, step):
+                hi = min(p, lo + step)
+                M = self._inverse64 @ (V[:, lo:hi, None] * V[:, None, :]).reshape(n, -1)  # (m, q·p)
+                C[lo:hi] = np.einsum("kx,kx->x", (U[:, lo:hi, None] * U[:, None, :]).reshape(m, -1), M).reshape(-1, p)
+        try:
+            factor = sla.cho_factor(0.5 * (C + C.T))
+        except np.linalg.LinAlgError:  # (rounding made it indefinite: the fixed rows are only zeroed)
+            return
+        self._factored = (U, V, factor)
+
+    def _fold_correction(self, G: np.ndarray) -> np.ndarray:
+        """``ẑ = ŷ − (ω/λ) ⊙ Σ_i μ_i U_i ⊗ V_i`` with ``μ = C⁻¹ y_x``: the exact lines' correction on ``ŷ = ω K⁻¹ r``
+        in their coordinates (a ``(c, m, n)`` float32 array), in double precision: ``y_x`` (``ŷ`` at the fixed
+        nodes) is read exactly from ``ŷ``, so the result is ``K_ff⁻¹`` of a residual perturbed by single
+        precision's rounding of ``ŷ``, however large the near-null modes that the fixed nodes hold (a
+        subtraction of them in single precision would not be)."""
+        U, V, factor = self._factored  # type: ignore[misc]
+        Y = G.astype(np.float64)
+        yx = np.einsum("cpn,np->cp", np.matmul(U.T, Y), V)  # (c, p)
+        mu = sla.cho_solve(factor, yx.T)  # (p, c)
+        Y -= self._inverse64 * np.matmul(U[None] * mu.T[:, None, :], V.T)  # (c, m, p) @ (p, n)
+        return Y.astype(np.float32)
 
     def _correct(self) -> None:
         """Set up the capacitance correction: ``W = ω K_box⁻¹ E_x`` (float64, stored float32) and ``C = W_x``."""
@@ -524,7 +591,7 @@ class SpectralPreconditioner:
         np.multiply(Xb, (1.0 / scale)[:, None, None], out=G, casting="same_kind")
         inner = self._inner
         G.reshape(G.shape[0], -1)[:, inner] = 0.0  # (E on the way in too: whatever R holds there)
-        G = np.ascontiguousarray(self._solve_box(G, self._dtype))  # (so that flat is a view of G)
+        G = np.ascontiguousarray(self._solve_box(G, self._dtype, fold=True))  # (so that flat is a view of G)
         flat = G.reshape(G.shape[0], -1)
         if self._correction is not None:  # Woodbury: K_ff⁻¹ = K⁻¹ − K⁻¹E (EᵀK⁻¹E)⁻¹ EᵀK⁻¹ on the unknowns
             W, factor = self._correction
@@ -541,8 +608,9 @@ class SpectralPreconditioner:
         np.multiply(G, (scale / self.weight)[:, None, None], out=out.reshape(-1, rows, cols)[:, r0:r1, c0:c1])
         (Z[:, n:] if columns else Z[n:])[...] = 0.0
 
-    def _solve_box(self, G: np.ndarray, dtype: type) -> np.ndarray:
-        """``ω K_box⁻¹ G`` for a ``(c, box rows, box cols)`` array (overwritten) in ``dtype``."""
+    def _solve_box(self, G: np.ndarray, dtype: type, fold: bool = False) -> np.ndarray:
+        """``ω K_box⁻¹ G`` for a ``(c, box rows, box cols)`` array (overwritten) in ``dtype``; with ``fold`` (and
+        exact lines' correction) ``ω K_ff⁻¹ G`` on the unknowns (:meth:`_fold_correction`)."""
         import scipy.fft as fft  # (here: importing it costs about 40 ms, paid only by a caller that uses it)
 
         workers = _threads.thread_count() if G[0].size >= PARALLEL_MIN_NODES else 1
@@ -552,6 +620,8 @@ class SpectralPreconditioner:
         for axis in order:
             G = self._transform(G, axis, True, fft, workers, dtype)
         G *= self._inverse if dtype == np.float32 else self._inverse64
+        if fold and self._factored is not None:
+            G = self._fold_correction(G)
         for axis in order[::-1]:
             G = self._transform(G, axis, False, fft, workers, dtype)
         return G

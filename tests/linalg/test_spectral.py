@@ -138,16 +138,45 @@ def test_fixed_nodes_get_zero_and_the_preconditioner_is_symmetric_positive_defin
 
 
 def test_many_fixed_nodes_are_zeroed_not_corrected(monkeypatch):
+    """An open grid with exact lines corrects in the lines' coordinates (up to MAX_CORRECTED_EXACT), any other by
+    stored columns (up to MAX_CORRECTED); above, the fixed nodes are only zeroed."""
     free = np.ones(100, bool)
     free[np.arange(11, 89, 7)] = False  # 12 inside the box
-    assert SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free)._correction is not None
+    exact = SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free)
+    assert exact._factored is not None and exact._correction is None and not exact.blas_free
+    torus = SpectralPreconditioner((10, 10), (True, True), 1.0, 1.0, 0.1, free)
+    assert torus._correction is not None and torus._factored is None and torus.blas_free
+    assert spectral.inverts_exactly(free.reshape(10, 10), (False, False))
+    monkeypatch.setattr(spectral, "MAX_CORRECTED_EXACT", 11)
     monkeypatch.setattr(spectral, "MAX_CORRECTED", 11)
+    assert not spectral.inverts_exactly(free.reshape(10, 10), (False, False))
     P = SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free)
-    assert P._correction is None and P.blas_free is False  # (the exact lines' products are BLAS calls)
+    assert P._correction is None and P._factored is None and P.blas_free is False  # (exact lines: BLAS products)
     torus = SpectralPreconditioner((10, 10), (True, True), 1.0, 1.0, 0.1, free)
     assert torus.blas_free and torus._correction is None  # (12 fixed nodes inside, above the 11 allowed: zeroed)
     cosine = SpectralPreconditioner((10, 10), (False, False), 1.0, 1.0, 0.1, free, open_lines="cosine")
     assert cosine.blas_free and cosine._correction is None
+
+
+@pytest.mark.parametrize("weight", [1e-4, 1e-8, 1e-10])
+def test_the_exact_lines_correction_keeps_single_precision_at_tiny_weights(weight):
+    """The correction in the exact lines' coordinates reads the fixed nodes' values from the coordinates in double
+    precision: the result is K_ff⁻¹ to single precision's relative error (a residual perturbed by its rounding),
+    however small the weight, with 200 fixed nodes (far more than the near-null modes they hold)."""
+    rng = np.random.default_rng(7)
+    rows, cols = 40, 36
+    free = np.ones((rows, cols), bool)
+    free[0] = False  # (a fixed row: off the box)
+    free.ravel()[rng.choice(rows * cols, 200, replace=False)] = False
+    free = free.ravel()
+    P = SpectralPreconditioner((rows, cols), (False, False), 2.0, 1.0, weight, free)
+    assert P._factored is not None and P._dtype == np.float32
+    R = rng.normal(size=(3, rows * cols))
+    Z = _apply(P, R)
+    Kff = P.operator()[free][:, free].toarray()
+    # the comparison: K_ff applied to the result gives back the residual (a backward error), in double precision
+    back = Kff @ Z[:, free].T
+    assert np.abs(back - R[:, free].T).max() <= 1e-3 * np.abs(R).max()
 
 
 @pytest.mark.parametrize("kw, match", [
