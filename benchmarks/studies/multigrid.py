@@ -388,7 +388,8 @@ def solver_table(args: argparse.Namespace) -> None:
             seconds = time.perf_counter() - t0
             cells.append(f"{s.iterations} · {seconds:.2f} · {np.abs(x - ref).max() / extent:.1e}")
         fairing.TwoGrid, fairing.line_interpolation = TwoGrid, line_interpolation
-        print(f"| {share:.0%} | {w:g} | " + " | ".join(cells) + " |", flush=True)
+        print(f"| {share:.2%} | {w:g} | " if 0 < share < 0.01 else f"| {share:.0%} | {w:g} | ", end="")
+        print(" | ".join(cells) + " |", flush=True)
 
 
 def noisy_random_quads(points: int, seed: int = 0):  # type: ignore[no-untyped-def]

@@ -524,14 +524,16 @@ class SpectralPreconditioner:
         return Y.astype(np.float32)
 
     def _correct(self) -> None:
-        """Set up the capacitance correction: ``W = ω K_box⁻¹ E_x`` (float64, stored float32) and ``C = W_x``."""
+        """Set up the capacitance correction by stored columns: ``W = ω K_box⁻¹ E_x`` and ``C = W_x``, in the apply's
+        precision (single, or double at a large condition: :data:`CORRECTION_SINGLE_MAX`)."""
         p = self._inner.size
         E = np.zeros((p,) + self._box_shape)
         E.reshape(p, -1)[np.arange(p), self._inner] = 1.0
         exact = any(a.kind == "exact" for a in self._axes)
-        with _threads.blas_pinned() if exact else contextlib.nullcontext():  # (the exact lines' products on the
-            W = self._solve_box(E, np.float64).reshape(p, -1)                # solver's threads, as in block_cg)
-        C = W[:, self._inner]
+        # (an exact line's products on the solver's threads with BLAS on one thread each, as in block_cg)
+        with _threads.blas_pinned() if exact else contextlib.nullcontext():
+            W = self._solve_box(E.astype(self._dtype), self._dtype).reshape(p, -1)
+        C = W[:, self._inner].astype(np.float64)
         try:
             factor = sla.cho_factor(0.5 * (C + C.T))
         except np.linalg.LinAlgError:  # (rounding made it indefinite: the fixed rows are only zeroed)
