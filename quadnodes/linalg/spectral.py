@@ -613,10 +613,11 @@ class SpectralPreconditioner:
     def _solve_box(self, G: np.ndarray, dtype: type, fold: bool = False) -> np.ndarray:
         """``ω K_box⁻¹ G`` for a ``(c, box rows, box cols)`` array (overwritten) in ``dtype``; with ``fold`` (and
         exact lines' correction) ``ω K_ff⁻¹ G`` on the unknowns (:meth:`_fold_correction`)."""
-        import scipy.fft as fft  # (here: importing it costs about 40 ms, paid only by a caller that uses it)
-
-        workers = _threads.thread_count() if G[0].size >= PARALLEL_MIN_NODES else 1
         axes = self._axes
+        fft: ModuleType | None = None
+        if any(a.kind != "exact" for a in axes):  # (importing SciPy's transforms costs about 40 ms: only if used)
+            import scipy.fft as fft
+        workers = _threads.thread_count() if G[0].size >= PARALLEL_MIN_NODES else 1
         # the real transforms first (exact products and cosine transforms keep real data), then rfft, then fft
         order = sorted((1, 2), key=lambda a: ("exact", "dct", "rfft", "fft").index(axes[a - 1].kind))
         for axis in order:
@@ -628,7 +629,7 @@ class SpectralPreconditioner:
             G = self._transform(G, axis, False, fft, workers, dtype)
         return G
 
-    def _transform(self, G: np.ndarray, axis: int, forward: bool, fft: ModuleType, workers: int,
+    def _transform(self, G: np.ndarray, axis: int, forward: bool, fft: ModuleType | None, workers: int,
                    dtype: type) -> np.ndarray:
         ax = self._axes[axis - 1]
         if ax.kind == "exact":
@@ -642,6 +643,7 @@ class SpectralPreconditioner:
 
             _threads.run_tasks(task, parts)
             return out
+        assert fft is not None  # (imported by _solve_box wherever an axis is not exact)
         if ax.kind == "dct":
             f = fft.dct if forward else fft.idct
             return f(G, type=2, axis=axis, norm="ortho", overwrite_x=True, workers=workers)
