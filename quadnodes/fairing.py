@@ -221,9 +221,11 @@ SPECTRAL_CONTRAST = 1e4
 #: :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE` nodes an open side.
 SPECTRAL_CONTRAST_SIDE = 1000
 #: The spectral preconditioner takes its exact lines where the Gershgorin bound exceeds this many times ω, and cosine
-#: lines (``open_lines="cosine"``) below: their steps cost half as much, and where few are needed the exact lines'
-#: fewer steps do not repay that and their set-up. On the 300² sheet with broadband noise (in-process, transforms
-#: imported): 15 exact steps 0.206 s against 24 cosine ones 0.171 s at the default weight (a bound of 168 ω), 16
+#: lines (``open_lines="cosine"``) below where SciPy's transforms are imported already (or an axis closes around):
+#: their steps cost half as much, and where few are needed the exact lines' fewer steps do not repay that and their
+#: set-up. An open grid's exact lines need no transforms, and in a fresh process they save the transforms' import
+#: (about 40 ms): at the default weight on the 300² sheet 0.24–0.29 s against 0.27–0.35 s, six fresh processes each
+#: (a throwaway script). On the 300² sheet with broadband noise (in-process, transforms imported): 15 exact steps 0.206 s against 24 cosine ones 0.171 s at the default weight (a bound of 168 ω), 16
 #: against 31, 0.208 against 0.227 s at ω = 0.1 (a bound of about 500 ω), 17 against 43, 0.195 against 0.240 s at 0.03 (``python
 #: benchmarks/studies/cg_weights.py --size 300 --noise broadband``).
 SPECTRAL_EXACT_CONTRAST = 3e2
@@ -1107,8 +1109,10 @@ class FairingSystem:
             # missing) and it pays (_spectral_pays), in place of plain CG and of block Jacobi
             fits: list[bool] = []  # (the checks once)
             open_side = max([side for side, closed in zip(shape, wrap) if not closed], default=0) if grid else 0
-            # exact lines where the bound exceeds SPECTRAL_EXACT_CONTRAST ω (or on request), cosine ones below
-            exact_lines = (contrast > SPECTRAL_EXACT_CONTRAST or self.preconditioner == "spectral") \
+            # exact lines where the bound exceeds SPECTRAL_EXACT_CONTRAST ω (or on request), or on an open grid where
+            # SciPy's transforms are not imported (exact lines need none); cosine ones below
+            exact_lines = (contrast > SPECTRAL_EXACT_CONTRAST or self.preconditioner == "spectral"
+                           or (grid and not any(wrap) and not spectral.loaded())) \
                 and open_side <= spectral.EXACT_MAX_SIDE
 
             def spectral_fits() -> bool:

@@ -929,12 +929,14 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     monkeypatch.setattr(spectral, "loaded", lambda: False)
     assert pick() is type(None)  # 1,996 unknowns: plain CG's work is below SPECTRAL_MIN_WORK (the import)
     monkeypatch.setattr(fairing_module, "SPECTRAL_MIN_WORK", 1e4)
-    assert pick() is SpectralPreconditioner
+    kinds = []
+    assert pick(kinds=kinds) is SpectralPreconditioner
+    assert kinds == ["exact", "exact"]  # (SciPy's transforms not imported: exact lines, which need none)
     monkeypatch.setattr(fairing_module, "SPECTRAL_MIN_WORK", 1e12)
     monkeypatch.setattr(spectral, "loaded", lambda: True)  # imported already: at any size
     assert pick() is SpectralPreconditioner
     kinds = []
-    assert pick(kinds=kinds) is SpectralPreconditioner and kinds == ["dct", "dct"]
+    assert pick(kinds=kinds) is SpectralPreconditioner and kinds == ["dct", "dct"]  # (imported: cosine lines)
     kinds.clear()
     assert pick(weight=0.003 / m.mean_edge_length**2, kinds=kinds) is SpectralPreconditioner  # (not block Jacobi)
     assert kinds == ["exact", "exact"]  # (a bound above SPECTRAL_EXACT_CONTRAST ω)
