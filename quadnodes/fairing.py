@@ -224,11 +224,18 @@ SPECTRAL_CONTRAST_SIDE = 1000
 #: lines (``open_lines="cosine"``) below where SciPy's transforms are imported already (or an axis closes around):
 #: their steps cost half as much, and where few are needed the exact lines' fewer steps do not repay that and their
 #: set-up. An open grid's exact lines need no transforms, and in a fresh process they save the transforms' import
-#: (about 40 ms): at the default weight on the 300² sheet 0.24–0.29 s against 0.27–0.35 s, six fresh processes each
-#: (a throwaway script). On the 300² sheet with broadband noise (in-process, transforms imported): 15 exact steps 0.206 s against 24 cosine ones 0.171 s at the default weight (a bound of 168 ω), 16
+#: (about 40 ms), which repays their dearer steps up to a side of :data:`SPECTRAL_EXACT_FRESH_SIDE`. On the 300²
+#: sheet with broadband noise (in-process, transforms imported): 15 exact steps 0.206 s against 24 cosine ones 0.171 s at the default weight (a bound of 168 ω), 16
 #: against 31, 0.208 against 0.227 s at ω = 0.1 (a bound of about 500 ω), 17 against 43, 0.195 against 0.240 s at 0.03 (``python
 #: benchmarks/studies/cg_weights.py --size 300 --noise broadband``).
 SPECTRAL_EXACT_CONTRAST = 3e2
+#: ... and at any bound on an open grid up to this many nodes a side where SciPy's transforms are not imported (a
+#: fresh process): whole fair() at the default weight, medians of five fresh processes, exact against cosine lines
+#: (the import inside), 0.203 against 0.239 s on the 250² sheet, 0.499 against 0.407 s on 350², 0.499 against
+#: 0.522 s on 400² (a throwaway script); on 300² ``benchmarks/perf/bench_core.py --sizes 300 --only fair --noise
+#: broadband --repeat 9 --against`` gave 0.245 s, 15 steps, against the session-start engine's cosine lines' 0.255 s,
+#: 28 steps.
+SPECTRAL_EXACT_FRESH_SIDE = 320
 #: ... and only where no unknown's fairing diagonal exceeds this many times the median one's: a stiff spot (a
 #: collapsed stretch of a line) is an outlier that the constant coefficients miss. The sampled design surfaces
 #: with broadband noise are at 1.9–2.6, a torus at 6.1 (a throwaway script's figures; the study prints its
@@ -879,7 +886,8 @@ class FairingSystem:
         weight to 10⁻⁶), so on such a grid it also takes a torus at every weight and any grid where the bound
         exceeds :data:`SPECTRAL_CONTRAST` ω (a weight below about 5·10⁻³), with or without the kernels, in
         place of Gauss–Seidel and the two-grid switch; cosine lines where the bound is at most
-        :data:`SPECTRAL_EXACT_CONTRAST` ω. Elsewhere: block Jacobi at small weights, else none.
+        :data:`SPECTRAL_EXACT_CONTRAST` ω and SciPy's transforms are imported (or an axis closes around).
+        Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
         lines'; needs ``_topology`` or ``_lines``).
@@ -1112,7 +1120,8 @@ class FairingSystem:
             # exact lines where the bound exceeds SPECTRAL_EXACT_CONTRAST ω (or on request), or on an open grid where
             # SciPy's transforms are not imported (exact lines need none); cosine ones below
             exact_lines = (contrast > SPECTRAL_EXACT_CONTRAST or self.preconditioner == "spectral"
-                           or (grid and not any(wrap) and not spectral.loaded())) \
+                           or (grid and not any(wrap) and not spectral.loaded()
+                               and open_side <= SPECTRAL_EXACT_FRESH_SIDE)) \
                 and open_side <= spectral.EXACT_MAX_SIDE
 
             def spectral_fits() -> bool:
