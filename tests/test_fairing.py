@@ -701,6 +701,21 @@ def test_line_preconditioner_on_a_grid_equals_the_direct_solve(monkeypatch, thre
         FairingSystem(m.vertices, m.topology.windows, free, w, preconditioner="multigrid")
 
 
+def _record_setups(monkeypatch, what):
+    """``FairingSystem._cg_setup`` wrapped: each set-up appends ``what(system, (blocks, preconditioner, order))`` to
+    the returned list."""
+    picked = []
+    setup = FairingSystem._cg_setup
+
+    def record(self):
+        out = setup(self)
+        picked.append(what(self, out))
+        return out
+
+    monkeypatch.setattr(FairingSystem, "_cg_setup", record)
+    return picked
+
+
 def _noisy(m, seed=5, share=0.2):
     """``m`` with broadband noise: independent Gaussian offsets of ``share`` edge lengths, moved off the origin."""
     rng = np.random.default_rng(seed)
@@ -765,15 +780,7 @@ def test_fair_takes_the_spectral_preconditioner_with_its_even_spacing_only(monke
     assert np.array_equal(inv[:, 0], inv[:, 1]) and np.array_equal(inv[:, 1], inv[:, 2])
     monkeypatch.setattr(compiled, "ready", lambda: False)  # (the solver: no compiled sweeps)
     monkeypatch.setattr(spectral, "loaded", lambda: True)
-    picked = []
-    setup = FairingSystem._cg_setup
-
-    def record(self):
-        out = setup(self)
-        picked.append(type(out[1]))
-        return out
-
-    monkeypatch.setattr(FairingSystem, "_cg_setup", record)
+    picked = _record_setups(monkeypatch, lambda system, out: type(out[1]))
     out, rep = fair(m, threshold=0.0)
     assert picked == [SpectralPreconditioner] and rep.iterations[0].residual <= 1e-9
     picked.clear()
@@ -798,15 +805,8 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
         assert compiled.wait()
     monkeypatch.setattr(compiled, "ready", lambda: loaded)
     monkeypatch.setattr(spectral, "loaded", lambda: True)
-    picked = []
-    setup = FairingSystem._cg_setup
-
-    def record(self):
-        out = setup(self)
-        picked.append((type(out[1]), self._switch_to, isinstance(out[0], SymmetricDiagonalBlocks)))
-        return out
-
-    monkeypatch.setattr(FairingSystem, "_cg_setup", record)
+    picked = _record_setups(monkeypatch, lambda system, out: (type(out[1]), system._switch_to,
+                                                              isinstance(out[0], SymmetricDiagonalBlocks)))
     size = np.ptp(m.vertices, axis=0).max()
     steps = []
     for weight in (0.3, 1e-4, 1e-6):
@@ -851,15 +851,7 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
     m = _noisy(grid(48, 60, spacing=25.0))
     monkeypatch.setattr(compiled, "ready", lambda: True)
     monkeypatch.setattr(spectral, "loaded", lambda: True)
-    picked = []
-    setup = FairingSystem._cg_setup
-
-    def record(self):
-        out = setup(self)
-        picked.append(out[1])
-        return out
-
-    monkeypatch.setattr(FairingSystem, "_cg_setup", record)
+    picked = _record_setups(monkeypatch, lambda system, out: out[1])
     size = np.ptp(m.vertices, axis=0).max()
     steps = []
     for weight in (1e-4, 1e-6, 1e-8):
