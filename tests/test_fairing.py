@@ -877,7 +877,7 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
     fair(m, threshold=0.0, weight=0.3, solver="cg", fix=fix)  # the default weight: Gauss–Seidel
     assert isinstance(picked[0], SymmetricGaussSeidel)
     # many fixed vertices scattered inside (far above the 64 that stored columns take): the exact lines correct
-    # them in their own coordinates, in single precision, at any weight
+    # them in their own coordinates, in single precision, down to the smallest weights CG handles
     fixed = np.zeros(m.n_vertices, bool)
     fixed[np.random.default_rng(3).choice(m.n_vertices, 150, replace=False)] = True
     for weight in (1e-4, 1e-8):

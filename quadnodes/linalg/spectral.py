@@ -11,9 +11,10 @@ products of half the line's length each way, ``B`` being symmetric about the lin
 discrete cosine transform diagonalizes the Neumann Laplacian's cube ``L³`` in its place
 (``open_lines="cosine"``), which also charges a line's first and last slopes and curvatures.
 :class:`SpectralPreconditioner` applies ``K⁻¹`` on the unknowns: a box holding every unknown is
-transformed (the fixed lines around it left out, so ``B`` is its principal part there), and up to
-:data:`MAX_CORRECTED` fixed nodes inside the box are inverted around exactly, by a capacitance
-correction (Woodbury's formula; more are only zeroed).
+transformed (the fixed lines around it left out, so ``B`` is its principal part there), and the fixed nodes
+inside the box are inverted around exactly by a capacitance correction (Woodbury's formula): on an open grid with
+exact lines in the lines' coordinates (up to :data:`MAX_CORRECTED_EXACT`, within :data:`CORRECTION_MAX_WORK`),
+else by stored columns (up to :data:`MAX_CORRECTED`, within :data:`CORRECTION_MAX_VALUES`); more are only zeroed.
 
 ``K`` and the fairing matrix of fair's even spacing are sums of the same windows' terms with other
 coefficients, so with the exact lines ``c_min K ≤ A ≤ c_max K`` and preconditioned conjugate gradients
@@ -47,7 +48,7 @@ from . import threads as _threads
 
 __all__ = ["SpectralPreconditioner", "box", "fixed_inside", "inverts_exactly", "line_laplacian", "line_third_differences", "loaded",
            "MAX_CORRECTED", "CORRECTION_MAX_VALUES", "CORRECTION_SINGLE_MAX",
-           "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES"]
+           "MAX_CORRECTED_EXACT", "CORRECTION_MAX_WORK", "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES"]
 
 #: Grids of at least this many nodes transform on the solver's threads; below, one thread is faster (300²: 1.5
 #: against 2.3 ms a step, 1000²: 28 against 12 ms, a throwaway timing of ``dctn``/``idctn``).
@@ -56,20 +57,23 @@ PARALLEL_MIN_NODES = 250_000
 #: closes around or its lines are cosine ones (a capacitance correction: ``K⁻¹`` of that many columns at set-up, a
 #: product with them per step) ...
 MAX_CORRECTED = 64
-#: ... while the correction's stored columns (fixed nodes × the box's nodes) stay within this many values.
+#: ... while the correction's stored columns (fixed nodes × the box's nodes) stay within this many values ...
 CORRECTION_MAX_VALUES = 32_000_000
-#: With exact lines on both axes (an open grid) the correction works in the lines' coordinates, where a fixed node is
-#: the outer product of two columns of the axes' transforms: nothing stored but those, ``2 p N`` flops a step for
-#: ``p`` fixed nodes in a box of ``N``, and the capacitance matrix in ``p² N`` flops at set-up. Up to this many fixed
-#: nodes ...
-MAX_CORRECTED_EXACT = 1024
-#: ... while the set-up's ``p² N`` stays within this many flops (some 0.3 s; 1000²: up to 141 fixed nodes).
-CORRECTION_MAX_WORK = 2e10
-#: ... in double precision where ``K``'s condition (its largest eigenvalue over ω) exceeds this: the correction
-#: subtracts the near-null modes that the fixed nodes hold (sizes up to ``1/ω``) from the rest, so single precision
-#: would leave errors of its rounding (6·10⁻⁸) times that condition (already 2.5·10⁻³ at a condition of 2·10⁵ on a
-#: small grid, ``tests/linalg/test_spectral.py``); the products cost about twice as much there.
+#: ... and in double precision where ``K``'s condition (its largest eigenvalue over ω) exceeds this: the stored
+#: columns' subtraction cancels the near-null modes that the fixed nodes hold (sizes up to ``1/ω``) in the result, so
+#: single precision would leave errors of its rounding (6·10⁻⁸) times that condition (already 2.5·10⁻³ at a
+#: condition of 2·10⁵ on a small grid, ``tests/linalg/test_spectral.py``); the products cost about twice as much
+#: there.
 CORRECTION_SINGLE_MAX = 1e6
+#: With exact lines on both axes (an open grid) the correction works in the lines' coordinates instead, where a fixed
+#: node is the outer product of two columns of the axes' transforms: nothing stored but those, ``2 p N``
+#: multiply-adds a step and right-hand side for ``p`` fixed nodes in a box of ``N``, the capacitance matrix in
+#: ``p² N`` at set-up, in single precision (its reading of the fixed nodes in double; see
+#: :meth:`SpectralPreconditioner._fold_correction`). Up to this many fixed nodes ...
+MAX_CORRECTED_EXACT = 1024
+#: ... while the set-up's ``p² N`` stays within this many multiply-adds (on one BLAS thread about 1 s: 0.85 s for 141
+#: fixed nodes on 1000², a reviewer's timing).
+CORRECTION_MAX_WORK = 2e10
 #: ``open_lines="exact"`` holds an open line's eigenvectors (dense, half the line's length squared twice) up to
 #: this many nodes; a longer line raises (its products cost ``O(n)`` a node each way).
 EXACT_MAX_SIDE = 8192
@@ -379,11 +383,12 @@ class SpectralPreconditioner:
     column's (``rows`` nodes, ``c_c``) third differences' ``DᵀD`` (:func:`line_third_differences`; with
     ``open_lines="cosine"`` the cube of an open line's Laplacian, :func:`line_laplacian`), periodic where the axis
     closes around; ``E`` selects the unknowns (``free``) and ``K_ff`` is ``K``'s part on them. Exact where the
-    unknowns fill a box (the nodes off it fixed: e.g. a fixed boundary) but for at most :data:`MAX_CORRECTED` fixed
-    nodes inside it; with more, ``P⁻¹ = E (K_box⁻¹)_ff Eᵀ``, their rows only zeroed (still symmetric positive
-    definite, less close to ``K_ff⁻¹``). Applied to all columns of the residual at once (``whole``), in single
-    precision (double where a correction meets a large condition, :data:`CORRECTION_SINGLE_MAX`): it only steers
-    the search directions; the exact lines' products on the solver's threads (BLAS held to one thread each, as
+    unknowns fill a box (the nodes off it fixed: e.g. a fixed boundary) but for fixed nodes inside it that the
+    correction takes (:func:`inverts_exactly`: with exact lines on an open grid up to :data:`MAX_CORRECTED_EXACT`,
+    else up to :data:`MAX_CORRECTED`); with more, ``P⁻¹ = E (K_box⁻¹)_ff Eᵀ``, their rows only zeroed (still
+    symmetric positive definite, less close to ``K_ff⁻¹``). Applied to all columns of the residual at once
+    (``whole``), in single precision (double where stored columns meet a large condition,
+    :data:`CORRECTION_SINGLE_MAX`): it only steers the search directions; the exact lines' products on the solver's threads (BLAS held to one thread each, as
     everywhere in the solver).
 
     Parameters
@@ -515,7 +520,10 @@ class SpectralPreconditioner:
         in their coordinates (a ``(c, m, n)`` float32 array), in double precision: ``y_x`` (``ŷ`` at the fixed
         nodes) is read exactly from ``ŷ``, so the result is ``K_ff⁻¹`` of a residual perturbed by single
         precision's rounding of ``ŷ``, however large the near-null modes that the fixed nodes hold (a
-        subtraction of them in single precision would not be)."""
+        subtraction of them in single precision would not be). Down to ``ω`` about 10⁻¹⁰ of ``K``'s largest
+        eigenvalue: ``C`` holds parts of size ``ω`` beside ones of size 1, so double precision's own rounding
+        then shows (a reviewer measured 2·10⁻⁷–6·10⁻⁷ relative error at 1–10⁻¹⁰, 1.6·10⁻⁴ at 10⁻¹², and the
+        Cholesky factorization failing at 10⁻¹⁶, where the fixed nodes are then only zeroed)."""
         U, V, factor = self._factored  # type: ignore[misc]
         Y = G.astype(np.float64)
         yx = np.einsum("cpn,np->cp", np.matmul(U.T, Y), V)  # (c, p)
