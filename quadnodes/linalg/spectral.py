@@ -172,8 +172,9 @@ def line_third_differences(n: int, closed: bool = False) -> sp.csr_matrix:
     return sp.csr_matrix(D.T @ D)
 
 
-def _line_basis(n: int, lo: int, hi: int) -> tuple[np.ndarray, list[np.ndarray]]:
-    """The eigenvalues and forward matrices of an open line's ``B[lo:hi, lo:hi]`` (:func:`line_third_differences`).
+def _line_basis(n: int, lo: int, hi: int, closed: bool = False) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The eigenvalues and forward matrices of a line's ``B[lo:hi, lo:hi]`` (:func:`line_third_differences`; a
+    closed line whole, its ``B`` circulant and so symmetric about any node too).
 
     Where the span is symmetric about the line's middle (``B`` persymmetric there) the eigenvectors are even or
     odd about it: with ``h = ⌊len/2⌋``, ``s = x[:h] + x[::-1][:h]`` (and the middle node, for an odd length) and
@@ -183,14 +184,21 @@ def _line_basis(n: int, lo: int, hi: int) -> tuple[np.ndarray, list[np.ndarray]]
     reaches three nodes on): cached on those (:func:`_span_basis`), so a square grid's two axes and fair's
     iterations share it.
     """
+    if closed:
+        return _span_basis(-1, n, -1)
     return _span_basis(min(lo, 3), hi - lo, min(n - hi, 3))
 
 
 @functools.lru_cache(maxsize=4)
 def _span_basis(head: int, size: int, tail: int) -> tuple[np.ndarray, list[np.ndarray]]:
-    """:func:`_line_basis` of a span of ``size`` nodes with ``head`` and ``tail`` (each at most 3) nodes beside it."""
-    n, lo, hi = head + size + tail, head, head + size
-    B = line_third_differences(n)[lo:hi, lo:hi].toarray()
+    """:func:`_line_basis` of a span of ``size`` nodes with ``head`` and ``tail`` (each at most 3) nodes beside it,
+    or of a closed line of ``size`` nodes (``head = tail = -1``)."""
+    if head < 0:
+        n, lo, hi = size, 0, size
+        B = line_third_differences(n, closed=True).toarray()
+    else:
+        n, lo, hi = head + size + tail, head, head + size
+        B = line_third_differences(n)[lo:hi, lo:hi].toarray()
     size = hi - lo
     h = size // 2
     if size >= 2 and lo == n - hi:
@@ -258,10 +266,11 @@ def fixed_inside(free: np.ndarray, wrap: tuple[bool, bool]) -> int:
 
 def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool],
                     open_lines: Literal["exact", "cosine"] = "exact") -> bool:
-    """Whether the preconditioner is ``K_ff⁻¹`` on these unknowns: its fixed nodes inside :func:`box` corrected — on
-    an open grid with exact lines up to :data:`MAX_CORRECTED_EXACT` within :data:`CORRECTION_MAX_WORK`, else up to
-    :data:`MAX_CORRECTED` within :data:`CORRECTION_MAX_VALUES` (a correction whose Cholesky factorization fails,
-    which rounding alone could cause, falls back to zeroing them).
+    """Whether the preconditioner is ``K_ff⁻¹`` on these unknowns: its fixed nodes inside :func:`box` corrected — by
+    stored columns up to :data:`MAX_CORRECTED` within :data:`CORRECTION_MAX_VALUES`, or with exact lines (on a closed
+    axis too, where the stored columns would not do) in the lines' coordinates up to :data:`MAX_CORRECTED_EXACT`
+    within :data:`CORRECTION_MAX_WORK` (a correction whose Cholesky factorization fails, which rounding alone could
+    cause, falls back to zeroing them).
 
     Parameters
     ----------
@@ -278,15 +287,20 @@ def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool],
 
     Examples
     --------
-    A fixed first row is off the box of an open grid, and inside a closed one's (50 more fixed nodes there):
+    A fixed first row is off the box of an open grid, and inside a closed one's (50 more fixed nodes there: 75, more
+    than the stored columns take, so only exact lines, a closed axis's too, invert around them):
 
     >>> free = np.ones((40, 50), bool); free[0] = False; free[20, ::2] = False
     >>> inverts_exactly(free, (False, False)), inverts_exactly(free, (True, False))
-    (True, False)
+    (True, True)
+    >>> inverts_exactly(free, (True, False), "cosine")
+    False
     """
     (r0, r1), (c0, c1) = box(free, wrap)
     p = int(np.count_nonzero(~free[r0:r1, c0:c1]))
-    return p == 0 or _corrects(p, (r1 - r0) * (c1 - c0), open_lines == "exact" and not any(wrap))
+    return p == 0 or _corrects(p, (r1 - r0) * (c1 - c0), False) or (
+        open_lines == "exact" and _corrects(p, (r1 - r0) * (c1 - c0), True)
+        and all(n <= EXACT_MAX_SIDE for n in free.shape))
 
 
 def _corrects(p: int, size: int, exact_both: bool) -> bool:
@@ -311,12 +325,12 @@ class _Axis:
     transforms, ``B``'s eigenvalues in the transform's order, and for ``"exact"`` the forward matrices in float32
     (:func:`_line_basis`)."""
 
-    def __init__(self, kind: str, n: int, lo: int, hi: int) -> None:
-        self.kind, self.n, self.lo, self.hi = kind, n, lo, hi
+    def __init__(self, kind: str, n: int, lo: int, hi: int, closed: bool = False) -> None:
+        self.kind, self.n, self.lo, self.hi, self.closed = kind, n, lo, hi, closed
         self.blocks32: list[np.ndarray] = []
         self.blocks64: list[np.ndarray] = []
         if kind == "exact":
-            lam, self.blocks64 = _line_basis(n, lo, hi)
+            lam, self.blocks64 = _line_basis(n, lo, hi, closed)
             self.blocks32 = [F.astype(np.float32) for F in self.blocks64]
             self.eigenvalues = lam
         else:
@@ -460,9 +474,17 @@ class SpectralPreconditioner:
         # each axis's kind over the box's span: an open one exact or cosine; along a closed one (never cut) the real
         # Fourier transform where it is the only closed one or the rows', the full one on the other
         spans = box(mask, self.wrap)
+        (r0, r1), (c0, c1) = spans
+        p, size = int(np.count_nonzero(~mask[r0:r1, c0:c1])), (r1 - r0) * (c1 - c0)
+        # a closed axis takes its exact basis too (dense, as an open one's) where only the correction in the lines'
+        # coordinates takes the fixed nodes inside: more than the stored columns' limits
+        closed_exact = (open_lines == "exact" and p > 0 and not _corrects(p, size, False) and _corrects(p, size, True)
+                        and all(n <= EXACT_MAX_SIDE for n in self.shape))
         axes = []
         for axis, (n, closed, (lo, hi)) in enumerate(zip(self.shape, self.wrap, spans)):
-            if closed:
+            if closed and closed_exact:
+                axes.append(_Axis("exact", n, lo, hi, closed=True))
+            elif closed:
                 axes.append(_Axis("rfft" if axis == 1 or not self.wrap[1] else "fft", n, lo, hi))
             elif open_lines == "exact":
                 if n > EXACT_MAX_SIDE:
@@ -570,7 +592,7 @@ class SpectralPreconditioner:
         lines = []
         for ax, closed in zip(self._axes, self.wrap):
             if ax.kind == "exact":
-                lines.append(line_third_differences(ax.n)[ax.lo:ax.hi, ax.lo:ax.hi])
+                lines.append(line_third_differences(ax.n, ax.closed)[ax.lo:ax.hi, ax.lo:ax.hi])
             else:
                 L = line_laplacian(ax.size, closed)
                 lines.append(L @ L @ L)

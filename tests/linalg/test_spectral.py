@@ -158,6 +158,32 @@ def test_many_fixed_nodes_are_zeroed_not_corrected(monkeypatch):
     assert cosine.blas_free and cosine._correction is None
 
 
+@pytest.mark.parametrize("wrap", [(True, False), (False, True), (True, True)])
+@pytest.mark.parametrize("weight", [1.0, 1e-6])
+def test_closed_axes_take_their_exact_basis_where_stored_columns_would_not_do(monkeypatch, wrap, weight):
+    """More fixed nodes inside a cylinder's or torus's box than the stored columns take: the closed axes take their
+    exact (dense) basis too, the correction works in the lines' coordinates, and P⁻¹ = K_ff⁻¹."""
+    monkeypatch.setattr(spectral, "MAX_CORRECTED", 5)
+    rng = np.random.default_rng(11)
+    rows, cols = 13, 10
+    free = np.ones(rows * cols, bool)
+    free[rng.choice(rows * cols, 20, replace=False)] = False
+    P = SpectralPreconditioner((rows, cols), wrap, 2.0, 1.5, weight, free)
+    assert [ax.kind for ax in P._axes] == ["exact", "exact"] and P._factored is not None
+    assert spectral.inverts_exactly(free.reshape(rows, cols), wrap)
+    assert not spectral.inverts_exactly(free.reshape(rows, cols), wrap, "cosine")
+    R = rng.normal(size=(2, rows * cols))
+    Z = _apply(P, R)
+    Kff = P.operator()[free][:, free].toarray()
+    expected = np.linalg.solve(Kff, R[:, free].T).T
+    assert np.all(Z[:, ~free] == 0.0)
+    assert np.abs(Z[:, free] - expected).max() <= 1e-5 * np.abs(expected).max()
+    # (with few enough, the Fourier transforms and stored columns, as before)
+    monkeypatch.setattr(spectral, "MAX_CORRECTED", 64)
+    assert "exact" not in [ax.kind for ax, closed in zip(SpectralPreconditioner(
+        (rows, cols), wrap, 2.0, 1.5, weight, free)._axes, wrap) if closed]
+
+
 @pytest.mark.parametrize("weight", [1e-4, 1e-8, 1e-10])
 def test_the_exact_lines_correction_keeps_single_precision_at_tiny_weights(weight):
     """The correction in the exact lines' coordinates reads the fixed nodes' values from the coordinates in double
