@@ -1,8 +1,9 @@
 """Conjugate gradients across weights: plain CG (free-index CSR, and the grid's diagonal storage)
 against block-Jacobi CG and the spectral preconditioner (exact lines, and cosine lines) on the same system.
 
-Backs the tables in docs/fairing.md "Speed" (small weights: block-Jacobi preconditioning) and "The spectral
-preconditioner" (``fairing.SPECTRAL_MIN_WORK``).
+Backs the tables in docs/fairing.md "Speed" (small weights: block-Jacobi preconditioning), "The spectral
+preconditioner" (``fairing.SPECTRAL_MIN_WORK``) and "Exact lines" (exact against cosine lines:
+``fairing.SPECTRAL_EXACT_CONTRAST``).
 
 On an n×n grid (the bench_core surface, ``benchmarks/_common.py``; ``--noise zigzag`` — tangential 0.2 and normal 0.05 — or ``broadband``) with
 every window-middle vertex free, builds the one-iteration system at normalized weights 0.001 … 10 and
