@@ -537,7 +537,7 @@ class SpectralPreconditioner:
             return
         self._factored = (U, V, factor)
 
-    def _fold_correction(self, G: np.ndarray) -> np.ndarray:
+    def _fold_correction(self, G: np.ndarray, workers: int = 1) -> np.ndarray:
         """``ẑ = ŷ − (ω/λ) ⊙ Σ_i μ_i U_i ⊗ V_i`` with ``μ = C⁻¹ y_x``: the exact lines' correction on ``ŷ = ω K⁻¹ r``
         in their coordinates (a ``(c, m, n)`` float32 array), in double precision: ``y_x`` (``ŷ`` at the fixed
         nodes) is read exactly from ``ŷ``, so the result is ``K_ff⁻¹`` of a residual perturbed by single
@@ -545,13 +545,27 @@ class SpectralPreconditioner:
         subtraction of them in single precision would not be). Down to ``ω`` about 10⁻¹⁰ of ``K``'s largest
         eigenvalue: ``C`` holds parts of size ``ω`` beside ones of size 1, so double precision's own rounding
         then shows (a reviewer measured 2·10⁻⁷–6·10⁻⁷ relative error at 1–10⁻¹⁰, 1.6·10⁻⁴ at 10⁻¹², and the
-        Cholesky factorization failing at 10⁻¹⁶, where the fixed nodes are then only zeroed)."""
+        Cholesky factorization failing at 10⁻¹⁶, where the fixed nodes are then only zeroed). On ``workers`` threads,
+        in slabs of columns."""
         U, V, factor = self._factored  # type: ignore[misc]
-        Y = G.astype(np.float64)
-        yx = np.einsum("cpn,np->cp", np.matmul(U.T, Y), V)  # (c, p)
-        mu = sla.cho_solve(factor, yx.T)  # (p, c)
-        Y -= self._inverse64 * np.matmul(U[None] * mu.T[:, None, :], V.T)  # (c, m, p) @ (p, n)
-        return Y.astype(np.float32)
+        parts = _threads.split_ranges(G.shape[2], parts=workers)  # (slabs of columns, one per thread)
+        read: list[np.ndarray] = [np.empty(0)] * len(parts)
+
+        def values(k: int, lo: int, hi: int) -> None:  # the slab's share of y_x: (c, p)
+            read[k] = np.einsum("cpn,np->cp", np.matmul(U.T, G[:, :, lo:hi].astype(np.float64)), V[lo:hi])
+
+        _threads.run_tasks(values, [(k, lo, hi) for k, (lo, hi) in enumerate(parts)])
+        mu = sla.cho_solve(factor, sum(read[1:], read[0]).T)  # (p, c)
+        A = U[None] * mu.T[:, None, :]  # (c, m, p)
+        out = np.empty_like(G)
+
+        def subtract(lo: int, hi: int) -> None:
+            Y = G[:, :, lo:hi].astype(np.float64)
+            Y -= self._inverse64[:, lo:hi] * np.matmul(A, V[lo:hi].T)  # (c, m, p) @ (p, hi − lo)
+            out[:, :, lo:hi] = Y
+
+        _threads.run_tasks(subtract, parts)
+        return out
 
     def _correct(self) -> None:
         """Set up the capacitance correction by stored columns: ``W = ω K_box⁻¹ E_x`` and ``C = W_x``, in the apply's
@@ -654,7 +668,7 @@ class SpectralPreconditioner:
             G = self._transform(G, axis, True, fft, workers, dtype)
         G *= self._inverse if dtype == np.float32 else self._inverse64
         if fold and self._factored is not None:
-            G = self._fold_correction(G)
+            G = self._fold_correction(G, workers)
         for axis in order[::-1]:
             G = self._transform(G, axis, False, fft, workers, dtype)
         return G
