@@ -32,24 +32,27 @@ class Browser:
 
     def __init__(self, *, width: int = 1600, height: int = 900) -> None:
         self.profile = tempfile.mkdtemp(prefix="qn-chromium-")
+        # Chromium's log goes to a file, not a pipe: a pipe that nobody reads after start-up fills (64 KB of
+        # warnings from a live WebGL page) and then blocks the browser's every write, so every DevTools call hangs
+        self.log = Path(self.profile) / "stderr.log"
+        self._stderr = open(self.log, "wb")
         self.proc = subprocess.Popen(
             [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
              "--disable-background-networking", "--disable-component-update", "--disable-sync",
              "--disable-dev-shm-usage", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
              f"--user-data-dir={self.profile}", "--remote-debugging-port=0", "--remote-debugging-address=127.0.0.1",
              f"--window-size={width},{height}", "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            stdout=subprocess.DEVNULL, stderr=self._stderr)
         url = None
         deadline = time.monotonic() + 60
-        assert self.proc.stderr is not None
         while time.monotonic() < deadline:
-            line = self.proc.stderr.readline()
-            if not line and self.proc.poll() is not None:
-                break
-            m = re.search(r"DevTools listening on (ws://\S+)", line)
+            m = re.search(r"DevTools listening on (ws://\S+)", self.log.read_text(errors="replace"))
             if m:
                 url = m.group(1)
                 break
+            if self.proc.poll() is not None:
+                break
+            time.sleep(0.05)
         if url is None:
             self.close()
             raise RuntimeError("chromium did not start (no DevTools URL)")
@@ -132,4 +135,5 @@ class Browser:
                 except subprocess.TimeoutExpired:
                     self.proc.kill()
                     self.proc.wait()
+            self._stderr.close()
             shutil.rmtree(self.profile, ignore_errors=True)

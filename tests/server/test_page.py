@@ -35,15 +35,21 @@ def served(tmp_path_factory):
     graph = d / "quickstart.toml"
     shutil.copy(ROOT / "examples" / "quickstart.toml", graph)
     port = _free_port()
-    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+           "PYTHONUNBUFFERED": "1"}
+    # the server's output goes to files, not pipes: a pipe that nobody reads after the first lines fills with the
+    # runs' progress and the requests' log, and then blocks the server
+    out, err = open(d / "serve.out", "w"), open(d / "serve.err", "w")
     proc = subprocess.Popen([sys.executable, "-m", "quadnodes", "serve", str(graph), "--no-browser",
                              "--port", str(port), "--out", str(d / "out")],
-                            cwd=d, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert proc.stdout is not None
-    proc.stdout.readline()
-    url = proc.stdout.readline().strip()
+                            cwd=d, env=env, stdout=out, stderr=err, text=True)
     browser = None
     try:
+        deadline = time.monotonic() + 60
+        while len(lines := (d / "serve.out").read_text().splitlines()) < 2:  # (the second line is the address)
+            assert time.monotonic() < deadline and proc.poll() is None, (d / "serve.err").read_text()[-3000:]
+            time.sleep(0.05)
+        url = lines[1].strip()
         assert url.startswith(f"http://127.0.0.1:{port}/?token="), url
         browser = cdp.Browser(width=1600, height=900)
         yield {"url": url, "graph": graph, "browser": browser, "dir": d}
@@ -56,19 +62,26 @@ def served(tmp_path_factory):
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        out.close()
+        err.close()
 
 
 VIEW_KEY = "(document.querySelector('.view[data-view=\"fair.mesh\"]') || {dataset: {}}).dataset.key"
 
 
-def _open(b: cdp.Browser, url: str) -> None:
-    b.goto(url)
-    b.wait_for("document.body && document.body.dataset.ready === '1'", timeout=120)
+def _open(b: cdp.Browser, url: str, logs: Path) -> None:
+    try:
+        b.goto(url)
+        b.wait_for("document.body && document.body.dataset.ready === '1'", timeout=120)
+    except TimeoutError as exc:  # (say what the server and the browser logged)
+        tails = {name: (logs / name).read_text(errors="replace")[-2000:] for name in ("serve.out", "serve.err")}
+        tails["chromium"] = b.log.read_text(errors="replace")[-2000:]
+        raise TimeoutError(f"{exc}; logs: {tails}") from exc
 
 
 def test_the_page_edits_the_quickstart_live(served):
     b, graph = served["browser"], served["graph"]
-    _open(b, served["url"])
+    _open(b, served["url"], served["dir"])
     assert b.evaluate("[...document.querySelectorAll('.node')].length") == 16
     # the first visit opens a 3-D view of the faired mesh; wait until the first run has drawn it
     key0 = b.wait_for(VIEW_KEY, timeout=300)
@@ -108,7 +121,7 @@ def test_the_page_edits_the_quickstart_live(served):
     assert shot.stat().st_size > 50_000
 
     # reloading shows the same graph, the edited value and the open view
-    _open(b, served["url"])
+    _open(b, served["url"], served["dir"])
     assert b.evaluate("[...document.querySelectorAll('.node')].map(n => n.dataset.node).sort().join(' ')") == \
         " ".join(sorted(["surface", "clean", "noisy", "fair", "laplace", "taubin", "metrics_fair", "metrics_laplace",
                          "metrics_taubin", "report", "step", "obj", "csv", "png", "planarity_png", "html"]))
