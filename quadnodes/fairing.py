@@ -226,9 +226,10 @@ SPECTRAL_CONTRAST_SIDE = 1000
 #: their steps cost half as much, and where few are needed the exact lines' fewer steps do not repay that and their
 #: set-up. An open grid's exact lines need no transforms, and in a fresh process they save the transforms' import
 #: (about 40 ms), which repays their dearer steps up to a side of :data:`SPECTRAL_EXACT_FRESH_SIDE`. On the 300²
-#: sheet with broadband noise (in-process, transforms imported): 15 exact steps 0.206 s against 24 cosine ones 0.171 s at the default weight (a bound of 168 ω), 16
-#: against 31, 0.208 against 0.227 s at ω = 0.1 (a bound of about 500 ω), 17 against 43, 0.195 against 0.240 s at 0.03 (``python
-#: benchmarks/studies/cg_weights.py --size 300 --noise broadband``).
+#: sheet with broadband noise (in-process, transforms imported): 15 exact steps 0.206 s against 24 cosine ones
+#: 0.171 s at the default weight (a bound of 168 ω), 16 against 31, 0.208 against 0.227 s at ω = 0.1 (a bound of
+#: about 500 ω), 17 against 43, 0.195 against 0.240 s at 0.03 (``python benchmarks/studies/cg_weights.py --size 300
+#: --noise broadband``).
 SPECTRAL_EXACT_CONTRAST = 3e2
 #: ... and at any bound on an open grid up to this many nodes a side where SciPy's transforms are not imported (a
 #: fresh process): whole fair() at the default weight, medians of five fresh processes, exact against cosine lines
@@ -654,8 +655,8 @@ def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple
     """:class:`~quadnodes.linalg.spectral.SpectralPreconditioner` of a grid's ``AᵀA + ωI`` in diagonal storage:
     each family's coefficient the median magnitude of its ``±3`` diagonal (the product of a window's end
     coefficients) over the windows that have one; a family without windows of four nodes gets 0. Exact lines
-    (``exact``), or cosine ones (also where an open side is longer than
-    :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE`)."""
+    (``exact``; the caller keeps open sides within :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE`) or cosine
+    ones."""
     rows, cols = shape
     found = {int(o): d for d, o in enumerate(offsets)}
 
@@ -666,7 +667,6 @@ def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple
         ends = ends[ends > 0]
         return float(np.median(ends)) if ends.size else 0.0
 
-    exact = exact and all(closed or side <= spectral.EXACT_MAX_SIDE for side, closed in zip(shape, wrap))
     return spectral.SpectralPreconditioner(shape, wrap, coefficient(3, cols), coefficient(3 * cols, rows), weight,
                                            free, open_lines="exact" if exact else "cosine")
 
@@ -1196,7 +1196,7 @@ class FairingSystem:
                         precond = _line_preconditioner(data, offsets, cols)
                     except np.linalg.LinAlgError as exc:  # a line block not positive definite
                         raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
-                elif use_spectral:  # (cosine lines where the exact ones' dearer steps do not pay: SPECTRAL_EXACT_CONTRAST)
+                elif use_spectral:  # (cosine lines where the exact ones' dearer steps do not pay: exact_lines)
                     precond = _spectral_preconditioner(offsets, data, shape, wrap, self.weight, self._grid[2],
                                                        exact=exact_lines)
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)

@@ -46,8 +46,8 @@ import scipy.sparse as sp
 
 from . import threads as _threads
 
-__all__ = ["SpectralPreconditioner", "box", "fixed_inside", "inverts_exactly", "line_laplacian", "line_third_differences", "loaded",
-           "MAX_CORRECTED", "CORRECTION_MAX_VALUES", "CORRECTION_SINGLE_MAX",
+__all__ = ["SpectralPreconditioner", "box", "fixed_inside", "inverts_exactly", "line_laplacian",
+           "line_third_differences", "loaded", "MAX_CORRECTED", "CORRECTION_MAX_VALUES", "CORRECTION_SINGLE_MAX",
            "MAX_CORRECTED_EXACT", "CORRECTION_MAX_WORK", "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES"]
 
 #: Grids of at least this many nodes transform on the solver's threads; below, one thread is faster (300²: 1.5
@@ -199,12 +199,10 @@ def _span_basis(head: int, size: int, tail: int) -> tuple[np.ndarray, list[np.nd
     else:
         n, lo, hi = head + size + tail, head, head + size
         B = line_third_differences(n)[lo:hi, lo:hi].toarray()
-    size = hi - lo
     h = size // 2
     if size >= 2 and lo == n - hi:
         J = B[:h, ::-1][:, :h]  # (B's top-right block, read backwards: the coupling to the mirrored nodes)
         top = B[:h, :h]
-        blocks = []
         Bs = top + J
         if size % 2:  # the middle node: (x_h) with weight 1, the pairs with 1/√2
             col = B[:h, h] * np.sqrt(2.0)
@@ -264,6 +262,23 @@ def fixed_inside(free: np.ndarray, wrap: tuple[bool, bool]) -> int:
     return int(np.count_nonzero(~free[r0:r1, c0:c1]))
 
 
+def _correction_form(free: np.ndarray, wrap: tuple[bool, bool], open_lines: str) -> str | None:
+    """How the fixed nodes inside :func:`box` are inverted around: ``"coordinates"`` (exact lines on both axes, a
+    closed one's too where the stored columns would not do), ``"columns"`` (stored), or None (none inside, or too
+    many: then only zeroed)."""
+    (r0, r1), (c0, c1) = box(free, wrap)
+    p, size = int(np.count_nonzero(~free[r0:r1, c0:c1])), (r1 - r0) * (c1 - c0)
+    if p == 0:
+        return None
+    coordinates = (open_lines == "exact" and all(n <= EXACT_MAX_SIDE for n in free.shape)
+                   and p <= MAX_CORRECTED_EXACT and p * p * size <= CORRECTION_MAX_WORK)
+    if coordinates and not any(wrap):
+        return "coordinates"
+    if p <= MAX_CORRECTED and p * size <= CORRECTION_MAX_VALUES:
+        return "columns"
+    return "coordinates" if coordinates else None
+
+
 def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool],
                     open_lines: Literal["exact", "cosine"] = "exact") -> bool:
     """Whether the preconditioner is ``K_ff⁻¹`` on these unknowns: its fixed nodes inside :func:`box` corrected — by
@@ -296,19 +311,7 @@ def inverts_exactly(free: np.ndarray, wrap: tuple[bool, bool],
     >>> inverts_exactly(free, (True, False), "cosine")
     False
     """
-    (r0, r1), (c0, c1) = box(free, wrap)
-    p = int(np.count_nonzero(~free[r0:r1, c0:c1]))
-    return p == 0 or _corrects(p, (r1 - r0) * (c1 - c0), False) or (
-        open_lines == "exact" and _corrects(p, (r1 - r0) * (c1 - c0), True)
-        and all(n <= EXACT_MAX_SIDE for n in free.shape))
-
-
-def _corrects(p: int, size: int, exact_both: bool) -> bool:
-    """Whether ``p`` fixed nodes in a box of ``size`` nodes get the correction: in the lines' coordinates
-    (``exact_both``: exact lines on both axes) or by stored columns."""
-    if exact_both:
-        return p <= MAX_CORRECTED_EXACT and p * p * size <= CORRECTION_MAX_WORK
-    return p <= MAX_CORRECTED and p * size <= CORRECTION_MAX_VALUES
+    return fixed_inside(free, wrap) == 0 or _correction_form(free, wrap, open_lines) is not None
 
 
 def _fourier_eigenvalues(n: int, transform: str) -> np.ndarray:
@@ -402,8 +405,8 @@ class SpectralPreconditioner:
     else up to :data:`MAX_CORRECTED`); with more, ``P⁻¹ = E (K_box⁻¹)_ff Eᵀ``, their rows only zeroed (still
     symmetric positive definite, less close to ``K_ff⁻¹``). Applied to all columns of the residual at once
     (``whole``), in single precision (double where stored columns meet a large condition,
-    :data:`CORRECTION_SINGLE_MAX`): it only steers the search directions; the exact lines' products on the solver's threads (BLAS held to one thread each, as
-    everywhere in the solver).
+    :data:`CORRECTION_SINGLE_MAX`): it only steers the search directions; the exact lines' products on the
+    solver's threads (BLAS held to one thread each, as everywhere in the solver).
 
     Parameters
     ----------
@@ -442,10 +445,10 @@ class SpectralPreconditioner:
     """
 
     whole = True  # applied once per step to every row (block_cg)
-    #: Whether it calls no BLAS (only SciPy's transforms; the correction then one column at a time, and its p × p
-    #: Cholesky solve too small for BLAS's threads): then block_cg need not pin BLAS (whose first pin scans the
-    #: process's libraries, some 20 ms). The exact lines' products are BLAS calls (on the solver's threads, one
-    #: BLAS thread each).
+    #: Whether it calls no BLAS (only SciPy's transforms; the stored columns' correction by NumPy's own loop, and
+    #: its p × p Cholesky solve too small for BLAS's threads): then block_cg need not pin BLAS (whose first pin
+    #: scans the process's libraries, some 20 ms). The exact lines' products are BLAS calls (on the solver's
+    #: threads, one BLAS thread each).
     blas_free = True
 
     def __init__(self, shape: tuple[int, int], wrap: tuple[bool, bool], row_coefficient: float,
@@ -474,15 +477,12 @@ class SpectralPreconditioner:
         # each axis's kind over the box's span: an open one exact or cosine; along a closed one (never cut) the real
         # Fourier transform where it is the only closed one or the rows', the full one on the other
         spans = box(mask, self.wrap)
-        (r0, r1), (c0, c1) = spans
-        p, size = int(np.count_nonzero(~mask[r0:r1, c0:c1])), (r1 - r0) * (c1 - c0)
-        # a closed axis takes its exact basis too (dense, as an open one's) where only the correction in the lines'
-        # coordinates takes the fixed nodes inside: more than the stored columns' limits
-        closed_exact = (open_lines == "exact" and p > 0 and not _corrects(p, size, False) and _corrects(p, size, True)
-                        and all(n <= EXACT_MAX_SIDE for n in self.shape))
+        # (a closed axis takes its exact basis too, dense as an open one's, where the correction works in the lines'
+        # coordinates: more fixed nodes inside than the stored columns take)
+        form = _correction_form(mask, self.wrap, open_lines)
         axes = []
         for axis, (n, closed, (lo, hi)) in enumerate(zip(self.shape, self.wrap, spans)):
-            if closed and closed_exact:
+            if closed and form == "coordinates":
                 axes.append(_Axis("exact", n, lo, hi, closed=True))
             elif closed:
                 axes.append(_Axis("rfft" if axis == 1 or not self.wrap[1] else "fft", n, lo, hi))
@@ -506,14 +506,12 @@ class SpectralPreconditioner:
         self._correction: tuple[np.ndarray, tuple] | None = None  # (stored columns W, C's Cholesky factor)
         self._factored: tuple[np.ndarray, np.ndarray, tuple] | None = None  # (U, V, C's Cholesky factor)
         self._dtype: type = np.float32
-        exact_both = all(a.kind == "exact" for a in axes)
-        if self._inner.size and _corrects(self._inner.size, inside.size, exact_both):  # (as inverts_exactly)
-            if exact_both:
-                self._correct_factored()
-            else:
-                if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
-                    self._dtype = np.float64
-                self._correct()
+        if form == "coordinates":
+            self._correct_factored()
+        elif form == "columns":
+            if float(eig.max()) / self.weight > CORRECTION_SINGLE_MAX:
+                self._dtype = np.float64
+            self._correct()
         self.blas_free = all(a.kind != "exact" for a in axes)
 
     def _correct_factored(self) -> None:
@@ -642,11 +640,7 @@ class SpectralPreconditioner:
         if self._correction is not None:  # Woodbury: K_ff⁻¹ = K⁻¹ − K⁻¹E (EᵀK⁻¹E)⁻¹ EᵀK⁻¹ on the unknowns
             W, factor = self._correction
             mu = sla.cho_solve(factor, flat[:, inner].T.astype(np.float64)).astype(flat.dtype)  # (p, c)
-            if self.blas_free:  # (cosine and Fourier lines call no BLAS: nor does the correction, one column at a time)
-                for i in range(mu.shape[0]):
-                    flat -= mu[i][:, None] * W[i]
-            else:
-                flat -= mu.T @ W
+            flat -= np.einsum("pc,pn->cn", mu, W)  # (NumPy's own loop, no BLAS: see blas_free)
         flat[:, inner] = 0.0
         out = Z[:, :n] if columns else Z[:n].T  # (c, n), a view of Z either way
         if (r1 - r0, c1 - c0) != self.shape:
