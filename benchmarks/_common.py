@@ -14,6 +14,7 @@ import os
 import resource
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -180,3 +181,38 @@ def planarize_case(name: str):
     noisy, _ = perturb(clean, tangential=noise[0], normal=noise[1], seed=7, fix="corners")
     faired, _ = fair(noisy, iterations=3, line_curvature="fair")
     return face, clean, faired
+
+
+#: ``--cache`` (bench_planarize.py's ``--iteration`` rows, studies/planarize_cg.py): the inputs are kept here (``out/`` is not committed)
+CACHE = Path(__file__).resolve().parents[1] / "out" / "bench-cache"
+
+
+def planarize_big_case(size: int, cache: bool = False):
+    """(clean, faired) of the F100 recipe at ``size × size`` (no 4× finer sample: 16 M points at 1000).
+
+    With ``cache``, the two vertex arrays are read from (or, the first time, written to)
+    ``out/bench-cache/planarize-F{size}.npz``: the same meshes without the ~6 min build at 1000×1000.
+    Delete the file after a change to ``surfaces``, ``perturb`` or ``fair``.
+    """
+    from quadnodes import surfaces
+    from quadnodes.mesh import QuadMesh, grid_faces
+
+    path = CACHE / f"planarize-F{size}.npz"
+    if cache and path.exists():
+        data = np.load(path)
+        faces = grid_faces(size, size)
+        return (QuadMesh(data["clean"], faces, grid_shape=(size, size)),
+                QuadMesh(data["faired"], faces, grid_shape=(size, size)))
+    from quadnodes.fairing import fair
+    from quadnodes.noise import perturb
+
+    face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
+    clean = surfaces.sample(face, size, size)
+    noisy, _ = perturb(clean, tangential=0.25, normal=0.1, seed=7, fix="corners")
+    faired, _ = fair(noisy, iterations=3)
+    if cache:
+        CACHE.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez(tmp, clean=clean.vertices, faired=faired.vertices)
+        tmp.replace(path)
+    return clean, faired

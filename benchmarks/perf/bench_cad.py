@@ -1,5 +1,7 @@
 """STEP export of 10,000 panels beside build123d's own export of the same faces; the example graphs at size.
 
+Backs docs/cad.md "Speed: `python benchmarks/perf/bench_cad.py …`" and the README's CAD-out figures.
+
 Part 1 (speed, issue 13 item 11): a 101 × 101 vertex grid (10,000 panels, 1 m spacing, mm) in three
 variants — twisted (a saddle: every panel a bilinear patch), almost flat (every panel planar within the default
 tolerance 1e-3 but none exactly: the case that used to abort), and a mix — written with

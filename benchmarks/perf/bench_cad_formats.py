@@ -1,5 +1,7 @@
 """Rhino .3dm and DXF unrolls of 10,000 panels, beside peers writing the same mesh.
 
+Backs the speed table of docs/cad.md "Rhino, DXF, OFF and PLY" and the README's .3dm/DXF figures.
+
 Input: a 101 × 101 vertex grid (100 × 100 = 10,000 panels, 1 m spacing, in mm) on a curved height field
 whose left half is flattened, so both layers (planar / bilinear) and both DXF colours are used.
 

@@ -1,5 +1,7 @@
 """The direct back-end of ``quadnodes.linalg.factorize``: orders and back-ends on mesh matrices (issue 15/17).
 
+Backs docs/methods.md "After nested dissection and CHOLMOD (branch direct-order)".
+
 Matrices (all SPD, from an n × n grid, no mesh noise needed — only the pattern and conditioning matter):
 
 - ``vertex``: the fair-web E2 system of the free vertices (corners fixed) plus 1e-6·max diag (the shape of

@@ -1,5 +1,7 @@
 """Speed of the thesis's chapter-2/3 methods beside the thesis's own method (issue 17).
 
+Backs docs/methods.md "Speed" and its sub-tables.
+
 Input (every row but Fourier): the noisy height field of ``bench_core.py`` — an
 n × n grid over the unit square, z = 0.3 sin(3x) cos(2y), with seeded zigzag
 noise (``perturb(tangential=0.2, normal=0.05, seed=0)[0]``: every vertex, the

@@ -1,5 +1,7 @@
 """`quadnodes serve`: from a changed setting to the new mesh on the page, through the server's own HTTP API.
 
+Backs docs/graphs.md "Speed" (the live editor's rows).
+
 A real `quadnodes serve` process (uvicorn, 127.0.0.1, a free port) serves a copy of a graph; the script
 changes ``fair.iterations`` with ``POST /api/nodes/fair/settings`` (1, 2, 4, 5, …: a new value each time,
 so fair really runs), waits on the event WebSocket (``/api/events``, as the page does) for the fair node of that edit to

@@ -1,5 +1,7 @@
 """A 100-variant design sweep: ``quadnodes sweep`` on Dask against a loop of ``quadnodes run --set``.
 
+Backs docs/graphs.md "Sweeps: many variants on Dask" (its speed table) and the README's sweep figure.
+
 Input: ``examples/quickstart.toml`` (wavy sheet sampled 22 × 41, zigzag noise, the thesis's fairing,
 Laplacian and Taubin baselines, metrics, STEP assembly, OBJ, CSV schedule, two PNGs, the HTML view),
 10 weights (``fair.weight=0.1:1:10``) × 10 seeds (``noisy.seed=1:10``) = 100 variants.

@@ -1,5 +1,7 @@
 """Real meshes: recover each mesh of ``tests/data`` from seeded noise with fair and the smoothing peers.
 
+Backs docs/real-meshes.md "Recovering from noise" (and the defaults it justifies in docs/fairing.md).
+
 For every mesh (``tests/data/README.md``) and three noise kinds —
 
 - ``zigzag``: ``perturb(tangential=0.25)`` (vertices slide along the lines, the thesis's zigzag),

@@ -1,7 +1,7 @@
 """Geometric multigrid for the fairing system: steps that do not grow as the weight falls, and what a step costs.
 
-Backs the multigrid paragraph in docs/fairing.md "Symmetric Gauss–Seidel" (issue 15, part 2: a preconditioner
-whose steps do not depend on the weight; not in the solver, and why), with ``--solver`` the tables of "The two-grid
+Backs docs/fairing.md "Multigrid: steps that do not depend on the weight, at a price that does not pay" (issue 15,
+part 2: a preconditioner whose steps do not depend on the weight; not in the solver, and why), with ``--solver`` the tables of "The two-grid
 path" and, with ``--free fair`` and the ``spectral`` column, of "Exact lines: steps that do not depend on the
 weight".
 

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "perf"))
-import bench_planarize  # noqa: E402  (its --iteration input, optionally cached)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import _common  # noqa: E402  (bench_planarize.py's --iteration input, optionally cached)
 
 
 def captured_system(size: int, cache: bool):
@@ -30,7 +30,7 @@ def captured_system(size: int, cache: bool):
     import quadnodes.linalg.quadratic as Qm
     import quadnodes.planarization as P
 
-    clean, faired = bench_planarize._big_case(size, cache)
+    clean, faired = _common.planarize_big_case(size, cache)
     _ = faired.topology.windows
     got: dict = {}
     init, solve = Qm.QuadraticProblem.__init__, Qm.QuadraticProblem.solve

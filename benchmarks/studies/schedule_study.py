@@ -4,7 +4,7 @@ The example script's surface (build123d wavy sheet 4000×8000 mm, amplitude 500,
 sampled 22×41), seeded zigzag noise (tangential 0.25, normal 0.1 edge lengths,
 seed 7), then fairing with several schedules at the default weight, and the
 baselines. Distances are in mean edge lengths from each vertex to its clean
-position. Backs the table in docs/fairing.md.
+position. Backs the table in docs/fairing.md "Thresholds: free the whole zigzag region at once".
 
 Run:  python benchmarks/studies/schedule_study.py  (a few seconds)
 """

@@ -9,7 +9,12 @@ quasi-definite ``[[H, Gᵀ], [G, −D]]`` with ``H`` and ``D`` positive definite
 (``"quasi-definite"``; Vanderbei 1995: such a matrix has an LDLᵀ factorization in
 every symmetric order). Callers make them so with :func:`regularization`; a
 matrix whose diagonal shows it is not (a non-positive pivot candidate) is
-refused before SuperLU sees it. A symmetric matrix that may be singular (``"symmetric"``) is
+refused before SuperLU sees it. Where definiteness is the caller's input's property rather than the
+construction's (:class:`~quadnodes.linalg.quadratic.QuadraticProblem`'s energy), ``check=True`` reads it back from
+the pivots: a matrix singular or indefinite to working precision factorizes without complaint (a graph
+Laplacian's last pivot comes out 10⁻¹⁶–10⁻¹³ of its diagonal, positive or negative, by rounding alone) and would
+give a meaningless solution, so a pivot within ``n·ε`` of its diagonal entry, or of the wrong sign, is refused
+naming its unknown. A symmetric matrix that may be singular (``"symmetric"``) is
 factorized in a symmetric order with diagonal pivots preferred but pivoting
 left on (threshold 1e-3), so it is fast and a singular matrix raises; everything
 else (``"general"``) with partial pivoting, where SuperLU raises instead of
@@ -158,7 +163,8 @@ def regularization(M: sp.spmatrix, relative: float = 1e-10) -> float:
 
 
 def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
-              negative: int = 0, order: str | np.ndarray = "auto", backend: str = "auto") -> Factorization:
+              negative: int = 0, order: str | np.ndarray = "auto", backend: str = "auto",
+              check: bool = False, labels: np.ndarray | None = None) -> Factorization:
     """Factorize a square sparse matrix once, for many solves, without ever crashing.
 
     Parameters
@@ -185,6 +191,14 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
     backend : {"auto", "superlu", "cholmod"}
         ``"auto"``: CHOLMOD (scikit-sparse, optional) for ``"spd"`` when it is
         importable, SuperLU otherwise; ``"cholmod"`` raises when it is not.
+    check : bool
+        ``"spd"`` and ``"quasi-definite"``: verify the promised definiteness from the pivots (each
+        pivot of the positive block above ``n·ε`` times its diagonal entry, each of the negative block
+        below ``−n·ε`` times its magnitude). For matrices whose definiteness the caller cannot
+        guarantee by construction; costs a copy of the triangular factor.
+    labels : (n,) int, optional
+        The numbers error messages give the rows (e.g. their indices in a larger problem); default
+        ``0 … n − 1``.
 
     Returns
     -------
@@ -194,8 +208,8 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
     ------
     InputError
         When the diagonal shows the promised definiteness does not hold (a
-        zero or wrong-signed pivot candidate), or SuperLU finds the matrix
-        singular — naming ``what``.
+        zero or wrong-signed pivot candidate), with ``check`` when a pivot
+        shows it, or SuperLU finds the matrix singular — naming ``what``.
 
     Examples
     --------
@@ -203,6 +217,16 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
     Traceback (most recent call last):
     ...
     quadnodes.errors.InputError: demo: the matrix is not positive definite (diagonal entry 0 is 0); the energy does not determine every unknown
+
+    A singular matrix with a positive diagonal (a chain of springs with no end held) passes the diagonal test;
+    ``check`` finds its last pivot:
+
+    >>> chain = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(4, 4)).tolil()
+    >>> chain[0, 0] = chain[3, 3] = 1.0
+    >>> factorize(chain.tocsc(), kind="spd", what="demo", check=True, backend="superlu")
+    Traceback (most recent call last):
+    ...
+    quadnodes.errors.InputError: demo: the matrix is singular (Factor is exactly singular)
     """
     M = sp.csc_matrix(M)
     n = M.shape[0]
@@ -231,19 +255,22 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
         return Factorization(lu, n, what, pivoted=True, perm=perm, order=how)
     if kind not in ("spd", "quasi-definite"):
         raise InputError(f"kind: expected 'spd', 'quasi-definite', 'symmetric' or 'general', got {kind!r}")
+    name = np.arange(n) if labels is None else np.asarray(labels)
+    if name.shape != (n,):
+        raise InputError(f"labels: expected {n} numbers, got shape {name.shape}")
     d = M.diagonal()
     k = n - (negative if kind == "quasi-definite" else 0)
     bad = np.flatnonzero(~(d[:k] > 0))
     if bad.size:
         raise InputError(
-            f"{what}: the matrix is not positive definite (diagonal entry {int(bad[0])} is "
+            f"{what}: the matrix is not positive definite (diagonal entry {int(name[bad[0]])} is "
             f"{d[bad[0]]:.3g}); the energy does not determine every unknown"
         )
     if kind == "quasi-definite":
         bad = np.flatnonzero(~(d[k:] < 0))
         if bad.size:
             raise InputError(
-                f"{what}: the constraint block is not negative definite (entry {int(bad[0]) + k} is "
+                f"{what}: the constraint block is not negative definite (entry {int(name[bad[0] + k])} is "
                 f"{d[k + bad[0]]:.3g})"
             )
     perm, how = _order(M, order)
@@ -262,15 +289,43 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
                     factor.cholesky_inplace(Mp)
         except chol.CholmodError as exc:
             raise InputError(f"{what}: the matrix is not positive definite ({exc})") from exc
+        if check:  # (LLᵀ of Mp[q][:, q]: the pivots are L's diagonal squared)
+            pivots = np.empty(n)
+            pivots[factor.P()] = factor.L().diagonal() ** 2
+            _check_pivots(pivots, Mp.diagonal(), k, perm, name, what)
         return Factorization(factor, n, what, pivoted=False, perm=perm, backend="cholmod", order=how)
     try:
         if perm is None:
             lu = splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         else:
             lu = splu(Mp, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-    except RuntimeError as exc:  # pragma: no cover - definite matrices have no zero pivot
-        raise InputError(f"{what}: the matrix could not be factorized ({exc})") from exc
+    except RuntimeError as exc:  # an exact zero pivot: a singular matrix with a positive diagonal
+        raise InputError(f"{what}: the matrix is singular ({exc})") from exc
+    if check:  # (Pr·Mp·Pc = LU with the row order the column order: column j's pivot is U[perm_c[j]])
+        _check_pivots(lu.U.diagonal()[lu.perm_c], Mp.diagonal(), k, perm, name, what)
     return Factorization(lu, n, what, pivoted=False, perm=perm, order=how)
+
+
+def _check_pivots(pivots: np.ndarray, diagonal: np.ndarray, k: int, perm: np.ndarray | None, labels: np.ndarray,
+                  what: str) -> None:
+    """Refuse a factorization whose pivots (of the factorized matrix ``M[perm][:, perm]``, its diagonal beside
+    them) show ``M`` singular or indefinite to working precision: the pivots of ``M``'s first ``k`` rows must
+    exceed ``n·ε`` times their diagonal entry, the rest (a quasi-definite matrix's negative block) be below
+    ``−n·ε`` times theirs. Errors name ``M``'s rows by ``labels``."""
+    n = pivots.size
+    row = np.arange(n) if perm is None else perm  # (M's row of each factorized row)
+    tol = n * np.finfo(np.float64).eps
+    ratio = pivots / np.abs(diagonal)
+    ratio[row >= k] *= -1
+    bad = np.flatnonzero(~(ratio > tol))
+    if bad.size:
+        i = int(bad[np.argmin(ratio[bad])])
+        if row[i] < k:
+            raise InputError(f"{what}: the matrix is not positive definite to working precision (the pivot of unknown "
+                             f"{int(labels[row[i]])} is {ratio[i]:.1e} times its diagonal entry, at most n·ε = {tol:.1e}); "
+                             "the energy does not determine every unknown")
+        raise InputError(f"{what}: the constraint block is not negative definite to working precision (row "
+                         f"{int(labels[row[i]])}'s pivot)")
 
 
 def _order(M: sp.csc_matrix, order: str | np.ndarray) -> tuple[np.ndarray | None, str]:

@@ -107,7 +107,13 @@ class QuadraticProblem:
     ------
     InputError
         On shapes that do not fit, an unknown method, CG with constraints, or a
-        matrix that is not positive definite on the unknowns.
+        matrix that is not positive definite on the unknowns: a zero or negative
+        diagonal entry, or (the direct back-end, which reads the factorization's
+        pivots back) a pivot within ``n·ε`` of its diagonal entry or below it —
+        an energy that leaves a motion free or has a saddle, named by an unknown.
+        (With ``constraint_shift``, a motion that the energy and the constraints
+        both leave free is held by the shift instead, and not detected: keep
+        ``Q_uu`` definite there, e.g. by ``shift``.)
 
     Examples
     --------
@@ -263,15 +269,17 @@ class QuadraticProblem:
 
     def _factorize(self) -> Factorization:
         if self._factor is None:
+            # (the energy is the caller's: its definiteness is read back from the pivots, check=True)
             if self._Aeq is None:
-                self._factor = factorize(self._Quu, kind="spd", what=self.what)
+                self._factor = factorize(self._Quu, kind="spd", what=self.what, check=True, labels=self.unknown)
             else:
                 m = self._Aeq.shape[0]
                 eps = self.constraint_shift
                 C = -eps * sp.identity(m, format="csr") if eps > 0 else sp.csr_matrix((m, m))
                 K = sp.bmat([[self._Quu, self._Aeq.T], [self._Aeq, C]], format="csc")
                 if eps > 0:
-                    self._factor = factorize(K, kind="quasi-definite", negative=m, what=self.what)
+                    self._factor = factorize(K, kind="quasi-definite", negative=m, what=self.what, check=True,
+                                             labels=np.concatenate([self.unknown, np.arange(m)]))
                 else:
                     self._factor = factorize(K, kind="general", what=self.what)
         return self._factor

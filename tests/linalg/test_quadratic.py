@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -9,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from quadnodes.errors import InputError
-from quadnodes.linalg import QuadraticProblem
+from quadnodes.linalg import QuadraticProblem, cholmod_available, direct
 from quadnodes.linalg import threads as linalg_threads
 
 
@@ -112,6 +114,63 @@ def test_refusals_name_the_problem():
     # a singular KKT system (dependent constraints) is an error, never a crash
     with pytest.raises(InputError, match="singular"):
         QuadraticProblem(sp.identity(3), Aeq=sp.csr_matrix(np.ones((2, 3))))
+
+
+def _grid_laplacian(rows: int, cols: int, seed: int) -> sp.csr_matrix:
+    """A weighted grid graph's Laplacian: positive semi-definite, singular (constants), positive diagonal."""
+    rng = np.random.default_rng(seed)
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    e = np.concatenate([np.c_[idx[:, :-1].ravel(), idx[:, 1:].ravel()], np.c_[idx[:-1].ravel(), idx[1:].ravel()]])
+    W = sp.coo_matrix((0.1 + rng.random(len(e)), (e[:, 0], e[:, 1])), shape=(idx.size,) * 2).tocsr()
+    W = W + W.T
+    return (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+
+
+BACKENDS = ["superlu", pytest.param("cholmod", marks=pytest.mark.skipif(not cholmod_available(),
+                                                                       reason="scikit-sparse not installed"))]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("shape", [(3, 4), (20, 20), (120, 150)])
+def test_an_energy_that_leaves_a_motion_free_is_refused(monkeypatch, backend: str, shape: tuple[int, int]) -> None:
+    """A graph Laplacian with nothing known leaves the constant free. Its diagonal is positive, and the unpivoted
+    factorization meets no exact zero pivot on larger grids (rounding leaves one of 10⁻¹⁶–10⁻¹³ of its diagonal,
+    of either sign): the pivots are read back, and the problem is refused naming an unknown of Q, never solved
+    into a meaningless answer. One known unknown fixes it; so does a shift of 10⁻¹⁰ of the diagonal."""
+    if backend == "superlu":
+        monkeypatch.setattr(direct, "_cholmod", lambda: None)
+    L = _grid_laplacian(*shape, seed=1)
+    n = L.shape[0]
+    with pytest.raises(InputError, match=r"demo: the matrix is (not positive definite|singular)"):
+        QuadraticProblem(L, method="direct", what="demo")
+    with pytest.raises(InputError, match=r"not positive definite|singular") as info:  # (Q's unknowns 2 … n + 1)
+        QuadraticProblem(sp.block_diag([sp.identity(2), L]).tocsr(), known=[0], method="direct")
+    assert all(2 <= int(j) < n + 2 for j in re.findall(r"unknown (\d+)", str(info.value)))
+    p = QuadraticProblem(L, known=[n // 2], method="direct")
+    B = np.random.default_rng(2).normal(size=(n, 3))
+    B -= B.mean(axis=0)
+    x = p.solve(B, Y=np.zeros((1, 3)))
+    if n <= 400:
+        ref = _dense(L, np.array([n // 2]), np.zeros((1, 3)), B)
+        np.testing.assert_allclose(x, ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
+    else:  # (the residual of the reduced system)
+        u = p.unknown
+        np.testing.assert_allclose(L[u][:, u] @ x[u], -B[u], atol=1e-9 * np.abs(B).max())
+    QuadraticProblem(L, shift=1e-10, method="direct")  # (definite by 10⁻¹⁰ of the diagonal: accepted)
+
+
+@pytest.mark.parametrize("constrained", [False, True])
+def test_an_indefinite_energy_with_a_positive_diagonal_is_refused(constrained: bool) -> None:
+    """A saddle (a graph Laplacian minus half its smallest diagonal entry's worth of identity: every diagonal
+    entry positive, some eigenvalues negative) has no minimizer; its factorization meets negative pivots, and
+    the problem is refused — with linear constraints and a shift (the quasi-definite path) too — never solved
+    to a stationary point that is no minimum."""
+    L = _grid_laplacian(15, 15, seed=3)
+    Q = (L - 0.5 * L.diagonal().min() * sp.identity(L.shape[0])).tocsr()
+    assert (Q.diagonal() > 0).all() and np.linalg.eigvalsh(Q.toarray())[0] < 0
+    kw = dict(Aeq=sp.csr_matrix(np.eye(1, L.shape[0])), constraint_shift=1e-9) if constrained else {}
+    with pytest.raises(InputError, match="demo: the matrix is not positive definite"):
+        QuadraticProblem(Q, method="direct", what="demo", **kw)
 
 
 @settings(max_examples=20, deadline=None)
