@@ -243,6 +243,18 @@ SPECTRAL_EXACT_FRESH_SIDE = 320
 #: with broadband noise are at 1.9–2.6, a torus at 6.1 (a throwaway script's figures; the study prints its
 #: sheet's: ``cg_weights.py``).
 SPECTRAL_MAX_STIFFNESS = 12.0
+#: "auto" preconditions a grid's CG by the line preconditioner (banded solves along every row and column line,
+#: :class:`~quadnodes.linalg.cg.LinePreconditioner`, loading the compiled kernels at any size) in place of
+#: Gauss–Seidel, block Jacobi or plain CG where some unknown's fairing diagonal is at least this many times the
+#: median one's (:func:`_stiffness`) — stiff spots, from eq. 32's own lengths on a nearly collapsed stretch of a line:
+#: point sweeps relax such a stretch slowly, the lines solve it whole. Not where the two-grid switch may be
+#: wanted (the Gershgorin bound over the stiffness still above :data:`TWO_GRID_CONTRAST` ω: a tiny weight) nor
+#: where the spectral preconditioner takes the grid. Fair's first-iteration system at the default weight under
+#: ``line_spacing="hold"``, kernels loaded: at a stiffness of 3–13 Gauss–Seidel takes 31–60 steps in about half
+#: the lines' time; at 177–366 on 300² they tie (0.39–0.53 s), at 202–335 on 600² the lines take 1.05–1.35 s
+#: against 1.48–2.02 s, on the 1000² sheet at 1,822 2.8 s against 6.9 s, on the bench torus (1,002 and 837)
+#: 1.1 s against 1.7 s at 300² and 11.6 s against 22.1 s at 1000² (``python benchmarks/studies/stiff_lines.py``).
+LINES_MIN_STIFFNESS = 100.0
 #: Default dimensionless penalty weight (in units of the mean edge length).
 #: Chosen from ``benchmarks/studies/weight_sweep.py``; see ``docs/fairing.md``.
 DEFAULT_WEIGHT = 0.3
@@ -1137,7 +1149,16 @@ class FairingSystem:
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
             tiny = contrast > SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2 and exact_lines
             spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
-            may_switch = self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not spectral_only
+            # a grid with stiff spots (a stretch of a line nearly collapsed, under eq. 32's own lengths): the lines'
+            # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be
+            # wanted (the bound over ω without the stiff spots' excess, the bound over the stiffness, above
+            # TWO_GRID_CONTRAST)
+            stiffness = (_stiffness(*grid_storage(), self._grid[2], self.weight)
+                         if grid and self.preconditioner == "auto" and not spectral_only
+                         and contrast > GAUSS_SEIDEL_CONTRAST else 0.0)
+            stiff_lines = stiffness >= LINES_MIN_STIFFNESS and contrast / stiffness <= TWO_GRID_CONTRAST
+            may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not spectral_only
+                          and not stiff_lines)
             if may_switch and shape is not None:
                 self._coarse = int(np.prod([coarse_nodes(side, st, c).size
                                             for side, st, c in zip(shape, strides, wrap)]))
@@ -1145,10 +1166,10 @@ class FairingSystem:
             elif may_switch:  # any other mesh: coarse nodes along its structure lines (every 4th: one in about 16)
                 may_switch = (self._lines is not None
                               and TWO_GRID_MIN_SIDE**2 < k <= TWO_GRID_COARSE_MAX * TWO_GRID_STRIDE**2)
-            wanted = wanted or may_switch
+            wanted = wanted or may_switch or stiff_lines
             chosen = self.preconditioner in ("gauss-seidel", "two-grid")
             if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST
-                           and not spectral_only)) \
+                           and not spectral_only and not stiff_lines)) \
                     and kernels.wait():
                 # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps; a closed grid's (with the
                 # seams' diagonals) and any other mesh's in compressed rows, in their own order. At tiny weights,
@@ -1182,8 +1203,9 @@ class FairingSystem:
             use_spectral = grid and (self.preconditioner == "spectral" or spectral_only
                                      or (not (wanted and kernels.wait()) and _spectral_pays(k, contrast)
                                          and spectral_fits()))
+            stiff_lines = stiff_lines and kernels.wait()
             if k >= BLOCK_SIZE and mean_diag > ratio * self.weight and self.preconditioner == "auto" \
-                    and not use_spectral:
+                    and not use_spectral and not stiff_lines:
                 order = _patch_order(self._windows, self.free_index, 4)
                 M = permuted(self.matrix, order)
                 self._cg = (RowBlocks(M), BlockJacobi(M, BLOCK_SIZE), order)
@@ -1191,7 +1213,7 @@ class FairingSystem:
                 offsets, data = grid_storage()
                 compiled = wanted and kernels.wait()
                 precond = None
-                if self.preconditioner == "lines":  # (on request: "auto" took Gauss–Seidel where these would pay)
+                if self.preconditioner == "lines" or stiff_lines:  # (on request, or a grid with stiff spots)
                     try:
                         precond = _line_preconditioner(data, offsets, cols)
                     except np.linalg.LinAlgError as exc:  # a line block not positive definite

@@ -962,6 +962,49 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
 
 
 @pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("kind", ["sheet", "torus"])
+def test_stiff_spots_take_the_line_preconditioner(monkeypatch, threads, kind):
+    """Under eq. 32's own lengths a nearly collapsed stretch of a line makes a stiff spot (fairing diagonals
+    hundreds of times the median): "auto" takes the lines' banded solves there, on an open grid and a torus, at
+    any size (the kernels loaded for it), and fairs within 1e-8 of the mesh's size of the direct solve; not where
+    the matrix has no stiff spot, nor at a weight where the two-grid switch may be wanted."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg import compiled
+    from quadnodes.linalg.cg import LinePreconditioner
+    from quadnodes.mesh import torus
+    from quadnodes.topology import as_grid
+    from quadnodes.zigzag import _window_geometry
+
+    monkeypatch.setattr(linalg_threads, "PARALLEL_MIN_ROWS", 10)
+    monkeypatch.setattr(linalg_threads, "thread_count", lambda: threads)
+    if kind == "sheet":
+        m, _ = perturb(grid(40, 50), tangential=0.2, normal=0.1, seed=3)
+    else:
+        base, _ = perturb(torus(24, 40, major=800.0, minor=200.0), tangential=0.2, normal=0.1, seed=3)
+        m = as_grid(base)
+    free = detect(m, 0.0).free
+    w = 0.3 / m.mean_edge_length**2
+    calm = _grid_system(m, free, w)
+    assert not isinstance(calm._cg_setup()[1], LinePreconditioner)
+    v = m.vertices.copy()
+    row = v.shape[0] // 2 - 7  # three vertices of a row line pulled onto their neighbour
+    v[row + 1:row + 4] = v[row] + 0.01 * (v[row + 1:row + 4] - v[row])
+    stiff_mesh = m.with_vertices(v)
+    s = _grid_system(stiff_mesh, free, w)
+    offsets, data = s._cg_setup()[0].offsets, s._cg[0].data
+    assert fairing_module._stiffness(offsets, data, s._grid[2], s.weight) >= fairing_module.LINES_MIN_STIFFNESS
+    assert isinstance(s._cg[1], LinePreconditioner) and compiled.ready()
+    x = s.solve(v[free])
+    ref = FairingSystem(v, stiff_mesh.topology.windows, free, w, solver="direct",
+                        _inverse_lengths=_window_geometry(v, stiff_mesh.topology.windows,
+                                                          stiff_mesh.topology.window_walk)[1]).solve(v[free])
+    extent = float(np.ptp(v, axis=0).max())
+    assert np.abs(x - ref).max() <= 1e-8 * extent
+    tiny = _grid_system(stiff_mesh, free, w * 1e-6)  # (a bound above TWO_GRID_CONTRAST ω: Gauss–Seidel's switch)
+    assert tiny._cg_setup() and not isinstance(tiny._cg[1], LinePreconditioner)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("kind", ["cylinder", "torus"])
 def test_closed_grids_fair_on_the_grid_path_as_on_the_general_path(monkeypatch, threads, kind):
     """A cylinder or torus renumbered row by row (``as_grid``, closed ``grid_wrap``) takes the grid's

@@ -16,11 +16,13 @@ form (two compiled sweeps per step, no product), on a grid's diagonal storage or
 ``multigrid``: the two-grid cycle of a grid, open or closed around (Gauss–Seidel sweeps around a coarse grid
 of every 4th row and column, cubic interpolation, the Galerkin coarse matrix factorized once): steps that stop growing
 as the weight falls.
-``spectral``: a grid's line operator with constant coefficients, inverted by cosine and Fourier transforms
-(SciPy's): the preconditioner of a grid's CG where the compiled sweeps are not loaded.
+``spectral``: a grid's line operator with constant coefficients, inverted exactly by the lines' own eigenvectors
+(open lines) and Fourier transforms (closed ones), fixed vertices inside by a capacitance correction: steps that
+depend neither on the noise nor on the weight.
 ``quadratic``: :class:`QuadraticProblem`, "minimize a quadratic energy with some
 unknowns fixed (and linear equality constraints), set up once, solve many
-right-hand sides".
+right-hand sides"; the energy's definiteness is read back from the factorization's pivots.
+An overview with an example: ``docs/linalg.md``.
 """
 
 from __future__ import annotations
