@@ -1137,12 +1137,19 @@ class FairingSystem:
                                and open_side <= SPECTRAL_EXACT_FRESH_SIDE)) \
                 and open_side <= spectral.EXACT_MAX_SIDE
 
+            stiff: list[float] = []  # (_stiffness once)
+
+            def stiffness() -> float:
+                if not stiff:
+                    stiff.append(_stiffness(*grid_storage(), self._grid[2], self.weight))
+                return stiff[0]
+
             def spectral_fits() -> bool:
                 if not fits:
                     fits.append(self.preconditioner == "auto" and self._third_differences
                                 and spectral.inverts_exactly(self._grid[2].reshape(shape), wrap,
                                                              "exact" if exact_lines else "cosine")
-                                and _stiffness(*grid_storage(), self._grid[2], self.weight) <= SPECTRAL_MAX_STIFFNESS)
+                                and stiffness() <= SPECTRAL_MAX_STIFFNESS)
                 return fits[0]
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
@@ -1153,10 +1160,9 @@ class FairingSystem:
             # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be
             # wanted (the bound over ω without the stiff spots' excess, the bound over the stiffness, above
             # TWO_GRID_CONTRAST)
-            stiffness = (_stiffness(*grid_storage(), self._grid[2], self.weight)
-                         if grid and self.preconditioner == "auto" and not spectral_only
-                         and contrast > GAUSS_SEIDEL_CONTRAST else 0.0)
-            stiff_lines = stiffness >= LINES_MIN_STIFFNESS and contrast / stiffness <= TWO_GRID_CONTRAST
+            stiff_lines = (grid and self.preconditioner == "auto" and not spectral_only
+                           and contrast > GAUSS_SEIDEL_CONTRAST and stiffness() >= LINES_MIN_STIFFNESS
+                           and contrast / stiffness() <= TWO_GRID_CONTRAST)
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not spectral_only
                           and not stiff_lines)
             if may_switch and shape is not None:

@@ -22,7 +22,8 @@ Rows
   conjugate gradients from the anchor); includes structure lines, detection,
   assembly and solve; the note gives CG steps and the relative residual;
 - fair, line_spacing="hold": the same with eq. 32's own edge lengths (the thesis); on broadband
-  noise its matrix has stiff spots, where the line preconditioner applies (from 250,000 unknowns);
+  noise its matrix may have stiff spots (a stretch of a line nearly collapsed), where a grid takes the line
+  preconditioner (``fairing.LINES_MIN_STIFFNESS``);
 - peers on the default's system (``line_spacing="fair"``; assembly excluded): SciPy SuperLU with its default
   ordering and with MMD(AᵀA+A), quadnodes' own CG with ``preconditioner="none"`` (what the
   default does where the matrix has no stiff spots), and CG preconditioned by pyamg smoothed
