@@ -42,7 +42,7 @@ from scipy.sparse.csgraph import connected_components
 from . import _validate
 from .discrete_curvature import cotangent_laplacian, moreton_sequin
 from .errors import InputError
-from .linalg import NESTED_DISSECTION_MIN, factorize, nested_dissection
+from .linalg import NESTED_DISSECTION_MIN, QuadraticProblem, nested_dissection
 from .mesh import QuadMesh
 from .progress import report_progress
 from .topology import FIX_MODES, fixed_vertices
@@ -195,9 +195,10 @@ def schneider_kobbelt(
             L = cotangent_laplacian(mesh, vertices=x)
         fit = moreton_sequin(mesh, vertices=x)
         H = fit["H"]
-        Lff = L[free][:, free].tocsc()
-        rhs = -(L[free][:, held] @ H[held])
-        Ht = factorize(Lff, kind="spd", what="schneider_kobbelt (Laplace–Beltrami system)", order=order).solve(rhs)
+        # Δ_B H = 0 with the held vertices' curvature given: the harmonic curvature on the free vertices
+        Ht = QuadraticProblem(L, known=held, method="direct", order=order,
+                              what="schneider_kobbelt (Laplace–Beltrami system)").solve(
+                                  np.zeros(mesh.n_vertices), Y=H[held])[free]
         r = H[free] - Ht
         e_now = float(r @ r)
         if it == 1:

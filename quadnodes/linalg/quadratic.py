@@ -89,6 +89,10 @@ class QuadraticProblem:
         (``Q`` with at most :data:`MAX_DIAGONALS` distinct diagonals; ``"auto"``
         takes it from :data:`DIAGONAL_MIN_UNKNOWNS` rows on or where the compiled
         kernels are loaded already).
+    order : {"auto", "nested_dissection", "minimum_degree"} or (k,) int
+        The direct back-end's fill-reducing order of ``Q_uu`` (without constraints), as in
+        :func:`~quadnodes.linalg.direct.factorize`: e.g. one nested-dissection order computed
+        once for many problems of one pattern.
     what : str
         Named in error messages.
 
@@ -143,6 +147,7 @@ class QuadraticProblem:
         constraint_shift: float = 0.0,
         preconditioner: Literal["none", "jacobi", "block-jacobi"] = "none",
         storage: Literal["auto", "csr", "diagonal"] = "auto",
+        order: str | np.ndarray = "auto",
         what: str = "quadratic problem",
     ) -> None:
         Q = sp.csr_matrix(Q)
@@ -196,6 +201,7 @@ class QuadraticProblem:
             raise InputError(f"{what}: constraint_shift must be ≥ 0, got {constraint_shift!r}")
         self.rtol = float(rtol)
         self.what = what
+        self._order = order
         self.iterations = 0
         self.residual = 0.0
         self._factor: Factorization | None = None
@@ -271,7 +277,8 @@ class QuadraticProblem:
         if self._factor is None:
             # (the energy is the caller's: its definiteness is read back from the pivots, check=True)
             if self._Aeq is None:
-                self._factor = factorize(self._Quu, kind="spd", what=self.what, check=True, labels=self.unknown)
+                self._factor = factorize(self._Quu, kind="spd", what=self.what, check=True, labels=self.unknown,
+                                         order=self._order)
             else:
                 m = self._Aeq.shape[0]
                 eps = self.constraint_shift
