@@ -154,8 +154,11 @@ def spread(walls: list[float]) -> str:
     return f" ({walls[0]:.3f}–{walls[-1]:.3f})" if len(walls) > 1 else ""
 
 
-def planarize_case(name: str):
+def planarize_case(name: str, noise: str = "zigzag"):
     """(face, clean mesh, faired noisy mesh) of a planarize benchmark case: "E1"–"E4" or "F100".
+
+    ``noise="broadband"`` replaces ``perturb`` by independent Gaussian offsets of 0.2 mean edge lengths per
+    coordinate (seed 7, the corners kept), as :func:`noisy_grid` has them.
 
     The recipe of ``benchmarks/perf/bench_planarize.py``: the thesis example (or F100, a 100 × 100
     sample of ``surfaces.wavy(10000, 10000, 400, waves_u=0.5, waves_v=1.0)``), ``perturb`` with its
@@ -170,15 +173,22 @@ def planarize_case(name: str):
 
     if name == "F100":
         face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
-        rows, cols, noise = 100, 100, (0.25, 0.1)
+        rows, cols, amount = 100, 100, (0.25, 0.1)
     else:
         from quadnodes.report import THESIS_EXAMPLES
 
         ex = THESIS_EXAMPLES[name]
         face = getattr(surfaces, ex.surface)()
-        rows, cols, noise = ex.rows, ex.cols, ex.noise
+        rows, cols, amount = ex.rows, ex.cols, ex.noise
     clean = surfaces.sample(face, rows, cols)
-    noisy, _ = perturb(clean, tangential=noise[0], normal=noise[1], seed=7, fix="corners")
+    if noise == "broadband":
+        offsets = np.random.default_rng(7).normal(scale=0.2 * clean.mean_edge_length, size=clean.vertices.shape)
+        offsets[[0, cols - 1, (rows - 1) * cols, rows * cols - 1]] = 0.0  # (the corners, held as perturb holds them)
+        noisy = clean.with_vertices(clean.vertices + offsets)
+    elif noise == "zigzag":
+        noisy, _ = perturb(clean, tangential=amount[0], normal=amount[1], seed=7, fix="corners")
+    else:
+        raise ValueError(f"noise: expected one of {NOISES}, got {noise!r}")
     faired, _ = fair(noisy, iterations=3, line_curvature="fair")
     return face, clean, faired
 

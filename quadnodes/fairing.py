@@ -250,11 +250,21 @@ SPECTRAL_MAX_STIFFNESS = 12.0
 #: point sweeps relax such a stretch slowly, the lines solve it whole. Not where the two-grid switch may be
 #: wanted (the Gershgorin bound over the stiffness still above :data:`TWO_GRID_CONTRAST` ω: a tiny weight) nor
 #: where the spectral preconditioner takes the grid. Fair's first-iteration system at the default weight under
-#: ``line_spacing="hold"``, kernels loaded: at a stiffness of 3–13 Gauss–Seidel takes 31–60 steps in about half
-#: the lines' time; at 177–366 on 300² they tie (0.39–0.53 s), at 202–335 on 600² the lines take 1.05–1.35 s
-#: against 1.48–2.02 s, on the 1000² sheet at 1,822 2.8 s against 6.9 s, on the bench torus (1,002 and 837)
-#: 1.1 s against 1.7 s at 300² and 11.6 s against 22.1 s at 1000² (``python benchmarks/studies/stiff_lines.py``).
+#: ``line_spacing="hold"``, kernels loaded (``python benchmarks/studies/stiff_lines.py``; docs/fairing.md, "The line
+#: preconditioner"): at a stiffness of 3–13 Gauss–Seidel takes about half the lines' time; at 177–366 on 300² the
+#: two are within the runs' spread (0.31–0.65 s against 0.39–0.69 s), at 202–335 on 600² the lines take 1.10–1.82 s
+#: against 1.35–2.10 s, on the 1000² sheet at 1,822 2.61 s against 5.68 s, on the bench torus (1,002 and 837)
+#: 1.03 s against 2.00 s at 300² and 10.86 s against 20.19 s at 1000².
 LINES_MIN_STIFFNESS = 100.0
+#: ... where the compiled kernels are wanted anyway (:data:`COMPILED_MIN_UNKNOWNS`, or loaded already) or plain CG's
+#: work, unknowns × √(Gershgorin bound / ω), is at least this: loading the kernels costs about a second in a fresh
+#: process. The bench torus under ``line_spacing="hold"`` in fresh processes, the lines forced at every size (a
+#: throwaway script, two runs each): 100² (work 2·10⁶) 0.55–1.18 s against plain CG's 0.20 s, 150² (4.7·10⁶)
+#: 0.71–0.85 against 0.48–0.54 s, 200² (1.5·10⁷) 1.16–1.60 against 1.51–1.54 s, 300² (3.7·10⁷) 1.95 against 5.46 s.
+#: The rule's outcome, ``python benchmarks/perf/bench_core.py --sizes 100 150 200 300 --only fair_hold --noise
+#: broadband --torus --repeat 3 --against /tmp/base`` (base 38f704b): 100²–200² the same path as before (0.20, 0.53,
+#: 1.36 s against 0.19, 0.53, 1.20 s), 300² 2.22 s against 5.48 s.
+LINES_MIN_WORK = 2e7
 #: Default dimensionless penalty weight (in units of the mean edge length).
 #: Chosen from ``benchmarks/studies/weight_sweep.py``; see ``docs/fairing.md``.
 DEFAULT_WEIGHT = 0.3
@@ -900,6 +910,11 @@ class FairingSystem:
         exceeds :data:`SPECTRAL_CONTRAST` ω (a weight below about 5·10⁻³), with or without the kernels, in
         place of Gauss–Seidel and the two-grid switch; cosine lines where the bound is at most
         :data:`SPECTRAL_EXACT_CONTRAST` ω and SciPy's transforms are imported (or an axis closes around).
+        On a grid (open or closed around) with stiff spots — some unknown's fairing diagonal at least
+        :data:`LINES_MIN_STIFFNESS` times the median one's, as eq. 32's own lengths give a nearly collapsed
+        stretch of a line — and no tiny weight (the bound over that stiffness within :data:`TWO_GRID_CONTRAST`
+        ω): the line preconditioner in place of all the above but the spectral one, the kernels loaded for it
+        where they are wanted anyway or plain CG's work reaches :data:`LINES_MIN_WORK`.
         Elsewhere: block Jacobi at small weights, else none.
         ``"gauss-seidel"``: that preconditioner at any size (needs the compiled kernels).
         ``"two-grid"``: the two-grid cycle at any weight (a mostly free vertex grid's, else the structure
@@ -1092,7 +1107,8 @@ class FairingSystem:
         on a mostly free complete vertex grid (``_topology`` given) in the grid's
         numbering with diagonal storage (:class:`~quadnodes.linalg.grid.GridPattern`; compiled
         from :data:`COMPILED_MIN_UNKNOWNS` unknowns on), else plain in ``free_index`` order. The
-        line preconditioner only on request (``preconditioner="lines"``).
+        line preconditioner on request (``preconditioner="lines"``), or on a grid with stiff spots (see
+        ``preconditioner`` in the class: :data:`LINES_MIN_STIFFNESS`).
         """
         if self._cg is None:
             A, k = self.A, self.n_free
@@ -1160,9 +1176,11 @@ class FairingSystem:
             # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be
             # wanted (the bound over ω without the stiff spots' excess, the bound over the stiffness, above
             # TWO_GRID_CONTRAST)
+            # (the kernels loaded for it where plain CG's work, unknowns × √(bound / ω), repays loading them)
             stiff_lines = (grid and self.preconditioner == "auto" and not spectral_only
                            and contrast > GAUSS_SEIDEL_CONTRAST and stiffness() >= LINES_MIN_STIFFNESS
-                           and contrast / stiffness() <= TWO_GRID_CONTRAST)
+                           and contrast / stiffness() <= TWO_GRID_CONTRAST
+                           and (wanted or k * np.sqrt(contrast) >= LINES_MIN_WORK))
             may_switch = (self.preconditioner == "auto" and contrast > TWO_GRID_CONTRAST and not spectral_only
                           and not stiff_lines)
             if may_switch and shape is not None:

@@ -75,7 +75,10 @@ without the 4× finer sample; 1–6 min to build on 2 cores, so ``--cache`` keep
 Above 20,000 free vertices the global step is conjugate gradients started from the
 current positions instead of a factorization.
 
-Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes]
+``--noise broadband``: every case's noise is independent Gaussian offsets of 0.2 mean edge lengths per
+coordinate (corners kept) instead of ``perturb``'s zigzag, before the same ``fair()``: the inputs a scan gives.
+
+Run:  python benchmarks/perf/bench_planarize.py [--quick] [--slow] [--shape keep|free] [--shapes] [--noise broadband]
       python benchmarks/perf/bench_planarize.py --iteration [--big] [--cache]
       (--quick: E1–E4 only, ~1.5 min; the default adds F100, ~3 min on 2 cores;
       --slow adds libigl at threshold 1e-3 and quadnodes Newton on F100)
@@ -112,18 +115,18 @@ LABELS = {
 
 
 
-def _case(name: str):
+def _case(name: str, noise: str = "zigzag"):
     """(face, clean mesh, 4× finer sample of the face, faired noisy mesh) of one benchmark case
     (``_common.planarize_case``'s recipe)."""
     from quadnodes import surfaces
 
-    face, clean, faired = _common.planarize_case(name)
+    face, clean, faired = _common.planarize_case(name, noise)
     rows, cols = clean.grid_shape
     fine = surfaces.sample(face, 4 * (rows - 1) + 1, 4 * (cols - 1) + 1)
     return face, clean, fine, faired
 
 
-def run_row(name: str, kind: str, shape: str = "keep") -> dict:
+def run_row(name: str, kind: str, shape: str = "keep", noise: str = "zigzag") -> dict:
     import igl
 
     from quadnodes.metrics import distance_to_mesh
@@ -131,7 +134,7 @@ def run_row(name: str, kind: str, shape: str = "keep") -> dict:
     from quadnodes.planarization import planarize
     from quadnodes.zigzag import window_deviation
 
-    face, clean, fine, faired = _case(name)
+    face, clean, fine, faired = _case(name, noise)
     import trimesh.triangles  # noqa: F401  (imported lazily by the closest-point search: keep it out of the time)
 
     _ = faired.topology.windows  # built before timing, like the input of a graph node (cached on the mesh)
@@ -258,11 +261,14 @@ def main() -> None:
     ap.add_argument("--big", action="store_true", help="with --iteration: add 1000×1000 (~6 min to build)")
     ap.add_argument("--cache", action="store_true",
                     help="with --iteration: keep the built inputs in out/bench-cache/ and reuse them")
+    ap.add_argument("--noise", choices=_common.NOISES, default="zigzag",
+                    help="the noise before fair(): perturb's zigzag (the tables' default) or broadband offsets of "
+                         "0.2 h (the inputs a scan gives)")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--iteration-row", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.row:
-        print(json.dumps(run_row(args.row[0], args.row[1], args.shape)))
+        print(json.dumps(run_row(args.row[0], args.row[1], args.shape, args.noise)))
         return
     if args.iteration_row:
         print(json.dumps(run_iteration(args.iteration_row, args.cache)))
@@ -280,7 +286,8 @@ def main() -> None:
         for kind in KINDS:
             if name == FREEFORM and kind in ("igl_tol", "qn_newton") and not args.slow:
                 continue
-            out = subprocess.run([sys.executable, __file__, "--row", name, kind, "--shape", args.shape],
+            out = subprocess.run([sys.executable, __file__, "--row", name, kind, "--shape", args.shape,
+                                  "--noise", args.noise],
                                  capture_output=True, text=True, check=True)
             r = json.loads(out.stdout.strip().splitlines()[-1])
             worst = max(worst, r["igl_measure_diff"])
@@ -292,7 +299,7 @@ def main() -> None:
                          f"| {r['zigzag_mean']:.2e} | {r['edge_ratio_min']:.3f} | {r['folded']} "
                          f"| {r['iterations']} | {wall} | {cpu} | {peak} |")
             if len(lines) == 1:
-                print(f"\n### {name} ({r['size']})\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|")
+                print(f"\n### {name} ({r['size']}, {args.noise} noise)\n\n{HEADER}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|")
             print(lines[-1], flush=True)
         if name == FREEFORM and not args.slow:
             print("\n(libigl at threshold 1e-3 skipped on this mesh: run with --slow)")

@@ -1,7 +1,8 @@
 """Grids with stiff spots: the line preconditioner against symmetric Gauss–Seidel, by the stiffness of the matrix.
 
-Backs ``LINES_MIN_STIFFNESS`` in ``quadnodes/fairing.py`` and docs/fairing.md "Stiff spots: the lines' banded
-solves" (issue 15: a solver that is fast on any noise).
+Backs ``LINES_MIN_STIFFNESS`` in ``quadnodes/fairing.py`` and the table of docs/fairing.md "The line
+preconditioner" (its session-19 paragraph, "stiff spots take the lines again"; issue 15: a solver that is fast on
+any noise).
 
 Under eq. 32's own edge lengths (``line_spacing="hold"``, the thesis's method) a window whose edges are much
 shorter than the mean gets coefficients of 1/length³: where noise nearly collapses a stretch of a line, a few

@@ -302,6 +302,11 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
     except RuntimeError as exc:  # an exact zero pivot: a singular matrix with a positive diagonal
         raise InputError(f"{what}: the matrix is singular ({exc})") from exc
     if check:  # (Pr·Mp·Pc = LU with the row order the column order: column j's pivot is U[perm_c[j]])
+        if not np.array_equal(lu.perm_r, lu.perm_c):  # an exact zero met on the diagonal: SuperLU pivoted off it
+            j = int(np.flatnonzero(lu.perm_r != lu.perm_c)[0])
+            raise InputError(f"{what}: the matrix is not positive definite (an exact zero pivot at unknown "
+                             f"{int(name[j if perm is None else perm[j]])}); the energy does not determine every "
+                             "unknown")
         _check_pivots(lu.U.diagonal()[lu.perm_c], Mp.diagonal(), k, perm, name, what)
     return Factorization(lu, n, what, pivoted=False, perm=perm, order=how)
 
@@ -324,8 +329,8 @@ def _check_pivots(pivots: np.ndarray, diagonal: np.ndarray, k: int, perm: np.nda
             raise InputError(f"{what}: the matrix is not positive definite to working precision (the pivot of unknown "
                              f"{int(labels[row[i]])} is {ratio[i]:.1e} times its diagonal entry, at most n·ε = {tol:.1e}); "
                              "the energy does not determine every unknown")
-        raise InputError(f"{what}: the constraint block is not negative definite to working precision (row "
-                         f"{int(labels[row[i]])}'s pivot)")
+        raise InputError(f"{what}: the constraint block is not negative definite to working precision (the pivot "
+                         f"of constraint {int(labels[row[i]])})")
 
 
 def _order(M: sp.csc_matrix, order: str | np.ndarray) -> tuple[np.ndarray | None, str]:

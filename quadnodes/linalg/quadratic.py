@@ -215,8 +215,9 @@ class QuadraticProblem:
             d = self._Quu.diagonal()
             bad = np.flatnonzero(~(d > 0))
             if bad.size:
-                raise InputError(f"{what}: the matrix is not positive definite (diagonal entry {int(bad[0])} is "
-                                 f"{d[bad[0]]:.3g}); the energy does not determine every unknown")
+                raise InputError(f"{what}: the matrix is not positive definite (diagonal entry "
+                                 f"{int(self.unknown[bad[0]])} is {d[bad[0]]:.3g}); the energy does not determine "
+                                 "every unknown")
             M = self._Quu
             if storage != "csr":
                 M = self._diagonal_storage(Q, d, forced=storage == "diagonal")
