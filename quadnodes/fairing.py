@@ -1241,7 +1241,9 @@ class FairingSystem:
                     try:
                         precond = _line_preconditioner(data, offsets, cols)
                     except np.linalg.LinAlgError as exc:  # a line block not positive definite
-                        raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
+                        if not stiff_lines:
+                            raise InputError(f"preconditioner='lines': {exc}; use 'auto'") from exc
+                        precond = None  # ("auto"'s choice: rounding lost a band's definiteness; plain CG then)
                 elif use_spectral:  # (cosine lines where the exact ones' dearer steps do not pay: exact_lines)
                     precond = _spectral_preconditioner(offsets, data, shape, wrap, self.weight, self._grid[2],
                                                        exact=exact_lines)
