@@ -154,7 +154,7 @@ LABELS = {
     "lines": "quadnodes structure lines + windows",
     "fair": "quadnodes fair, 1 iteration, all free (block CG)",
     "fair_hold": "quadnodes fair as above, line_spacing=\"hold\" (eq. 32's own lengths)",
-    "plain": "quadnodes CG without the line preconditioner (solve only)",
+    "plain": "quadnodes CG, no preconditioner (solve only)",
     "superlu": "peer: SciPy SuperLU, default ordering (solve only)",
     "superlu_mmd": "peer: SciPy SuperLU, MMD(AᵀA+A) (solve only)",
     "pyamg": "peer: CG + pyamg smoothed aggregation (solve only)",
