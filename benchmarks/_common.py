@@ -193,7 +193,8 @@ def planarize_case(name: str, noise: str = "zigzag"):
     return face, clean, faired
 
 
-#: ``--cache`` (bench_planarize.py's ``--iteration`` rows, studies/planarize_cg.py): the inputs are kept here (``out/`` is not committed)
+#: ``--cache`` (bench_planarize.py's ``--iteration`` rows, studies/planarize_cg.py): the inputs are kept
+#: here (``out/`` is not committed)
 CACHE = Path(__file__).resolve().parents[1] / "out" / "bench-cache"
 
 

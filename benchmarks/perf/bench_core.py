@@ -122,7 +122,7 @@ def _peer(kind: str, m) -> tuple[float, str]:
     # fair()'s own system: its default line_spacing="fair" (every window's edges at their mean length)
     inverse = even_lengths(1.0 / np.sqrt(np.stack(
         [np.einsum("ij,ij->i", d, d) for d in window_edges(m.vertices, m.topology.windows)], axis=1)))
-    if kind == "plain":  # quadnodes' own CG on the grid's storage, without the line preconditioner
+    if kind == "plain":  # quadnodes' own CG on the grid's storage, no preconditioner
         s = FairingSystem(m.vertices, m.topology.windows, free, DEFAULT_WEIGHT / m.mean_edge_length**2,
                           solver="cg", preconditioner="none", _topology=m.topology, _inverse_lengths=inverse)
         t = time.perf_counter()

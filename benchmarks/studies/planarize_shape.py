@@ -1,6 +1,7 @@
 """Planarize on the real meshes of issue 16: shape="free" (the plain projection) against shape="keep".
 
-Backs the table in docs/real-meshes.md "Planarizing" (and docs/planarize.md "Feasibility and quality (issue 16)"). Meshes from ``tests/data`` (sources and
+Backs the table in docs/real-meshes.md "Planarizing" (and docs/planarize.md "Feasibility and quality
+(issue 16)"). Meshes from ``tests/data`` (sources and
 licences in its README), each as shipped ("clean") or perturbed and faired ("faired":
 ``perturb(mesh, tangential=0.2, normal=0.1, seed=3)`` then ``fair(noisy, iterations=3)``, as in
 ``tests/test_real_meshes.py``). Every row is ``planarize`` with its defaults (tolerance 1e-3,

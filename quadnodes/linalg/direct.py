@@ -218,8 +218,9 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
     ...
     quadnodes.errors.InputError: demo: the matrix is not positive definite (diagonal entry 0 is 0); the energy does not determine every unknown
 
-    A singular matrix with a positive diagonal (a chain of springs with no end held) passes the diagonal test;
-    ``check`` finds its last pivot:
+    A singular matrix with a positive diagonal (a chain of springs with no end held) passes the diagonal test.
+    Here SuperLU meets an exact zero pivot; on larger such matrices rounding leaves a tiny one of either sign
+    instead, which ``check`` finds (``docs/linalg.md``):
 
     >>> chain = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(4, 4)).tolil()
     >>> chain[0, 0] = chain[3, 3] = 1.0
@@ -326,9 +327,9 @@ def _check_pivots(pivots: np.ndarray, diagonal: np.ndarray, k: int, perm: np.nda
     if bad.size:
         i = int(bad[np.argmin(ratio[bad])])
         if row[i] < k:
-            raise InputError(f"{what}: the matrix is not positive definite to working precision (the pivot of unknown "
-                             f"{int(labels[row[i]])} is {ratio[i]:.1e} times its diagonal entry, at most n·ε = {tol:.1e}); "
-                             "the energy does not determine every unknown")
+            raise InputError(f"{what}: the matrix is not positive definite to working precision (the pivot of "
+                             f"unknown {int(labels[row[i]])} is {ratio[i]:.1e} times its diagonal entry, at most "
+                             f"n·ε = {tol:.1e}); the energy does not determine every unknown")
         raise InputError(f"{what}: the constraint block is not negative definite to working precision (the pivot "
                          f"of constraint {int(labels[row[i]])})")
 
