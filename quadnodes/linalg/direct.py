@@ -48,6 +48,7 @@ from scipy.sparse.linalg import splu
 
 from ..errors import InputError
 from .ordering import nested_dissection
+from .threads import blas_pinned
 
 __all__ = ["Factorization", "factorize", "regularization", "cholmod_available", "NESTED_DISSECTION_MIN"]
 
@@ -74,7 +75,7 @@ def _cholmod() -> Any:
 @contextmanager
 def _one_thread() -> Iterator[None]:
     """CHOLMOD's BLAS and OpenMP held to one thread while it runs (as :func:`~quadnodes.linalg.threads.blas_pinned`
-    holds SciPy's): on a shared machine their spinning threads cost more CPU than they save."""
+    holds SciPy's, SuperLU's included): on a shared machine their spinning threads cost more CPU than they save."""
     global _THREADS
     try:
         from threadpoolctl import ThreadpoolController
@@ -138,7 +139,8 @@ class Factorization:
             with _one_thread():
                 y = self._lu(b if p is None else b[p])  # type: ignore[operator]
         else:
-            y = self._lu.solve(b if p is None else b[p])  # type: ignore[attr-defined]
+            with blas_pinned():
+                y = self._lu.solve(b if p is None else b[p])  # type: ignore[attr-defined]
         if p is None:
             x = y
         else:
@@ -239,18 +241,20 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
         raise InputError(f"backend: expected one of {', '.join(map(repr, _BACKENDS))}, got {backend!r}")
     if kind == "general":
         try:
-            lu = splu(M)
+            with blas_pinned():
+                lu = splu(M)
         except RuntimeError as exc:
             raise InputError(f"{what}: the matrix is singular ({exc})") from exc
         return Factorization(lu, n, what, pivoted=True, order="pivoting")
     if kind == "symmetric":
         perm, how = _order(M, order)
         try:
-            if perm is None:
-                lu = splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=1e-3, options={"SymmetricMode": True})
-            else:
-                lu = splu(M[perm][:, perm].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=1e-3,
-                          options={"SymmetricMode": True})
+            with blas_pinned():
+                if perm is None:
+                    lu = splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=1e-3, options={"SymmetricMode": True})
+                else:
+                    lu = splu(M[perm][:, perm].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=1e-3,
+                              options={"SymmetricMode": True})
         except RuntimeError as exc:
             raise InputError(f"{what}: the matrix is singular ({exc})") from exc
         return Factorization(lu, n, what, pivoted=True, perm=perm, order=how)
@@ -296,10 +300,11 @@ def factorize(M: sp.spmatrix, *, kind: Kind = "general", what: str = "system",
             _check_pivots(pivots, Mp.diagonal(), k, perm, name, what)
         return Factorization(factor, n, what, pivoted=False, perm=perm, backend="cholmod", order=how)
     try:
-        if perm is None:
-            lu = splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        else:
-            lu = splu(Mp, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        with blas_pinned():  # (SuperLU's small dense blocks gain nothing from more BLAS threads)
+            if perm is None:
+                lu = splu(M, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            else:
+                lu = splu(Mp, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     except RuntimeError as exc:  # an exact zero pivot: a singular matrix with a positive diagonal
         raise InputError(f"{what}: the matrix is singular ({exc})") from exc
     if check:  # (Pr·Mp·Pc = LU with the row order the column order: column j's pivot is U[perm_c[j]])

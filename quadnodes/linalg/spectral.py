@@ -207,15 +207,17 @@ def _span_basis(head: int, size: int, tail: int) -> tuple[np.ndarray, list[np.nd
         if size % 2:  # the middle node: (x_h) with weight 1, the pairs with 1/√2
             col = B[:h, h] * np.sqrt(2.0)
             Bs = np.block([[Bs, col[:, None]], [col[None, :], B[h:h + 1, h:h + 1]]])
-        lam_s, Vs = np.linalg.eigh(Bs)
-        lam_a, Va = np.linalg.eigh(top - J)
+        with _threads.blas_pinned():  # (LAPACK's threads gain nothing here and spin on a loaded machine)
+            lam_s, Vs = np.linalg.eigh(Bs)
+            lam_a, Va = np.linalg.eigh(top - J)
         scale = np.full(Bs.shape[0], np.sqrt(0.5))
         if size % 2:
             scale[h] = 1.0
         blocks = [Vs * scale[:, None], Va * np.sqrt(0.5)]
         lam = np.concatenate([lam_s, lam_a])
     else:
-        lam, V = np.linalg.eigh(B)
+        with _threads.blas_pinned():
+            lam, V = np.linalg.eigh(B)
         blocks = [V]
     return np.maximum(lam, 0.0), blocks
 
@@ -530,7 +532,8 @@ class SpectralPreconditioner:
                 M = self._inverse64 @ (V[:, lo:hi, None] * V[:, None, :]).reshape(n, -1)  # (m, q·p)
                 C[lo:hi] = np.einsum("kx,kx->x", (U[:, lo:hi, None] * U[:, None, :]).reshape(m, -1), M).reshape(-1, p)
         try:
-            factor = sla.cho_factor(0.5 * (C + C.T))
+            with _threads.blas_pinned():
+                factor = sla.cho_factor(0.5 * (C + C.T))
         except np.linalg.LinAlgError:  # (rounding made it indefinite: the fixed rows are only zeroed)
             return
         self._factored = (U, V, factor)
@@ -577,7 +580,8 @@ class SpectralPreconditioner:
             W = self._solve_box(E.astype(self._dtype), self._dtype).reshape(p, -1)
         C = W[:, self._inner].astype(np.float64)
         try:
-            factor = sla.cho_factor(0.5 * (C + C.T))
+            with _threads.blas_pinned():
+                factor = sla.cho_factor(0.5 * (C + C.T))
         except np.linalg.LinAlgError:  # (rounding made it indefinite: the fixed rows are only zeroed)
             return
         self._correction = (W.astype(self._dtype), factor)
