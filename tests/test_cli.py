@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from quadnodes.cli import main
+from processes import ctrl_c_able
 
 SMALL = '''format = "quadnodes-graph"
 version = 1
@@ -151,7 +152,7 @@ def test_ctrl_c_stops_watch_cleanly(tmp_path):
     exe = shutil.which("quadnodes") or str(Path(sys.executable).parent / "quadnodes")
     g = _graph(tmp_path)
     p = subprocess.Popen([exe, "watch", str(g), "--out", str(tmp_path / "o")], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_able)
     deadline = time.time() + 60
     while time.time() < deadline and not (tmp_path / "o" / "faired.obj").exists():
         time.sleep(0.2)

@@ -19,6 +19,7 @@ import quadnodes.nodes  # noqa: F401  (registers the built-in nodes)
 from quadnodes.cli import main
 from quadnodes.errors import GraphError
 from quadnodes.graph.sweep import pareto_front, parse_vary, variants
+from processes import ctrl_c_able
 
 pytest.importorskip("distributed")
 
@@ -279,7 +280,8 @@ def test_an_interrupted_sweep_continues_without_recomputing(tmp_path, counter_mo
     cmd = [sys.executable, "-c", "import sys, qn_sweep_counter; from quadnodes.cli import main; sys.exit(main())",
            "sweep", str(g),
            "--vary", "fair.iterations=1:8", "--out", str(out), "--workers", "1"]
-    p = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(cmd, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=ctrl_c_able)
     try:
         for line in p.stdout:
             if "[2/8]" in line:

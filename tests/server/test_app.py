@@ -20,6 +20,7 @@ from starlette.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
 from quadnodes.server import Session, create_app
+from processes import ctrl_c_able
 
 TOKEN = "test-token-123"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -235,7 +236,7 @@ def test_quadnodes_serve_runs_a_real_server_and_stops_on_ctrl_c(tmp_path):
     port = _free_port()
     proc = subprocess.Popen([sys.executable, "-m", "quadnodes", "serve", str(g), "--no-browser", "--port", str(port),
                              "--out", str(tmp_path / "out")], cwd=tmp_path, env=_env(),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_able)
     try:
         assert proc.stdout is not None
         lines = [proc.stdout.readline(), proc.stdout.readline()]
