@@ -170,6 +170,7 @@ def planarize_case(name: str, noise: str = "zigzag"):
     from quadnodes import surfaces
     from quadnodes.fairing import fair
     from quadnodes.noise import perturb
+    from quadnodes.topology import fixed_vertices
 
     if name == "F100":
         face = surfaces.wavy(10000.0, 10000.0, 400.0, waves_u=0.5, waves_v=1.0)
@@ -183,7 +184,7 @@ def planarize_case(name: str, noise: str = "zigzag"):
     clean = surfaces.sample(face, rows, cols)
     if noise == "broadband":
         offsets = np.random.default_rng(7).normal(scale=0.2 * clean.mean_edge_length, size=clean.vertices.shape)
-        offsets[[0, cols - 1, (rows - 1) * cols, rows * cols - 1]] = 0.0  # (the corners, held as perturb holds them)
+        offsets[fixed_vertices(clean, "corners")] = 0.0  # (held as perturb holds them)
         noisy = clean.with_vertices(clean.vertices + offsets)
     elif noise == "zigzag":
         noisy, _ = perturb(clean, tangential=amount[0], normal=amount[1], seed=7, fix="corners")

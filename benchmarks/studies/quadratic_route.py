@@ -48,7 +48,7 @@ def one(size: int, route: str) -> dict:
         s = FairingSystem(m.vertices, windows, free, weight, solver="cg", _topology=t)
         s._cg_setup()
     else:
-        coef = window_coefficients(m.vertices, windows)
+        coef = window_coefficients(m.vertices, windows)  # (fairing_matrix's A, built without its COO sort)
         A = sp.csr_matrix((coef.reshape(-1), windows.reshape(-1), np.arange(0, 4 * len(windows) + 1, 4)),
                           shape=(len(windows), m.n_vertices))
         Q = (A.T.tocsr() @ A + weight * sp.identity(m.n_vertices, format="csr")).tocsr()
