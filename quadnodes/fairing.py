@@ -243,6 +243,10 @@ SPECTRAL_EXACT_FRESH_SIDE = 320
 #: with broadband noise are at 1.9–2.6, a torus at 6.1 (a throwaway script's figures; the study prints its
 #: sheet's: ``cg_weights.py``).
 SPECTRAL_MAX_STIFFNESS = 12.0
+#: The spectral preconditioner follows the coefficients' variation along an open axis (a grid sampled with uneven
+#: spacing, lines that shrink toward one side) where their medians along it spread by more than this factor
+#: (:func:`_coefficient_profile`): ...
+PROFILE_MIN_SPREAD = 2.0
 #: "auto" preconditions a grid's CG by the line preconditioner (banded solves along every row and column line,
 #: :class:`~quadnodes.linalg.cg.LinePreconditioner`, loading the compiled kernels at any size) in place of
 #: Gauss–Seidel, block Jacobi or plain CG where some unknown's fairing diagonal is at least this many times the
@@ -672,14 +676,78 @@ def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: 
     return float(d.max()) / median if median > 0 else np.inf
 
 
+def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int],
+                         wrap: tuple[bool, bool]) -> tuple[int, np.ndarray, np.ndarray] | None:
+    """The coefficients' variation along an open axis of a grid's ``AᵀA + ωI`` in diagonal storage, where it is
+    large enough to pay (:data:`PROFILE_MIN_SPREAD`): :class:`~quadnodes.linalg.spectral.SpectralPreconditioner`'s
+    ``profile``, else None.
+
+    A window's coefficient is the magnitude of its ends' coupling (the ``+3`` diagonal for the rows' windows, the
+    ``+3·cols`` one for the columns'; zero where a fixed node or no window is). Along axis 1: the rows' window
+    coefficients' median over the rows at each window position, and each column's median; along axis 0 the same
+    with rows and columns swapped (the seams' windows of a closed axis are left out). The axis whose medians
+    spread more (largest over smallest) is taken.
+    """
+    rows, cols = shape
+    found = {int(o): d for d, o in enumerate(offsets)}
+    if rows < 4 or cols < 4 or 3 not in found or 3 * cols not in found:
+        return None
+    along_rows = -data[found[3]].reshape(rows, cols)[:, 3:]  # (rows, cols − 3): row i's window k on nodes k … k+3
+    along_cols = -data[found[3 * cols]].reshape(rows, cols)[3:, :]  # (rows − 3, cols)
+    best: tuple[float, int, np.ndarray, np.ndarray] | None = None
+    for axis, (windows, lines) in enumerate(((along_cols, along_rows), (along_rows, along_cols))):
+        if wrap[axis] or shape[axis] > spectral.EXACT_MAX_SIDE:
+            continue
+        w = np.median(windows, axis=1 - axis)  # (the family along the axis: its windows' medians by position)
+        s = np.median(lines, axis=1 - axis)  # (the other family: each line's median)
+        positive = s[s > 0]
+        if not positive.size or not (w > 0).any():
+            continue
+        s = np.where(s > 0, s, np.median(positive))
+        w = np.maximum(w, 0.0)
+        spread = max(float(w.max() / w[w > 0].min()), float(s.max() / s.min()))
+        if best is None or spread > best[0]:
+            best = (spread, axis, w, s)
+    if best is None or best[0] < PROFILE_MIN_SPREAD:
+        return None
+    return best[1], best[2], best[3]
+
+
+def _profile_stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float, shape: tuple[int, int],
+                       wrap: tuple[bool, bool], profile: tuple[int, np.ndarray, np.ndarray]) -> float:
+    """:func:`_stiffness` against a coefficient profile (:func:`_coefficient_profile`): the largest ratio of an
+    unknown's fairing diagonal to the profile's operator's (``ω`` left out of both) over the median ratio — the
+    stiff spots that the profile misses."""
+    axis, windows, lines = profile
+    along = np.convolve(windows, [1.0, 9.0, 9.0, 1.0])  # (Dᵀ C D's diagonal: a window's squared stencil)
+    other = shape[1 - axis]
+    across = np.full(other, 20.0) if wrap[1 - axis] else np.convolve(np.ones(max(other - 3, 0)), [1.0, 9.0, 9.0, 1.0])
+    if axis == 1:
+        K = along[None, :] + across[:, None] * lines[None, :]
+    else:
+        K = along[:, None] + lines[:, None] * across[None, :]
+    d = data[int(np.flatnonzero(offsets == 0)[0])][free] - weight
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = d / K.reshape(-1)[free]
+    ratio = ratio[np.isfinite(ratio)]
+    median = float(np.median(ratio)) if ratio.size else 0.0
+    return float(ratio.max()) / median if median > 0 else np.inf
+
+
 def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool],
-                             weight: float, free: np.ndarray, exact: bool = True) -> "spectral.SpectralPreconditioner":
+                             weight: float, free: np.ndarray, exact: bool = True,
+                             profile: tuple[int, np.ndarray, np.ndarray] | None = None,
+                             ) -> "spectral.SpectralPreconditioner":
     """:class:`~quadnodes.linalg.spectral.SpectralPreconditioner` of a grid's ``AᵀA + ωI`` in diagonal storage:
     each family's coefficient the median magnitude of its ``±3`` diagonal (the product of a window's end
-    coefficients) over the windows that have one; a family without windows of four nodes gets 0. Exact lines
-    (``exact``; the caller keeps open sides within :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE`) or cosine
-    ones."""
+    coefficients) over the windows that have one; a family without windows of four nodes gets 0. Where the
+    coefficients vary along an open axis (``profile``, :func:`_coefficient_profile`'s) their profile along it
+    instead. Exact lines (``exact``; the caller keeps open sides within
+    :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE`) or cosine ones."""
     rows, cols = shape
+    if profile is not None:
+        return spectral.SpectralPreconditioner(shape, wrap, 1.0, 1.0, weight, free,
+                                               open_lines="exact" if exact else "cosine", profile=profile)
     found = {int(o): d for d, o in enumerate(offsets)}
 
     def coefficient(offset: int, side: int) -> float:
@@ -1160,12 +1228,22 @@ class FairingSystem:
                     stiff.append(_stiffness(*grid_storage(), self._grid[2], self.weight))
                 return stiff[0]
 
+            profile: list = []  # (the coefficients' profile along an open axis, or None: once)
+
+            def coefficient_profile() -> tuple[int, np.ndarray, np.ndarray] | None:
+                if not profile:
+                    profile.append(_coefficient_profile(*grid_storage(), shape, wrap))
+                return profile[0]
+
             def spectral_fits() -> bool:
+                # (a stiff spot: an outlier that the coefficients miss, constant or their profile)
                 if not fits:
                     fits.append(self.preconditioner == "auto" and self._third_differences
                                 and spectral.inverts_exactly(self._grid[2].reshape(shape), wrap,
                                                              "exact" if exact_lines else "cosine")
-                                and stiffness() <= SPECTRAL_MAX_STIFFNESS)
+                                and (stiffness() if coefficient_profile() is None else
+                                     _profile_stiffness(*grid_storage(), self._grid[2], self.weight, shape, wrap,
+                                                        coefficient_profile())) <= SPECTRAL_MAX_STIFFNESS)
                 return fits[0]
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
@@ -1246,7 +1324,7 @@ class FairingSystem:
                         precond = None  # ("auto"'s choice: rounding lost a band's definiteness; plain CG then)
                 elif use_spectral:  # (cosine lines where the exact ones' dearer steps do not pay: exact_lines)
                     precond = _spectral_preconditioner(offsets, data, shape, wrap, self.weight, self._grid[2],
-                                                       exact=exact_lines)
+                                                       exact=exact_lines, profile=coefficient_profile())
                 blocks = SymmetricDiagonalBlocks(offsets, data) if compiled else DiagonalBlocks(offsets, data)
                 self._cg = (blocks, precond, None)
             else:

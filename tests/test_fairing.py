@@ -708,12 +708,32 @@ def _noisy(m, seed=5, share=0.2):
     return m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
 
 
+def _graded(rows, cols, ratio, spacing=25.0):
+    """A grid whose columns' spacing grows by ``ratio`` from the first to the last (geometrically)."""
+    u = np.linspace(0.0, 1.0, cols)
+    x = (ratio**u - 1.0) / (ratio - 1.0) * spacing * (cols - 1)
+    m = grid(rows, cols, spacing=spacing)
+    v = m.vertices.copy()
+    v[:, 0] = np.tile(x, rows)
+    return QuadMesh(v, m.faces)
+
+
+def _tower(rows, cols, taper):
+    """An open cylinder whose radius shrinks by ``taper`` from its first ring to its last."""
+    c = cylinder(rows, cols, radius=500.0, height=900.0)
+    v = c.vertices.copy()
+    v[:, :2] *= (1.0 + (1.0 / taper - 1.0) * v[:, 2] / 900.0)[:, None]
+    return QuadMesh(v, c.faces)
+
+
 @pytest.mark.parametrize("threads", [1, 2])
-@pytest.mark.parametrize("case", ["sheet", "boundary", "pins", "anisotropic", "cylinder", "torus", "compiled"])
+@pytest.mark.parametrize("case", ["sheet", "boundary", "pins", "anisotropic", "cylinder", "torus", "compiled",
+                                  "graded", "tower"])
 def test_spectral_preconditioner_on_grids_equals_the_direct_solve(monkeypatch, threads, case):
     """The transforms' preconditioner on open, closed and anisotropic grids, with the boundary or a few inner
-    vertices fixed, on SciPy's product or the compiled one: within 1e-8 of the mesh's size of the direct solve,
-    fewer steps than plain CG."""
+    vertices fixed, on SciPy's product or the compiled one, with coefficients that vary along an axis (an uneven
+    spacing, a tapered cylinder: their profile): within 1e-8 of the mesh's size of the direct solve, fewer steps
+    than plain CG."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.cg import SymmetricDiagonalBlocks
     from quadnodes.linalg.spectral import SpectralPreconditioner
@@ -723,7 +743,8 @@ def test_spectral_preconditioner_on_grids_equals_the_direct_solve(monkeypatch, t
 
     base = {"cylinder": lambda: cylinder(30, 40, radius=500.0, height=900.0),
             "torus": lambda: torus(24, 40, major=800.0, minor=200.0),
-            "anisotropic": lambda: QuadMesh(grid(40, 50, spacing=25.0).vertices * [1.0, 2.8, 1.0], grid(40, 50).faces)}.get(
+            "anisotropic": lambda: QuadMesh(grid(40, 50, spacing=25.0).vertices * [1.0, 2.8, 1.0], grid(40, 50).faces),
+            "graded": lambda: _graded(40, 50, 10.0), "tower": lambda: _tower(30, 40, 3.0)}.get(
         case, lambda: grid(40, 50, spacing=25.0))()
     m = _noisy(base)
     free = m.topology.window_middle.copy()
@@ -741,6 +762,7 @@ def test_spectral_preconditioner_on_grids_equals_the_direct_solve(monkeypatch, t
     assert isinstance(s._cg[0], SymmetricDiagonalBlocks) == (case == "compiled")
     assert len(s._cg[0].ranges) == threads and s.residual <= 1e-9
     assert s._cg[1].wrap == s._grid[0].wrap
+    assert (s._cg[1].profile is not None) == (case in ("graded", "tower"))
     plain = _grid_system(m, free, w, preconditioner="none")
     plain.solve(m.vertices[free])
     assert s.iterations < plain.iterations
@@ -885,6 +907,37 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
             ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix=fix, fixed=fixed)
             assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
         assert np.array_equal(out.vertices[fixed], m.vertices[fixed])
+
+
+@pytest.mark.parametrize("case", ["graded", "tower"])
+def test_varying_coefficients_take_their_profile(monkeypatch, case):
+    """Where the window coefficients vary along an axis (spacing that grows tenfold across a sheet, a cylinder
+    tapering to a third of its radius) the transforms follow their profile along it: far fewer steps than with
+    constant coefficients, the same result; an even sheet keeps the constant ones."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg import spectral
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)
+    monkeypatch.setattr(spectral, "loaded", lambda: True)  # (the transforms at any size)
+    m = _noisy(_graded(50, 60, 10.0) if case == "graded" else _tower(50, 60, 3.0))
+    picked = _record_setups(monkeypatch, lambda system, out: out[1])
+    out, rep = fair(m, threshold=0.0)
+    assert isinstance(picked[0], SpectralPreconditioner) and picked[0].profile is not None
+    axis = picked[0].profile[0]
+    assert axis == (1 if case == "graded" else 0)  # (along the graded columns' axis; along the tower's height)
+    spread = fairing_module.PROFILE_MIN_SPREAD
+    monkeypatch.setattr(fairing_module, "PROFILE_MIN_SPREAD", np.inf)
+    picked.clear()
+    same, constant = fair(m, threshold=0.0)
+    assert isinstance(picked[0], SpectralPreconditioner) and picked[0].profile is None
+    assert rep.iterations[0].cg_iterations * 2 < constant.iterations[0].cg_iterations
+    size = np.ptp(m.vertices, axis=0).max()
+    assert np.abs(out.vertices - same.vertices).max() <= 2e-8 * size
+    monkeypatch.setattr(fairing_module, "PROFILE_MIN_SPREAD", spread)
+    picked.clear()
+    fair(_noisy(grid(50, 60, spacing=25.0)), threshold=0.0)
+    assert isinstance(picked[0], SpectralPreconditioner) and picked[0].profile is None
 
 
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):

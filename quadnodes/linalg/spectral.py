@@ -132,11 +132,12 @@ def line_laplacian(n: int, closed: bool = False) -> sp.csr_matrix:
     return sp.csr_matrix(D.T @ D)
 
 
-def line_third_differences(n: int, closed: bool = False) -> sp.csr_matrix:
+def line_third_differences(n: int, closed: bool = False, coefficients: np.ndarray | None = None) -> sp.csr_matrix:
     """``B = DᵀD`` of a line's third differences ``D`` (rows ``−1, 3, −3, 1`` on every four consecutive nodes).
 
     On a closed line of at least four nodes the windows go around and ``B = L³`` (:func:`line_laplacian`); an open
-    line of fewer than four nodes has no window (``B = 0``).
+    line of fewer than four nodes has no window (``B = 0``). With ``coefficients`` (an open line's) ``B = Dᵀ C D``,
+    ``C`` their diagonal: each window's term weighted.
 
     Parameters
     ----------
@@ -144,6 +145,8 @@ def line_third_differences(n: int, closed: bool = False) -> sp.csr_matrix:
         Nodes on the line.
     closed : bool
         Whether the line closes around.
+    coefficients : (n − 3,) float, optional
+        An open line's window coefficients (``≥ 0``, window ``k`` on nodes ``k … k + 3``); default all 1.
 
     Returns
     -------
@@ -160,16 +163,23 @@ def line_third_differences(n: int, closed: bool = False) -> sp.csr_matrix:
     [1.0, -3.0, 3.0, -1.0]
     >>> bool((line_third_differences(6, closed=True) != line_laplacian(6, closed=True) ** 3).nnz == 0)
     True
+    >>> line_third_differences(5, coefficients=np.array([2.0, 0.0])).toarray()[0].tolist()
+    [2.0, -6.0, 6.0, -2.0, 0.0]
     """
     if n < 1:
         raise ValueError(f"n: expected at least one node, got {n}")
+    if coefficients is not None and (closed or np.shape(coefficients) != (max(n - 3, 0),)):
+        raise ValueError(f"coefficients: expected an open line's {max(n - 3, 0)} windows, got shape "
+                         f"{np.shape(coefficients)}{' on a closed line' if closed else ''}")
     if closed:
         L = line_laplacian(n, closed=True)
         return sp.csr_matrix(L @ L @ L)
     if n < 4:
         return sp.csr_matrix((n, n))
     D = sp.diags([-1.0, 3.0, -3.0, 1.0], [0, 1, 2, 3], shape=(n - 3, n), format="csr")
-    return sp.csr_matrix(D.T @ D)
+    if coefficients is None:
+        return sp.csr_matrix(D.T @ D)
+    return sp.csr_matrix(D.T @ sp.diags(np.asarray(coefficients, dtype=np.float64)) @ D)
 
 
 def _line_basis(n: int, lo: int, hi: int, closed: bool = False) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -220,6 +230,46 @@ def _span_basis(head: int, size: int, tail: int) -> tuple[np.ndarray, list[np.nd
             lam, V = np.linalg.eigh(B)
         blocks = [V]
     return np.maximum(lam, 0.0), blocks
+
+
+def _checked_profile(profile: tuple[int, np.ndarray, np.ndarray], shape: tuple[int, int],
+                     wrap: tuple[bool, bool]) -> tuple[int, np.ndarray, np.ndarray]:
+    """:class:`SpectralPreconditioner`'s ``profile``, checked: ``(axis, windows, lines)`` as float64 arrays."""
+    try:
+        axis, windows, lines = profile
+    except (TypeError, ValueError):
+        raise ValueError(f"profile: expected (axis, windows, lines), got {profile!r}") from None
+    if axis not in (0, 1):
+        raise ValueError(f"profile: expected axis 0 or 1, got {axis!r}")
+    n = shape[axis]
+    if wrap[axis]:
+        raise ValueError(f"profile: axis {axis} closes around; coefficients may vary only along an open axis")
+    if not 4 <= n <= EXACT_MAX_SIDE:
+        raise ValueError(f"profile: expected 4 to {EXACT_MAX_SIDE} nodes along axis {axis}, got {n}")
+    windows = np.asarray(windows, dtype=np.float64)
+    lines = np.asarray(lines, dtype=np.float64)
+    if windows.shape != (n - 3,) or not (np.isfinite(windows).all() and (windows >= 0).all()):
+        raise ValueError(f"profile: expected {n - 3} finite window coefficients >= 0, got shape {windows.shape}")
+    if lines.shape != (n,) or not (np.isfinite(lines).all() and (lines > 0).all()):
+        raise ValueError(f"profile: expected {n} finite line coefficients > 0, got shape {lines.shape}")
+    return int(axis), windows, lines
+
+
+def _pencil_basis(n: int, lo: int, hi: int, windows: np.ndarray, scale: np.ndarray,
+                  weight: float) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The varying axis's basis (:class:`SpectralPreconditioner`'s ``profile``): ``X`` and ``θ`` with
+    ``(B + ωI) X = S X Θ`` and ``Xᵀ S X = I`` over the span ``lo:hi`` of an open line of ``n`` nodes, ``B`` its
+    third differences weighted by ``windows`` (:func:`line_third_differences`), ``S = diag(scale)`` (the span's, at
+    most 1). Returned as ``θ − ω`` (``≥ 0``: ``S ≤ I``) and ``[X]``, ``X`` the forward matrix (``Xᵀ`` forward,
+    ``X`` back): for every mode ``μ`` of the other axis ``μ S + B + ωI = X⁻ᵀ (μ + Θ) X⁻¹``. Float64, one dense
+    block."""
+    B = line_third_differences(n, coefficients=windows)[lo:hi, lo:hi].toarray()
+    root = 1.0 / np.sqrt(scale)
+    M = root[:, None] * B * root[None, :]
+    M[np.diag_indices_from(M)] += weight / scale
+    with _threads.blas_pinned():
+        theta, Y = np.linalg.eigh(0.5 * (M + M.T))
+    return np.maximum(theta - weight, 0.0), [root[:, None] * Y]
 
 
 def box(free: np.ndarray, wrap: tuple[bool, bool]) -> tuple[tuple[int, int], tuple[int, int]]:
@@ -330,11 +380,16 @@ class _Axis:
     transforms, ``B``'s eigenvalues in the transform's order, and for ``"exact"`` the forward matrices in float32
     (:func:`_line_basis`)."""
 
-    def __init__(self, kind: str, n: int, lo: int, hi: int, closed: bool = False) -> None:
+    def __init__(self, kind: str, n: int, lo: int, hi: int, closed: bool = False,
+                 pencil: tuple[np.ndarray, np.ndarray, float] | None = None) -> None:
         self.kind, self.n, self.lo, self.hi, self.closed = kind, n, lo, hi, closed
         self.blocks32: list[np.ndarray] = []
         self.blocks64: list[np.ndarray] = []
-        if kind == "exact":
+        if pencil is not None:  # (the varying axis: windows over the whole line, the span's scale, ω)
+            lam, self.blocks64 = _pencil_basis(n, lo, hi, *pencil)
+            self.blocks32 = [F.astype(np.float32) for F in self.blocks64]
+            self.eigenvalues = lam
+        elif kind == "exact":
             lam, self.blocks64 = _line_basis(n, lo, hi, closed)
             self.blocks32 = [F.astype(np.float32) for F in self.blocks64]
             self.eigenvalues = lam
@@ -410,6 +465,14 @@ class SpectralPreconditioner:
     :data:`CORRECTION_SINGLE_MAX`): it only steers the search directions; the exact lines' products on the
     solver's threads (BLAS held to one thread each, as everywhere in the solver).
 
+    With a ``profile`` the coefficients vary along one open axis ``a`` (a grid sampled with uneven spacing, a
+    surface whose lines shrink toward one side): the family of lines along ``a`` has a coefficient per window,
+    the same on every line (``B_a = Dᵀ C D``), the other family one coefficient per line, by the line's position
+    along ``a`` (``S``). For ``a = 1``: ``K = B_c ⊗ S + I ⊗ B_a + ωI``. The other axis transforms as before; along
+    ``a`` the pencil ``(B_a + ωI, S)``'s eigenvectors ``X`` (dense, :func:`_pencil_basis`) take every mode ``μ`` of
+    the other axis at once, as ``μ S + B_a + ωI = X⁻ᵀ (μ + Θ) X⁻¹``. Still exact, fixed nodes corrected as above,
+    at one dense product each way along ``a`` instead of two of half the length.
+
     Parameters
     ----------
     shape : (int, int)
@@ -428,11 +491,16 @@ class SpectralPreconditioner:
         An open axis's line operator: its third differences (dense eigenvectors, up to :data:`EXACT_MAX_SIDE`
         nodes) or the Neumann Laplacian's cube (the cosine transform). Either way the box is cut to the
         unknowns' span along an open axis.
+    profile : (int, (n_a − 3,) float, (n_a,) float), optional
+        ``(a, windows, lines)``: coefficients that vary along the open axis ``a`` (0: the row index, 1: the column
+        index; ``n_a`` nodes, at least 4, up to :data:`EXACT_MAX_SIDE`) — the window coefficients (``≥ 0``) of
+        the family of lines along ``a``, and the coefficient (``> 0``) of each line of the other family. They
+        replace both ``row_coefficient`` and ``column_coefficient``.
 
     Raises
     ------
     ValueError
-        If the shape, coefficients, weight, unknowns or ``open_lines`` are out of range.
+        If the shape, coefficients, weight, unknowns, ``open_lines`` or ``profile`` are out of range.
 
     Examples
     --------
@@ -455,7 +523,8 @@ class SpectralPreconditioner:
 
     def __init__(self, shape: tuple[int, int], wrap: tuple[bool, bool], row_coefficient: float,
                  column_coefficient: float, weight: float, free: np.ndarray | None = None,
-                 open_lines: Literal["exact", "cosine"] = "exact") -> None:
+                 open_lines: Literal["exact", "cosine"] = "exact",
+                 profile: tuple[int, np.ndarray, np.ndarray] | None = None) -> None:
         rows, cols = (int(s) for s in shape)
         if rows < 1 or cols < 1:
             raise ValueError(f"shape: expected positive sides, got {shape}")
@@ -474,6 +543,7 @@ class SpectralPreconditioner:
         self.shape = (rows, cols)
         self.wrap = (bool(wrap[0]), bool(wrap[1]))
         self.coefficients = (float(row_coefficient), float(column_coefficient))
+        self.profile = None if profile is None else _checked_profile(profile, self.shape, self.wrap)
         self.weight = float(weight)
         self.open_lines = open_lines
         # each axis's kind over the box's span: an open one exact or cosine; along a closed one (never cut) the real
@@ -483,8 +553,14 @@ class SpectralPreconditioner:
         # coordinates: more fixed nodes inside than the stored columns take)
         form = _correction_form(mask, self.wrap, open_lines)
         axes = []
+        varying = -1 if self.profile is None else self.profile[0]
+        scale = 1.0  # (the other family's largest line coefficient over the span: S ≤ I)
         for axis, (n, closed, (lo, hi)) in enumerate(zip(self.shape, self.wrap, spans)):
-            if closed and form == "coordinates":
+            if axis == varying:
+                _, windows, line_coefficients = self.profile  # type: ignore[misc]
+                scale = float(line_coefficients[lo:hi].max())
+                axes.append(_Axis("exact", n, lo, hi, pencil=(windows, line_coefficients[lo:hi] / scale, self.weight)))
+            elif closed and form == "coordinates":
                 axes.append(_Axis("exact", n, lo, hi, closed=True))
             elif closed:
                 axes.append(_Axis("rfft" if axis == 1 or not self.wrap[1] else "fft", n, lo, hi))
@@ -498,8 +574,10 @@ class SpectralPreconditioner:
         self._axes = axes
         inside = mask[axes[0].lo:axes[0].hi, axes[1].lo:axes[1].hi]
         self._box_shape = inside.shape
-        eig = (self.coefficients[1] * axes[0].eigenvalues[:, None] + self.coefficients[0] * axes[1].eigenvalues[None, :]
-               + self.weight)
+        c_r, c_c = self.coefficients  # (with a profile: the varying axis's θ − ω as they are, the other's μ scaled)
+        if varying >= 0:
+            c_r, c_c = (scale, 1.0) if varying == 0 else (1.0, scale)
+        eig = c_c * axes[0].eigenvalues[:, None] + c_r * axes[1].eigenvalues[None, :] + self.weight
         # 1/eig in single precision as ω/eig ∈ (0, 1] (no underflow whatever the units), 1/ω applied in double;
         # the unnormalized forward and inverse FFTs' scales cancel
         self._inverse64 = self.weight / eig
@@ -604,16 +682,25 @@ class SpectralPreconditioner:
         [[1.5, -3.0, 3.0, -1.0]]
         """
         rows, cols = self.shape
-        c_r, c_c = self.coefficients
+        (m, n) = self._box_shape
+        # each family's coefficient per line: the rows' lines (one per row) and the columns' (one per column)
+        scales = [sp.eye(m) * self.coefficients[0], sp.eye(n) * self.coefficients[1]]
+        windows = None
+        if self.profile is not None:  # the family along a by its windows, the other's lines one by one along a
+            a, windows, line_coefficients = self.profile
+            ax = self._axes[a]
+            scales[1 - a] = sp.eye(self._box_shape[1 - a])
+            scales[a] = sp.diags(line_coefficients[ax.lo:ax.hi])
         lines = []
-        for ax, closed in zip(self._axes, self.wrap):
+        for axis, (ax, closed) in enumerate(zip(self._axes, self.wrap)):
             if ax.kind == "exact":
-                lines.append(line_third_differences(ax.n, ax.closed)[ax.lo:ax.hi, ax.lo:ax.hi])
+                w = windows if self.profile is not None and axis == self.profile[0] else None
+                lines.append(line_third_differences(ax.n, ax.closed, w)[ax.lo:ax.hi, ax.lo:ax.hi])
             else:
                 L = line_laplacian(ax.size, closed)
                 lines.append(L @ L @ L)
-        (m, n), (Bc, Br) = self._box_shape, lines
-        K = c_r * sp.kron(sp.eye(m), Br) + c_c * sp.kron(Bc, sp.eye(n))
+        Bc, Br = lines
+        K = sp.kron(scales[0], Br) + sp.kron(Bc, scales[1])
         nodes = np.arange(rows * cols).reshape(rows, cols)[self._axes[0].lo:self._axes[0].hi,
                                                            self._axes[1].lo:self._axes[1].hi].ravel()
         K = sp.coo_matrix(K)

@@ -214,6 +214,13 @@ def test_the_exact_lines_correction_keeps_single_precision_at_tiny_weights(weigh
     (dict(free=np.ones(5, bool)), "free"),
     (dict(free=np.zeros(12, bool)), "at least one unknown"),
     (dict(open_lines="dense"), "open_lines"),
+    (dict(profile=(2, np.ones(1), np.ones(4))), "axis 0 or 1"),
+    (dict(profile=(1, np.ones(1))), "expected \\(axis, windows, lines\\)"),
+    (dict(profile=(0, np.ones(1), np.ones(3))), "4 to"),  # (3 rows: no window)
+    (dict(profile=(1, np.ones(2), np.ones(4))), "1 finite window coefficients"),
+    (dict(profile=(1, np.array([-1.0]), np.ones(4))), "window coefficients >= 0"),
+    (dict(profile=(1, np.ones(1), np.array([1.0, 0.0, 1.0, 1.0]))), "line coefficients > 0"),
+    (dict(profile=(1, np.ones(1), np.ones(4)), wrap=(False, True)), "closes around"),
 ])
 def test_bad_arguments_are_named(kw, match):
     args = dict(shape=(3, 4), wrap=(False, False), row_coefficient=1.0, column_coefficient=1.0, weight=0.3)
@@ -270,3 +277,65 @@ def test_any_units_stay_within_single_precision(units, open_lines):
     assert np.all(np.isfinite(Z)) and np.all(Z[2] == 0.0)
     Kff = P.operator()[free][:, free]
     assert np.abs(Kff @ Z[:2, free].T - R[:2, free].T).max() <= 1e-4 * np.abs(R).max()
+
+
+def _weighted_third_differences(n, windows):
+    D = np.zeros((n - 3, n))
+    for i in range(n - 3):
+        D[i, i:i + 4] = (-1.0, 3.0, -3.0, 1.0)
+    return D.T @ np.diag(windows) @ D
+
+
+def test_a_profile_operator_is_each_familys_own_sum():
+    """With coefficients varying along the columns' axis (1): every row's windows weighted by position, every column
+    scaled by its own coefficient — built here window by window."""
+    rows, cols, weight = 5, 7, 0.2
+    windows, lines = np.linspace(0.5, 2.0, cols - 3), np.linspace(1.0, 3.0, cols)
+    P = SpectralPreconditioner((rows, cols), (False, False), 9.0, 9.0, weight, profile=(1, windows, lines))
+    K = weight * np.eye(rows * cols)
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    for i in range(rows):  # a row's windows: their own coefficients
+        K[np.ix_(idx[i], idx[i])] += _weighted_third_differences(cols, windows)
+    for j in range(cols):  # a column: its line's coefficient
+        K[np.ix_(idx[:, j], idx[:, j])] += lines[j] * _third_differences(rows)
+    np.testing.assert_allclose(P.operator().toarray(), K, atol=1e-12)
+
+
+@settings(max_examples=80, deadline=None)
+@given(rows=st.integers(4, 12), cols=st.integers(4, 12), axis=st.sampled_from([0, 1]), other_closed=st.booleans(),
+       spread=st.floats(1.0, 100.0), share=st.floats(0.0, 0.3), weight=st.sampled_from([1.0, 1e-3, 1e-6]),
+       seed=st.integers(0, 2**16), open_lines=st.sampled_from(["exact", "cosine"]))
+def test_a_profile_inverts_the_varying_operator_on_the_unknowns(rows, cols, axis, other_closed, spread, share, weight,
+                                                               seed, open_lines):
+    """Coefficients varying along an open axis by up to ``spread`` (the other axis open or closed, fixed nodes
+    inside up to MAX_CORRECTED): ``P⁻¹ = E K_ff⁻¹ Eᵀ`` to single precision at any weight, ``K`` the varying
+    operator."""
+    rng = np.random.default_rng(seed)
+    wrap = (False, other_closed) if axis == 0 else (other_closed, False)
+    n_a = (rows, cols)[axis]
+    windows = spread ** rng.random(n_a - 3)
+    lines = spread ** rng.random(n_a)
+    free = (rng.random((rows, cols)) >= share).ravel()
+    if not free.any():
+        free[rng.integers(rows * cols)] = True
+    P = SpectralPreconditioner((rows, cols), wrap, 1.0, 1.0, weight, free, open_lines=open_lines,
+                               profile=(axis, windows, lines))
+    R = rng.normal(size=(2, rows * cols))
+    Z = _apply(P, R)
+    assert np.all(Z[:, ~free] == 0.0)
+    Kff = P.operator()[free][:, free].toarray()
+    expected = np.linalg.solve(Kff, R[:, free].T).T
+    assert np.abs(Z[:, free] - expected).max() <= 2e-3 * np.abs(expected).max()
+
+
+@pytest.mark.parametrize("lo, hi", [(0, 9), (2, 7), (1, 9)])
+def test_the_pencil_basis_diagonalizes_both_parts(lo, hi):
+    """``Xᵀ S X = I`` and ``Xᵀ (B + ωI) X = Θ`` over the span, ``B`` the weighted third differences' part there."""
+    n, weight = 9, 0.05
+    windows = np.array([0.3, 1.0, 2.0, 4.0, 0.7, 1.5])
+    scale = np.linspace(0.2, 1.0, hi - lo)
+    lam, (X,) = spectral._pencil_basis(n, lo, hi, windows, scale, weight)
+    B = _weighted_third_differences(n, windows)[lo:hi, lo:hi]
+    np.testing.assert_allclose(X.T @ np.diag(scale) @ X, np.eye(hi - lo), atol=1e-10)
+    np.testing.assert_allclose(X.T @ (B + weight * np.eye(hi - lo)) @ X, np.diag(lam + weight), atol=1e-8)
+    assert np.all(lam >= 0.0)
