@@ -53,6 +53,40 @@ def noisy_grid(n: int, noise: str = "zigzag", seed: int = 0):
     raise ValueError(f"noise: expected one of {NOISES}, got {noise!r}")
 
 
+def noisy_graded(n: int, ratio: float = 10.0, seed: int = 0):
+    """The benchmark sheet (:func:`noisy_grid`'s surface) on an ``n × n`` grid whose columns' spacing grows
+    geometrically by ``ratio`` from the first column to the last (a design surface sampled at even parameters where
+    its parametrization is uneven), with broadband noise of 0.2 local edge lengths (the smaller of the two
+    spacings at each vertex)."""
+    from quadnodes.mesh import QuadMesh, grid
+
+    u = np.linspace(0, 1, n)
+    x = u if ratio == 1 else (ratio**u - 1) / (ratio - 1)
+    y, xx = np.meshgrid(u, x, indexing="ij")
+    m = grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * xx) * np.cos(2 * y))
+    v = m.vertices.copy()
+    v[:, 0], v[:, 1] = xx.ravel(), y.ravel()
+    local = np.minimum(np.gradient(x), 1.0 / (n - 1))  # (by column)
+    rng = np.random.default_rng(seed)
+    v += rng.normal(size=v.shape) * (0.2 * np.tile(local, n))[:, None]
+    return QuadMesh(v, m.faces)
+
+
+def noisy_tower(n: int, taper: float = 3.0, seed: int = 0):
+    """An open cylinder of ``n`` rings of ``n`` vertices (height 2π: square cells at its base) whose radius shrinks
+    linearly by ``taper`` from the first ring to the last (a tapering tower), with broadband noise of 0.2 local
+    edge lengths."""
+    from quadnodes.mesh import QuadMesh, cylinder
+
+    c = cylinder(n, n, radius=1.0, height=2 * np.pi)
+    v = c.vertices.copy()
+    r = 1.0 + (1.0 / taper - 1.0) * v[:, 2] / v[:, 2].max()
+    v[:, :2] *= r[:, None]
+    rng = np.random.default_rng(seed)
+    v += rng.normal(size=v.shape) * (0.2 * 2 * np.pi / n * r)[:, None]
+    return QuadMesh(v, c.faces)
+
+
 def noisy_torus(rings: int, segments: int, seed: int = 0):
     """A torus (a closed mesh: lines wrap around; a grid closed both ways, with the seams' diagonals) with broadband
     noise of 0.2 edge lengths."""

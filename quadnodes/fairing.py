@@ -245,7 +245,10 @@ SPECTRAL_EXACT_FRESH_SIDE = 320
 SPECTRAL_MAX_STIFFNESS = 12.0
 #: The spectral preconditioner follows the coefficients' variation along an open axis (a grid sampled with uneven
 #: spacing, lines that shrink toward one side) where their medians along it spread by more than this factor
-#: (:func:`_coefficient_profile`): ...
+#: (:func:`_coefficient_profile`). Broadband noise alone leaves 1.2–1.8 (even sheets, sampled design surfaces),
+#: where the profile's dearer steps cost more than the 0–4 of 27–35 they save; from 2.1 (spacing growing 1.5-fold
+#: across a 300² sheet: 20 → 15 steps) it pays, and more the more they vary (tenfold: 110 → 17 steps, 1.3 → 0.38 s;
+#: ``benchmarks/studies/coefficient_profile.py``).
 PROFILE_MIN_SPREAD = 2.0
 #: "auto" preconditions a grid's CG by the line preconditioner (banded solves along every row and column line,
 #: :class:`~quadnodes.linalg.cg.LinePreconditioner`, loading the compiled kernels at any size) in place of
@@ -1165,9 +1168,10 @@ class FairingSystem:
         kernels are loaded at any size — except where the spectral preconditioner takes the grid (see
         ``preconditioner`` in the class: a torus, or a grid above :data:`SPECTRAL_CONTRAST` ω). Otherwise, on a
         mostly free vertex grid whose windows are scaled third differences, the spectral preconditioner
-        (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`) where :func:`_spectral_pays`, every fixed
-        vertex inside the unknowns' box inverted around exactly and no stiff spot above
-        :data:`SPECTRAL_MAX_STIFFNESS`; else
+        (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`; with the coefficients' profile where they vary
+        along an open axis, :func:`_coefficient_profile`) where :func:`_spectral_pays`, every fixed vertex inside
+        the unknowns' box inverted around exactly and no stiff spot above :data:`SPECTRAL_MAX_STIFFNESS` (against
+        the profile where there is one); else
         when the weight is small next to the fairing term (mean diagonal of AᵀA
         above :data:`BLOCK_JACOBI_RATIO` ω, or :data:`GRID_BLOCK_JACOBI_RATIO` ω on a
         grid), the unknowns are renumbered in patches (:func:`_patch_order`) and

@@ -7,7 +7,8 @@ highest frequency, the easiest case for CG) or ``broadband`` (independent Gaussi
 (``benchmarks/_common.py``). ``--torus`` adds a closed torus of about n² vertices with broadband
 noise (a torus grid: periodic grid diagonals); ``--cube-sphere`` a cube-sphere of about n² vertices
 (six k × k grids on a sphere, eight valence-3 corners: no grid of any kind, the general CSR path)
-with the same noise.
+with the same noise; ``--graded`` the sheet sampled with uneven spacing (its columns' spacing growing tenfold
+across it, ``_common.noisy_graded``) with broadband noise of 0.2 local edge lengths.
 
 Every row runs in fresh subprocesses (``--repeat``, default 3) and the table shows
 the median run's wall time (the range in brackets) and memory: "peak MB" is that
@@ -35,7 +36,7 @@ Rows
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
 Run:  python benchmarks/perf/bench_core.py [--sizes 100 300 1000] [--noise zigzag broadband]
-            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--warm] [--weight W]
+            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--graded] [--warm] [--weight W]
             [--against PATH]
 """
 
@@ -60,6 +61,8 @@ def _mesh(n: int, noise: str = "zigzag"):
         return _common.noisy_torus(n, n)
     if noise == "cube-sphere":
         return _common.noisy_cube_sphere(max(2, round(n / 6**0.5)))
+    if noise == "graded":
+        return _common.noisy_graded(n, 10.0)
     return _common.noisy_grid(n, noise)
 
 
@@ -175,6 +178,9 @@ def main() -> None:
     ap.add_argument("--torus", action="store_true", help="also fair a noisy torus of about n² vertices")
     ap.add_argument("--cube-sphere", action="store_true",
                     help="also fair a noisy cube-sphere of about n² vertices (irregular: no grid)")
+    ap.add_argument("--graded", action="store_true",
+                    help="also fair the sheet sampled with uneven spacing: its columns' spacing growing tenfold "
+                         "across it, broadband noise of 0.2 local edge lengths")
     ap.add_argument("--warm", action="store_true",
                     help="load the compiled kernels before the clock, as `quadnodes serve`/`watch` and a second "
                          "run in one process have them (the rows say 'kernels loaded')")
@@ -217,6 +223,8 @@ def main() -> None:
                 noises.append("torus")
             if args.cube_sphere and kind in FAIR_KINDS:
                 noises.append("cube-sphere")
+            if args.graded and kind in FAIR_KINDS:
+                noises.append("graded")
             for noise in noises:
                 if kind.startswith("superlu") and noise in ("torus", "cube-sphere") and n > 100 and not args.slow:
                     continue  # (a torus's fill: SuperLU in MMD order ran over 8 minutes and 4 GB at 300²)
@@ -225,8 +233,9 @@ def main() -> None:
                     results = _common.interleaved_runs(__file__, row, args.repeat, args.against)
                 else:
                     results = (_common.fresh_runs(__file__, row, args.repeat),)
-                mesh = {"torus": f"torus {n}×{n}", "cube-sphere": f"cube-sphere ~{n}²"}.get(noise, f"{n}×{n}")
-                label = "broadband" if noise in ("torus", "cube-sphere") else noise
+                mesh = {"torus": f"torus {n}×{n}", "cube-sphere": f"cube-sphere ~{n}²",
+                        "graded": f"{n}×{n}, spacing ×10 across"}.get(noise, f"{n}×{n}")
+                label = "broadband" if noise in ("torus", "cube-sphere", "graded") else noise
                 label += ", kernels loaded" if args.warm else ""
                 label += f", weight {args.weight:g}" if args.weight is not None else ""
                 for (r, walls), who in zip(results, ("", f" [{args.against}]")):
