@@ -41,6 +41,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import sys
+from collections.abc import Callable
 from types import ModuleType
 from typing import Literal
 
@@ -52,11 +53,18 @@ from . import threads as _threads
 
 __all__ = ["SpectralPreconditioner", "box", "fixed_inside", "inverts_exactly", "line_laplacian",
            "line_third_differences", "loaded", "MAX_CORRECTED", "CORRECTION_MAX_VALUES", "CORRECTION_SINGLE_MAX",
-           "MAX_CORRECTED_EXACT", "CORRECTION_MAX_WORK", "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES"]
+           "MAX_CORRECTED_EXACT", "CORRECTION_MAX_WORK", "EXACT_MAX_SIDE", "PARALLEL_MIN_NODES",
+           "EXACT_PARALLEL_MIN_NODES", "FOLD_SLAB_BYTES"]
 
 #: Grids of at least this many nodes transform on the solver's threads; below, one thread is faster (300²: 1.5
 #: against 2.3 ms a step, 1000²: 28 against 12 ms, a throwaway timing of ``dctn``/``idctn``).
 PARALLEL_MIN_NODES = 250_000
+#: ... the exact lines' products (BLAS) from this many (on 300² two threads took 6–9 ms a step against 8–10 ms,
+#: on 200² 3.8–5.5 against 3.0–4.1 ms, a throwaway timing of ``apply`` with the capacitance correction's slabs).
+EXACT_PARALLEL_MIN_NODES = 50_000
+#: The capacitance correction in the lines' coordinates works in slabs of columns whose double-precision copies
+#: hold at most this many bytes (:meth:`SpectralPreconditioner._fold_correction`).
+FOLD_SLAB_BYTES = 2**19
 #: Fixed nodes inside the unknowns' box up to which the preconditioner inverts around them exactly where an axis
 #: closes around or its lines are cosine ones (a capacitance correction: ``K⁻¹`` of that many columns at set-up, a
 #: product with them per step) ...
@@ -629,25 +637,33 @@ class SpectralPreconditioner:
         eigenvalue: ``C`` holds parts of size ``ω`` beside ones of size 1, so double precision's own rounding
         then shows (a reviewer measured 2·10⁻⁷–6·10⁻⁷ relative error at 1–10⁻¹⁰, 1.6·10⁻⁴ at 10⁻¹², and the
         Cholesky factorization failing at 10⁻¹⁶, where the fixed nodes are then only zeroed). On ``workers`` threads,
-        in slabs of columns."""
+        in slabs of columns whose double-precision copies stay within :data:`FOLD_SLAB_BYTES` (one slab of the whole
+        300² grid took five times as long as two halves, a throwaway timing: its copies left the cache)."""
         U, V, factor = self._factored  # type: ignore[misc]
-        parts = _threads.split_ranges(G.shape[2], parts=workers)  # (slabs of columns, one per thread)
-        read: list[np.ndarray] = [np.empty(0)] * len(parts)
+        cols = G.shape[2]
+        count = min(cols, max(workers, -(-G.size * 8 // FOLD_SLAB_BYTES)))
+        slabs = [(k, lo, hi) for k, (lo, hi) in enumerate(_threads.split_ranges(cols, parts=count))]
+        shares = [slabs[k::workers] for k in range(min(workers, len(slabs)))]  # (each thread's slabs, in turn)
+        read: list[np.ndarray] = [np.empty(0)] * len(slabs)
 
         def values(k: int, lo: int, hi: int) -> None:  # the slab's share of y_x: (c, p)
             read[k] = np.einsum("cpn,np->cp", np.matmul(U.T, G[:, :, lo:hi].astype(np.float64)), V[lo:hi])
 
-        _threads.run_tasks(values, [(k, lo, hi) for k, (lo, hi) in enumerate(parts)])
+        def each(share: list[tuple[int, int, int]], fn: Callable[[int, int, int], None]) -> None:
+            for slab in share:
+                fn(*slab)
+
+        _threads.run_tasks(each, [(share, values) for share in shares])
         mu = sla.cho_solve(factor, sum(read[1:], read[0]).T)  # (p, c)
         A = U[None] * mu.T[:, None, :]  # (c, m, p)
         out = np.empty_like(G)
 
-        def subtract(lo: int, hi: int) -> None:
-            Y = G[:, :, lo:hi].astype(np.float64)
-            Y -= self._inverse64[:, lo:hi] * np.matmul(A, V[lo:hi].T)  # (c, m, p) @ (p, hi − lo)
-            out[:, :, lo:hi] = Y
+        def subtract(k: int, lo: int, hi: int) -> None:  # (in double, rounded once into out: as a double copy would)
+            correction = np.matmul(A, V[lo:hi].T)  # (c, m, p) @ (p, hi − lo)
+            correction *= self._inverse64[:, lo:hi]
+            np.subtract(G[:, :, lo:hi], correction, out=out[:, :, lo:hi], casting="same_kind")
 
-        _threads.run_tasks(subtract, parts)
+        _threads.run_tasks(each, [(share, subtract) for share in shares])
         return out
 
     def _correct(self) -> None:
@@ -750,16 +766,20 @@ class SpectralPreconditioner:
         fft: ModuleType | None = None
         if any(a.kind != "exact" for a in axes):  # (importing SciPy's transforms costs about 40 ms: only if used)
             import scipy.fft as fft
-        workers = _threads.thread_count() if G[0].size >= PARALLEL_MIN_NODES else 1
+        workers = _threads.thread_count() if G[0].size >= PARALLEL_MIN_NODES else 1  # (SciPy's transforms)
+        exact_workers = _threads.thread_count() if G[0].size >= EXACT_PARALLEL_MIN_NODES else 1  # (BLAS products)
         # the real transforms first (exact products and cosine transforms keep real data), then rfft, then fft
         order = sorted((1, 2), key=lambda a: ("exact", "dct", "rfft", "fft").index(axes[a - 1].kind))
+        def on(axis: int) -> int:
+            return exact_workers if axes[axis - 1].kind == "exact" else workers
+
         for axis in order:
-            G = self._transform(G, axis, True, fft, workers, dtype)
+            G = self._transform(G, axis, True, fft, on(axis), dtype)
         G *= self._inverse if dtype == np.float32 else self._inverse64
         if fold and self._factored is not None:
-            G = self._fold_correction(G, workers)
+            G = self._fold_correction(G, exact_workers)
         for axis in order[::-1]:
-            G = self._transform(G, axis, False, fft, workers, dtype)
+            G = self._transform(G, axis, False, fft, on(axis), dtype)
         return G
 
     def _transform(self, G: np.ndarray, axis: int, forward: bool, fft: ModuleType | None, workers: int,

@@ -250,15 +250,21 @@ def test_loaded_says_whether_the_transforms_are_imported():
 
 @pytest.mark.parametrize("wrap", [(False, True), (False, False), (True, True)])
 def test_parallel_transforms_equal_one_thread(monkeypatch, wrap):
+    """The transforms and the correction in the lines' coordinates on two threads, and the correction in slabs
+    (several per thread), give what one thread and one slab give."""
     from quadnodes.linalg import threads
 
     free = np.ones(1200, bool)
     free[[0, 1, 500, 777]] = False
     P = SpectralPreconditioner((30, 40), wrap, 1.0, 2.0, 0.3, free)
+    assert (P._factored is not None) == (wrap == (False, False))
     R = np.random.default_rng(1).normal(size=(3, 1200))
     one = _apply(P, R)
     monkeypatch.setattr(spectral, "PARALLEL_MIN_NODES", 10)
+    monkeypatch.setattr(spectral, "EXACT_PARALLEL_MIN_NODES", 10)
     monkeypatch.setattr(threads, "thread_count", lambda: 2)
+    np.testing.assert_allclose(_apply(P, R), one, rtol=0, atol=1e-6 * np.abs(one).max())
+    monkeypatch.setattr(spectral, "FOLD_SLAB_BYTES", 3 * 30 * 8 * 3)  # (slabs of 3 columns: 14 of them, 7 a thread)
     np.testing.assert_allclose(_apply(P, R), one, rtol=0, atol=1e-6 * np.abs(one).max())
 
 
