@@ -154,3 +154,22 @@ def test_compiled_window_geometry_on_a_torus_with_degenerate_edges_and_threads(m
     a, b = _both_geometries(v, m.topology, alternation=True, even=True)
     assert np.isnan(a[0]).any() and np.isinf(a[1]).any() and np.isfinite(a[0]).sum() > len(a[0]) // 2
     assert all(_same_bits(x, y) for x, y in zip(a, b))
+
+
+@settings(max_examples=25, deadline=None)
+@given(mesh=meshes(), seed=st.integers(0, 1000), chunk=st.integers(1, 9), alternation=st.booleans(),
+       even=st.booleans())
+def test_the_numpy_geometry_in_pieces_equals_one_pass_to_the_bit(mesh, seed, chunk, alternation, even):
+    """Long walks go through NumPy in pieces of windows (for the cache); any piece size gives the same bits and
+    layouts as one pass — open and closed lines, extraordinary vertices, an edge of length 0."""
+    from quadnodes import zigzag
+
+    v = mesh.vertices + np.random.default_rng(seed).normal(scale=0.2 * mesh.mean_edge_length, size=mesh.vertices.shape)
+    v[1] = v[0]  # (an edge of length 0 where they are neighbours: inf and NaN as one pass has them)
+    args = (v, mesh.topology.windows, mesh.topology.window_walk)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(zigzag._compiled, "ready", lambda: False)
+        whole = zigzag._window_geometry(*args, alternation=alternation, even=even)
+        mp.setattr(zigzag, "_WALK_CHUNK", chunk)
+        pieces = zigzag._window_geometry(*args, alternation=alternation, even=even)
+    assert all(_same_bits(x, y) and x.flags.f_contiguous == y.flags.f_contiguous for x, y in zip(whole, pieces))
