@@ -245,11 +245,16 @@ SPECTRAL_EXACT_FRESH_SIDE = 320
 SPECTRAL_MAX_STIFFNESS = 12.0
 #: The spectral preconditioner follows the coefficients' variation along an open axis (a grid sampled with uneven
 #: spacing, lines that shrink toward one side) where their medians along it spread by more than this factor
-#: (:func:`_coefficient_profile`). Broadband noise alone leaves 1.2–1.8 (even sheets, sampled design surfaces),
-#: where the profile's dearer steps cost more than the 0–4 of 27–35 they save; from 2.1 (spacing growing 1.5-fold
+#: (:func:`_coefficient_profile`). Broadband noise alone leaves 1.1–1.8 (even sheets, a cylinder, sampled design
+#: surfaces), where the profile's dearer steps cost about what the 0–4 of 27–35 they save do (a cylinder's 22 → 14:
+#: its open axis's exact pencil against the cosine lines, at the same time); from 2.1 (spacing growing 1.5-fold
 #: across a 300² sheet: 20 → 15 steps) it pays, and more the more they vary (tenfold: 110 → 17 steps, 1.3 → 0.38 s;
 #: ``benchmarks/studies/coefficient_profile.py``).
 PROFILE_MIN_SPREAD = 2.0
+#: ... and only along an axis of at most this many nodes: the varying axis's basis is one dense eigendecomposition
+#: of its whole span, not cached (n = 2000 took 1.55 s on one BLAS thread, 4000 took 16.1 s against 2.7 s for the
+#: constant lines' two halves, a reviewer's timing).
+PROFILE_MAX_SIDE = 2048
 #: "auto" preconditions a grid's CG by the line preconditioner (banded solves along every row and column line,
 #: :class:`~quadnodes.linalg.cg.LinePreconditioner`, loading the compiled kernels at any size) in place of
 #: Gauss–Seidel, block Jacobi or plain CG where some unknown's fairing diagonal is at least this many times the
@@ -686,10 +691,12 @@ def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int
     ``profile``, else None.
 
     A window's coefficient is the magnitude of its ends' coupling (the ``+3`` diagonal for the rows' windows, the
-    ``+3·cols`` one for the columns'; zero where a fixed node or no window is). Along axis 1: the rows' window
-    coefficients' median over the rows at each window position, and each column's median; along axis 0 the same
-    with rows and columns swapped (the seams' windows of a closed axis are left out). The axis whose medians
-    spread more (largest over smallest) is taken.
+    ``+3·cols`` one for the columns'); where an end is fixed (or no window is) that coupling is absent from the
+    storage, not zero in the window, so only positive ones count. Along axis 1: the rows' window coefficients'
+    median over the rows at each window position, and each column's median; along axis 0 the same with rows and
+    columns swapped (the seams' windows of a closed axis are left out). A position or line with no coefficient
+    takes its neighbours' (linear interpolation). The axis whose medians spread more (largest over smallest) is
+    taken, up to :data:`PROFILE_MAX_SIDE` nodes along it.
     """
     rows, cols = shape
     found = {int(o): d for d, o in enumerate(offsets)}
@@ -699,21 +706,32 @@ def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int
     along_cols = -data[found[3 * cols]].reshape(rows, cols)[3:, :]  # (rows − 3, cols)
     best: tuple[float, int, np.ndarray, np.ndarray] | None = None
     for axis, (windows, lines) in enumerate(((along_cols, along_rows), (along_rows, along_cols))):
-        if wrap[axis] or shape[axis] > spectral.EXACT_MAX_SIDE:
+        if wrap[axis] or shape[axis] > PROFILE_MAX_SIDE:
             continue
-        w = np.median(windows, axis=1 - axis)  # (the family along the axis: its windows' medians by position)
-        s = np.median(lines, axis=1 - axis)  # (the other family: each line's median)
-        positive = s[s > 0]
-        if not positive.size or not (w > 0).any():
+        w = _positive_medians(windows, 1 - axis)  # (the family along the axis: its windows' medians by position)
+        s = _positive_medians(lines, 1 - axis)  # (the other family: each line's median)
+        if w is None or s is None:
             continue
-        s = np.where(s > 0, s, np.median(positive))
-        w = np.maximum(w, 0.0)
-        spread = max(float(w.max() / w[w > 0].min()), float(s.max() / s.min()))
+        spread = max(float(w.max() / w.min()), float(s.max() / s.min()))
         if best is None or spread > best[0]:
             best = (spread, axis, w, s)
     if best is None or best[0] < PROFILE_MIN_SPREAD:
         return None
     return best[1], best[2], best[3]
+
+
+def _positive_medians(values: np.ndarray, axis: int) -> np.ndarray | None:
+    """Medians of the positive entries of a 2-d array along ``axis``; where there are none, interpolated from the
+    neighbouring medians (None where no entry at all is positive)."""
+    with warnings.catch_warnings():  # (all-NaN slices: filled below)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        m = np.nanmedian(np.where(values > 0, values, np.nan), axis=axis)
+    known = np.flatnonzero(np.isfinite(m))
+    if not known.size:
+        return None
+    if known.size < m.size:
+        m = np.interp(np.arange(m.size), known, m[known])
+    return m
 
 
 def _profile_stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float, shape: tuple[int, int],

@@ -940,6 +940,36 @@ def test_varying_coefficients_take_their_profile(monkeypatch, case):
     assert isinstance(picked[0], SpectralPreconditioner) and picked[0].profile is None
 
 
+@pytest.mark.parametrize("case", ["boundary", "line"])
+def test_a_profile_beside_fixed_lines_keeps_its_steps_at_small_weights(monkeypatch, case):
+    """Windows with a fixed end have no end coupling in the matrix's storage; the profile reads them from the
+    windows that do (a fixed boundary, a fixed line across the grading): at ω = 10⁻⁴ no more steps than constant
+    coefficients take, and the direct solve's result."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg import spectral
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+
+    monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)
+    monkeypatch.setattr(spectral, "loaded", lambda: True)
+    m = _noisy(_graded(50, 60, 10.0))
+    kw = dict(threshold=0.0, weight=1e-4)
+    if case == "boundary":
+        kw["fix"] = "boundary"
+    else:
+        line = np.zeros((50, 60), bool)
+        line[:, 30] = True  # (a column across the rows' grading)
+        kw["fixed"] = np.flatnonzero(line)
+    picked = _record_setups(monkeypatch, lambda system, out: out[1])
+    out, rep = fair(m, **kw)
+    assert isinstance(picked[0], SpectralPreconditioner) and picked[0].profile is not None
+    assert np.all(picked[0].profile[1] > 0) and np.all(picked[0].profile[2] > 0)
+    monkeypatch.setattr(fairing_module, "PROFILE_MIN_SPREAD", np.inf)
+    _, constant = fair(m, **kw)
+    assert rep.iterations[0].cg_iterations <= constant.iterations[0].cg_iterations
+    ref, _ = fair(m, solver="direct", **kw)
+    assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     """Without the compiled kernels, on a mostly free grid: where plain CG's work is large enough or the
     transforms are imported, with few inner vertices fixed and no stiff spots; never on request off a grid."""

@@ -314,8 +314,8 @@ def test_a_profile_operator_is_each_familys_own_sum():
 def test_a_profile_inverts_the_varying_operator_on_the_unknowns(rows, cols, axis, other_closed, spread, share, weight,
                                                                seed, open_lines):
     """Coefficients varying along an open axis by up to ``spread`` (the other axis open or closed, fixed nodes
-    inside up to MAX_CORRECTED): ``P⁻¹ = E K_ff⁻¹ Eᵀ`` to single precision at any weight, ``K`` the varying
-    operator."""
+    inside up to MAX_CORRECTED): ``P⁻¹ = E K_ff⁻¹ Eᵀ`` to single precision down to ω = 10⁻⁶, ``K`` the varying
+    operator (see ``_pencil_basis`` for smaller weights with larger spreads)."""
     rng = np.random.default_rng(seed)
     wrap = (False, other_closed) if axis == 0 else (other_closed, False)
     n_a = (rows, cols)[axis]
