@@ -53,22 +53,24 @@ def noisy_grid(n: int, noise: str = "zigzag", seed: int = 0):
     raise ValueError(f"noise: expected one of {NOISES}, got {noise!r}")
 
 
-def noisy_graded(n: int, ratio: float = 10.0, seed: int = 0):
+def noisy_graded(n: int, ratio: float = 10.0, seed: int = 0, rows_ratio: float = 1.0):
     """The benchmark sheet (:func:`noisy_grid`'s surface) on an ``n × n`` grid whose columns' spacing grows
     geometrically by ``ratio`` from the first column to the last (a design surface sampled at even parameters where
-    its parametrization is uneven), with broadband noise of 0.2 local edge lengths (the smaller of the two
-    spacings at each vertex)."""
+    its parametrization is uneven) and its rows' by ``rows_ratio``, with broadband noise of 0.2 local edge lengths
+    (the smaller of the two spacings at each vertex)."""
     from quadnodes.mesh import QuadMesh, grid
 
     u = np.linspace(0, 1, n)
     x = u if ratio == 1 else (ratio**u - 1) / (ratio - 1)
-    y, xx = np.meshgrid(u, x, indexing="ij")
-    m = grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * xx) * np.cos(2 * y))
+    y = u if rows_ratio == 1 else (rows_ratio**u - 1) / (rows_ratio - 1)
+    yy, xx = np.meshgrid(y, x, indexing="ij")
+    m = grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * xx) * np.cos(2 * yy))
     v = m.vertices.copy()
-    v[:, 0], v[:, 1] = xx.ravel(), y.ravel()
-    local = np.minimum(np.gradient(x), 1.0 / (n - 1))  # (by column)
+    v[:, 0], v[:, 1] = xx.ravel(), yy.ravel()
+    along_y = np.full(n, 1.0 / (n - 1)) if rows_ratio == 1 else np.gradient(y)
+    local = np.minimum(np.gradient(x)[None, :], along_y[:, None]).ravel()
     rng = np.random.default_rng(seed)
-    v += rng.normal(size=v.shape) * (0.2 * np.tile(local, n))[:, None]
+    v += rng.normal(size=v.shape) * (0.2 * local)[:, None]
     return QuadMesh(v, m.faces)
 
 

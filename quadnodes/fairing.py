@@ -685,7 +685,7 @@ def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: 
 
 
 def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int],
-                         wrap: tuple[bool, bool]) -> tuple[int, np.ndarray, np.ndarray] | None:
+                         wrap: tuple[bool, bool]) -> tuple[int, np.ndarray, np.ndarray, np.ndarray | None] | None:
     """The coefficients' variation along an open axis of a grid's ``AᵀA + ωI`` in diagonal storage, where it is
     large enough to pay (:data:`PROFILE_MIN_SPREAD`): :class:`~quadnodes.linalg.spectral.SpectralPreconditioner`'s
     ``profile``, else None.
@@ -694,9 +694,12 @@ def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int
     ``+3·cols`` one for the columns'); where an end is fixed (or no window is) that coupling is absent from the
     storage, not zero in the window, so only positive ones count. Along axis 1: the rows' window coefficients'
     median over the rows at each window position, and each column's median; along axis 0 the same with rows and
-    columns swapped (the seams' windows of a closed axis are left out). A position or line with no coefficient
-    takes its neighbours' (linear interpolation). The axis whose medians spread more (largest over smallest) is
-    taken, up to :data:`PROFILE_MAX_SIDE` nodes along it.
+    columns swapped (the seams' windows of a closed axis are left out). Where the other family's windows vary
+    along their own (open) axis too, by more than :data:`PROFILE_MIN_SPREAD` (a sheet graded both ways), their
+    medians over its lines relative to each line's, ``across``. A position or line with no coefficient takes its
+    neighbours' (linear interpolation). The axis whose own medians spread more (largest over smallest) is taken, up
+    to :data:`PROFILE_MAX_SIDE` nodes along it (and along the other for ``across``): where one axis's profile takes
+    the whole variation, the other axis keeps its halves.
     """
     rows, cols = shape
     found = {int(o): d for d, o in enumerate(offsets)}
@@ -704,7 +707,7 @@ def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int
         return None
     along_rows = -data[found[3]].reshape(rows, cols)[:, 3:]  # (rows, cols − 3): row i's window k on nodes k … k+3
     along_cols = -data[found[3 * cols]].reshape(rows, cols)[3:, :]  # (rows − 3, cols)
-    best: tuple[float, int, np.ndarray, np.ndarray] | None = None
+    best: tuple[float, int, np.ndarray, np.ndarray, np.ndarray] | None = None
     for axis, (windows, lines) in enumerate(((along_cols, along_rows), (along_rows, along_cols))):
         if wrap[axis] or shape[axis] > PROFILE_MAX_SIDE:
             continue
@@ -714,10 +717,18 @@ def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int
             continue
         spread = max(float(w.max() / w.min()), float(s.max() / s.min()))
         if best is None or spread > best[0]:
-            best = (spread, axis, w, s)
-    if best is None or best[0] < PROFILE_MIN_SPREAD:
+            best = (spread, axis, w, s, lines)
+    if best is None:
         return None
-    return best[1], best[2], best[3]
+    spread, axis, w, s, lines = best
+    across = None  # (the other family's windows along their own axis, relative to their line's median)
+    if not wrap[1 - axis] and shape[1 - axis] <= PROFILE_MAX_SIDE:
+        o = _positive_medians(lines / (s[None, :] if axis == 1 else s[:, None]), axis)
+        if o is not None and o.max() / o.min() >= PROFILE_MIN_SPREAD:
+            across, spread = o, max(spread, float(o.max() / o.min()))
+    if spread < PROFILE_MIN_SPREAD:
+        return None
+    return axis, w, s, across
 
 
 def _positive_medians(values: np.ndarray, axis: int) -> np.ndarray | None:
@@ -735,14 +746,18 @@ def _positive_medians(values: np.ndarray, axis: int) -> np.ndarray | None:
 
 
 def _profile_stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float, shape: tuple[int, int],
-                       wrap: tuple[bool, bool], profile: tuple[int, np.ndarray, np.ndarray]) -> float:
+                       wrap: tuple[bool, bool], profile: tuple[int, np.ndarray, np.ndarray, np.ndarray | None]) -> float:
     """:func:`_stiffness` against a coefficient profile (:func:`_coefficient_profile`): the largest ratio of an
     unknown's fairing diagonal to the profile's operator's (``ω`` left out of both) over the median ratio — the
     stiff spots that the profile misses."""
-    axis, windows, lines = profile
-    along = np.convolve(windows, [1.0, 9.0, 9.0, 1.0])  # (Dᵀ C D's diagonal: a window's squared stencil)
+    axis, windows, lines, relative = profile
+    stencil = [1.0, 9.0, 9.0, 1.0]  # (Dᵀ C D's diagonal: a window's squared stencil)
+    along = np.convolve(windows, stencil)
     other = shape[1 - axis]
-    across = np.full(other, 20.0) if wrap[1 - axis] else np.convolve(np.ones(max(other - 3, 0)), [1.0, 9.0, 9.0, 1.0])
+    if relative is not None:
+        across = np.convolve(relative, stencil)
+    else:
+        across = np.full(other, 20.0) if wrap[1 - axis] else np.convolve(np.ones(max(other - 3, 0)), stencil)
     if axis == 1:
         K = along[None, :] + across[:, None] * lines[None, :]
     else:
@@ -757,7 +772,7 @@ def _profile_stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, 
 
 def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool],
                              weight: float, free: np.ndarray, exact: bool = True,
-                             profile: tuple[int, np.ndarray, np.ndarray] | None = None,
+                             profile: tuple[int, np.ndarray, np.ndarray, np.ndarray | None] | None = None,
                              ) -> "spectral.SpectralPreconditioner":
     """:class:`~quadnodes.linalg.spectral.SpectralPreconditioner` of a grid's ``AᵀA + ωI`` in diagonal storage:
     each family's coefficient the median magnitude of its ``±3`` diagonal (the product of a window's end
@@ -1252,7 +1267,7 @@ class FairingSystem:
 
             profile: list = []  # (the coefficients' profile along an open axis, or None: once)
 
-            def coefficient_profile() -> tuple[int, np.ndarray, np.ndarray] | None:
+            def coefficient_profile() -> tuple[int, np.ndarray, np.ndarray, np.ndarray | None] | None:
                 if not profile:
                     profile.append(_coefficient_profile(*grid_storage(), shape, wrap))
                 return profile[0]

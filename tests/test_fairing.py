@@ -708,13 +708,17 @@ def _noisy(m, seed=5, share=0.2):
     return m.with_vertices(m.vertices + [4000.0, -2500.0, 300.0])
 
 
-def _graded(rows, cols, ratio, spacing=25.0):
-    """A grid whose columns' spacing grows by ``ratio`` from the first to the last (geometrically)."""
-    u = np.linspace(0.0, 1.0, cols)
-    x = (ratio**u - 1.0) / (ratio - 1.0) * spacing * (cols - 1)
+def _graded(rows, cols, ratio, spacing=25.0, rows_ratio=1.0):
+    """A grid whose columns' spacing grows by ``ratio`` from the first to the last (geometrically), and its rows'
+    by ``rows_ratio``."""
+    def axis(n, r):
+        u = np.linspace(0.0, 1.0, n)
+        return u * spacing * (n - 1) if r == 1.0 else (r**u - 1.0) / (r - 1.0) * spacing * (n - 1)
+
     m = grid(rows, cols, spacing=spacing)
     v = m.vertices.copy()
-    v[:, 0] = np.tile(x, rows)
+    v[:, 0] = np.tile(axis(cols, ratio), rows)
+    v[:, 1] = np.repeat(axis(rows, rows_ratio), cols)
     return QuadMesh(v, m.faces)
 
 
@@ -909,23 +913,28 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
         assert np.array_equal(out.vertices[fixed], m.vertices[fixed])
 
 
-@pytest.mark.parametrize("case", ["graded", "tower"])
+@pytest.mark.parametrize("case", ["graded", "tower", "both ways"])
 def test_varying_coefficients_take_their_profile(monkeypatch, case):
     """Where the window coefficients vary along an axis (spacing that grows tenfold across a sheet, a cylinder
-    tapering to a third of its radius) the transforms follow their profile along it: far fewer steps than with
-    constant coefficients, the same result; an even sheet keeps the constant ones."""
+    tapering to a third of its radius, a sheet graded both ways) the transforms follow their profile along it (and
+    along the other axis for the other family where it varies there too): far fewer steps than with constant
+    coefficients, the same result; an even sheet keeps the constant ones."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg import spectral
     from quadnodes.linalg.spectral import SpectralPreconditioner
 
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: False)
     monkeypatch.setattr(spectral, "loaded", lambda: True)  # (the transforms at any size)
-    m = _noisy(_graded(50, 60, 10.0) if case == "graded" else _tower(50, 60, 3.0))
+    m = _noisy({"graded": lambda: _graded(50, 60, 10.0), "tower": lambda: _tower(50, 60, 3.0),
+                "both ways": lambda: _graded(50, 60, 10.0, rows_ratio=10.0)}[case]())
     picked = _record_setups(monkeypatch, lambda system, out: out[1])
     out, rep = fair(m, threshold=0.0)
     assert isinstance(picked[0], SpectralPreconditioner) and picked[0].profile is not None
-    axis = picked[0].profile[0]
-    assert axis == (1 if case == "graded" else 0)  # (along the graded columns' axis; along the tower's height)
+    axis, across = picked[0].profile[0], picked[0].profile[3]
+    if case != "both ways":  # (along the graded columns' axis; along the tower's height)
+        assert axis == (1 if case == "graded" else 0) and across is None
+    else:  # (either axis, with the other family's windows varying along the other)
+        assert across is not None and across.max() / across.min() > 10
     spread = fairing_module.PROFILE_MIN_SPREAD
     monkeypatch.setattr(fairing_module, "PROFILE_MIN_SPREAD", np.inf)
     picked.clear()

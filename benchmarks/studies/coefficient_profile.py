@@ -9,7 +9,7 @@ is uneven, a tower whose rings shrink toward the top — its steps grow with tha
 (``SpectralPreconditioner(profile=…)``: the windows' coefficients by position along the axis, the other family's
 by line) it inverts that variation exactly. Meshes, all with broadband noise of 0.2 local edge lengths:
 ``graded:N:r`` the bench sheet whose columns' spacing grows geometrically by ``r`` across it
-(``_common.noisy_graded``), ``tower:N:t`` an open cylinder tapering by ``t`` (``_common.noisy_tower``), and
+(``_common.noisy_graded``), ``both:N:r`` its rows' spacing too, ``tower:N:t`` an open cylinder tapering by ``t`` (``_common.noisy_tower``), and
 ``surface:N:name`` a design surface of ``quadnodes.surfaces`` sampled at N × N even parameters. One all-free
 fair() iteration (default weight unless the case adds ``:w``), fresh processes (median of ``--repeat``, clock
 around fair() alone, compiled kernels not loaded: the spectral path of a fresh process): the rule
@@ -35,8 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import _common  # noqa: E402
 
 DEFAULT = ["graded:300:1", "graded:300:1.5", "graded:300:2", "graded:300:3", "graded:300:10", "graded:300:30",
-           "graded:300:10:0.001", "tower:300:1", "tower:300:3", "surface:300:saddle", "surface:300:s_shape",
-           "surface:300:dome", "surface:300:torus_patch", "graded:1000:10:0.0001"]
+           "graded:300:10:0.001", "both:300:3", "both:300:10", "tower:300:1", "tower:300:3", "surface:300:saddle",
+           "surface:300:s_shape", "surface:300:dome", "surface:300:torus_patch", "graded:1000:10:0.0001"]
 MODES = {"rule": None, "constant": "inf", "always": "1"}
 
 
@@ -44,6 +44,8 @@ def mesh(case: str):  # type: ignore[no-untyped-def]
     kind, n, what = case.split(":")[:3]
     if kind == "graded":
         return _common.noisy_graded(int(n), float(what))
+    if kind == "both":
+        return _common.noisy_graded(int(n), float(what), rows_ratio=float(what))
     if kind == "tower":
         return _common.noisy_tower(int(n), float(what))
     from quadnodes import surfaces
@@ -69,8 +71,8 @@ def row(case: str, mode: str) -> dict:
         found = profile(*args)
         fairing.PROFILE_MIN_SPREAD = rule
         if found is not None:
-            _, w, s = found
-            seen.append(max(float(w.max() / w[w > 0].min()), float(s.max() / s.min())))
+            _, w, s, across = found
+            seen.append(max([float(a.max() / a.min()) for a in (w, s, across) if a is not None]))
         return profile(*args)
 
     fairing._coefficient_profile = spy
@@ -85,7 +87,8 @@ def row(case: str, mode: str) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("cases", nargs="*", default=DEFAULT, help="graded:N:ratio[:weight], tower:N:taper, surface:N:name")
+    ap.add_argument("cases", nargs="*", default=DEFAULT,
+                    help="graded:N:ratio[:weight], both:N:ratio, tower:N:taper, surface:N:name")
     ap.add_argument("--repeat", type=int, default=3, help="fresh processes per cell (median)")
     ap.add_argument("--row", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()

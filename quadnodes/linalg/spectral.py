@@ -244,13 +244,16 @@ def _span_basis(head: int, size: int, tail: int) -> tuple[np.ndarray, list[np.nd
     return np.maximum(lam, 0.0), blocks
 
 
-def _checked_profile(profile: tuple[int, np.ndarray, np.ndarray], shape: tuple[int, int],
-                     wrap: tuple[bool, bool]) -> tuple[int, np.ndarray, np.ndarray]:
-    """:class:`SpectralPreconditioner`'s ``profile``, checked: ``(axis, windows, lines)`` as float64 arrays."""
+def _checked_profile(profile: tuple, shape: tuple[int, int],
+                     wrap: tuple[bool, bool]) -> tuple[int, np.ndarray, np.ndarray, np.ndarray | None]:
+    """:class:`SpectralPreconditioner`'s ``profile``, checked: ``(axis, windows, lines, across)`` as float64 arrays
+    (``across`` None where not given)."""
     try:
-        axis, windows, lines = profile
+        axis, windows, lines, *rest = profile
+        if len(rest) > 1:
+            raise ValueError
     except (TypeError, ValueError):
-        raise ValueError(f"profile: expected (axis, windows, lines), got {profile!r}") from None
+        raise ValueError(f"profile: expected (axis, windows, lines[, across]), got {profile!r}") from None
     if axis not in (0, 1):
         raise ValueError(f"profile: expected axis 0 or 1, got {axis!r}")
     n = shape[axis]
@@ -264,7 +267,17 @@ def _checked_profile(profile: tuple[int, np.ndarray, np.ndarray], shape: tuple[i
         raise ValueError(f"profile: expected {n - 3} finite window coefficients >= 0, got shape {windows.shape}")
     if lines.shape != (n,) or not (np.isfinite(lines).all() and (lines > 0).all()):
         raise ValueError(f"profile: expected {n} finite line coefficients > 0, got shape {lines.shape}")
-    return int(axis), windows, lines
+    across = None if not rest or rest[0] is None else np.asarray(rest[0], dtype=np.float64)
+    if across is not None:
+        other = shape[1 - axis]
+        if wrap[1 - axis]:
+            raise ValueError(f"profile: axis {1 - axis} closes around; across needs an open axis")
+        if not 4 <= other <= EXACT_MAX_SIDE:
+            raise ValueError(f"profile: expected 4 to {EXACT_MAX_SIDE} nodes along axis {1 - axis}, got {other}")
+        if across.shape != (other - 3,) or not (np.isfinite(across).all() and (across >= 0).all()):
+            raise ValueError(f"profile: expected {other - 3} finite across coefficients >= 0, got shape "
+                             f"{across.shape}")
+    return int(axis), windows, lines, across
 
 
 def _pencil_basis(n: int, lo: int, hi: int, windows: np.ndarray, scale: np.ndarray,
@@ -483,10 +496,11 @@ class SpectralPreconditioner:
     With a ``profile`` the coefficients vary along one open axis ``a`` (a grid sampled with uneven spacing, a
     surface whose lines shrink toward one side): the family of lines along ``a`` has a coefficient per window,
     the same on every line (``B_a = Dᵀ C D``), the other family one coefficient per line, by the line's position
-    along ``a`` (``S``). For ``a = 1``: ``K = B_c ⊗ S + I ⊗ B_a + ωI``. The other axis transforms as before; along
-    ``a`` the pencil ``(B_a + ωI, S)``'s eigenvectors ``X`` (dense, :func:`_pencil_basis`) take every mode ``μ`` of
-    the other axis at once, as ``μ S + B_a + ωI = X⁻ᵀ (μ + Θ) X⁻¹``. Still exact, fixed nodes corrected as above,
-    at one dense product each way along ``a`` instead of two of half the length.
+    along ``a`` (``S``). For ``a = 1``: ``K = B_c ⊗ S + I ⊗ B_a + ωI``. The other axis transforms as before (or, its
+    windows varying along it too, ``across``, by the eigenvectors of ``B_c = Dᵀ diag(across) D``); along ``a`` the
+    pencil ``(B_a + ωI, S)``'s eigenvectors ``X`` (dense, :func:`_pencil_basis`) take every mode ``μ`` of the other
+    axis at once, as ``μ S + B_a + ωI = X⁻ᵀ (μ + Θ) X⁻¹``. Still exact, fixed nodes corrected as above, at one dense
+    product each way along a varying axis instead of two of half the length.
 
     Parameters
     ----------
@@ -506,11 +520,13 @@ class SpectralPreconditioner:
         An open axis's line operator: its third differences (dense eigenvectors, up to :data:`EXACT_MAX_SIDE`
         nodes) or the Neumann Laplacian's cube (the cosine transform). Either way the box is cut to the
         unknowns' span along an open axis.
-    profile : (int, (n_a − 3,) float, (n_a,) float), optional
-        ``(a, windows, lines)``: coefficients that vary along the open axis ``a`` (0: the row index, 1: the column
-        index; ``n_a`` nodes, at least 4, up to :data:`EXACT_MAX_SIDE`) — the window coefficients (``≥ 0``) of
-        the family of lines along ``a``, and the coefficient (``> 0``) of each line of the other family. They
-        replace both ``row_coefficient`` and ``column_coefficient``.
+    profile : (int, (n_a − 3,) float, (n_a,) float[, (n_o − 3,) float]), optional
+        ``(a, windows, lines[, across])``: coefficients that vary along the open axis ``a`` (0: the row index, 1:
+        the column index; ``n_a`` nodes, at least 4, up to :data:`EXACT_MAX_SIDE`) — the window coefficients
+        (``≥ 0``) of the family of lines along ``a``, and the coefficient (``> 0``) of each line of the other
+        family; ``across`` (the other axis open, ``n_o`` nodes): that family's windows also vary along their own
+        axis, window ``k`` of the line at ``p`` weighing ``across[k] · lines[p]`` (``B_o = Dᵀ diag(across) D``, one
+        dense basis along that axis too). They replace both ``row_coefficient`` and ``column_coefficient``.
 
     Raises
     ------
@@ -572,9 +588,12 @@ class SpectralPreconditioner:
         scale = 1.0  # (the other family's largest line coefficient over the span: S ≤ I)
         for axis, (n, closed, (lo, hi)) in enumerate(zip(self.shape, self.wrap, spans)):
             if axis == varying:
-                _, windows, line_coefficients = self.profile  # type: ignore[misc]
+                _, windows, line_coefficients, _ = self.profile  # type: ignore[misc]
                 scale = float(line_coefficients[lo:hi].max())
                 axes.append(_Axis("exact", n, lo, hi, pencil=(windows, line_coefficients[lo:hi] / scale, self.weight)))
+            elif varying >= 0 and self.profile[3] is not None:  # type: ignore[index]
+                # (the other family's windows vary along this axis too: their own orthonormal basis, S = I, ω = 0)
+                axes.append(_Axis("exact", n, lo, hi, pencil=(self.profile[3], np.ones(hi - lo), 0.0)))  # type: ignore[index]
             elif closed and form == "coordinates":
                 axes.append(_Axis("exact", n, lo, hi, closed=True))
             elif closed:
@@ -710,14 +729,14 @@ class SpectralPreconditioner:
         scales = [sp.eye(m) * self.coefficients[0], sp.eye(n) * self.coefficients[1]]
         windows = None
         if self.profile is not None:  # the family along a by its windows, the other's lines one by one along a
-            a, windows, line_coefficients = self.profile
+            a, windows, line_coefficients, across = self.profile
             ax = self._axes[a]
             scales[1 - a] = sp.eye(self._box_shape[1 - a])
             scales[a] = sp.diags(line_coefficients[ax.lo:ax.hi])
         lines = []
         for axis, (ax, closed) in enumerate(zip(self._axes, self.wrap)):
             if ax.kind == "exact":
-                w = windows if self.profile is not None and axis == self.profile[0] else None
+                w = None if self.profile is None else windows if axis == self.profile[0] else across
                 lines.append(line_third_differences(ax.n, ax.closed, w)[ax.lo:ax.hi, ax.lo:ax.hi])
             else:
                 L = line_laplacian(ax.size, closed)

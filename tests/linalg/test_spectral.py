@@ -215,12 +215,15 @@ def test_the_exact_lines_correction_keeps_single_precision_at_tiny_weights(weigh
     (dict(free=np.zeros(12, bool)), "at least one unknown"),
     (dict(open_lines="dense"), "open_lines"),
     (dict(profile=(2, np.ones(1), np.ones(4))), "axis 0 or 1"),
-    (dict(profile=(1, np.ones(1))), "expected \\(axis, windows, lines\\)"),
+    (dict(profile=(1, np.ones(1))), "expected \\(axis, windows, lines"),
     (dict(profile=(0, np.ones(1), np.ones(3))), "4 to"),  # (3 rows: no window)
     (dict(profile=(1, np.ones(2), np.ones(4))), "1 finite window coefficients"),
     (dict(profile=(1, np.array([-1.0]), np.ones(4))), "window coefficients >= 0"),
     (dict(profile=(1, np.ones(1), np.array([1.0, 0.0, 1.0, 1.0]))), "line coefficients > 0"),
     (dict(profile=(1, np.ones(1), np.ones(4)), wrap=(False, True)), "closes around"),
+    (dict(profile=(1, np.ones(1), np.ones(4), np.ones(1), np.ones(1))), "expected \\(axis, windows, lines"),
+    (dict(shape=(5, 4), profile=(1, np.ones(1), np.ones(4), np.ones(1))), "2 finite across coefficients"),
+    (dict(shape=(5, 4), profile=(1, np.ones(1), np.ones(4), np.ones(2)), wrap=(True, False)), "across needs an open"),
 ])
 def test_bad_arguments_are_named(kw, match):
     args = dict(shape=(3, 4), wrap=(False, False), row_coefficient=1.0, column_coefficient=1.0, weight=0.3)
@@ -292,40 +295,47 @@ def _weighted_third_differences(n, windows):
     return D.T @ np.diag(windows) @ D
 
 
-def test_a_profile_operator_is_each_familys_own_sum():
+@pytest.mark.parametrize("with_across", [False, True])
+def test_a_profile_operator_is_each_familys_own_sum(with_across):
     """With coefficients varying along the columns' axis (1): every row's windows weighted by position, every column
-    scaled by its own coefficient — built here window by window."""
-    rows, cols, weight = 5, 7, 0.2
+    scaled by its own coefficient (and, with ``across``, its windows weighted by position along it) — built here
+    window by window."""
+    rows, cols, weight = 6, 7, 0.2
     windows, lines = np.linspace(0.5, 2.0, cols - 3), np.linspace(1.0, 3.0, cols)
-    P = SpectralPreconditioner((rows, cols), (False, False), 9.0, 9.0, weight, profile=(1, windows, lines))
+    across = np.array([0.5, 4.0, 1.5]) if with_across else None
+    P = SpectralPreconditioner((rows, cols), (False, False), 9.0, 9.0, weight, profile=(1, windows, lines, across))
     K = weight * np.eye(rows * cols)
     idx = np.arange(rows * cols).reshape(rows, cols)
     for i in range(rows):  # a row's windows: their own coefficients
         K[np.ix_(idx[i], idx[i])] += _weighted_third_differences(cols, windows)
+    column = _third_differences(rows) if across is None else _weighted_third_differences(rows, across)
     for j in range(cols):  # a column: its line's coefficient
-        K[np.ix_(idx[:, j], idx[:, j])] += lines[j] * _third_differences(rows)
+        K[np.ix_(idx[:, j], idx[:, j])] += lines[j] * column
     np.testing.assert_allclose(P.operator().toarray(), K, atol=1e-12)
 
 
 @settings(max_examples=80, deadline=None)
-@given(rows=st.integers(4, 12), cols=st.integers(4, 12), axis=st.sampled_from([0, 1]), other_closed=st.booleans(),
-       spread=st.floats(1.0, 100.0), share=st.floats(0.0, 0.3), weight=st.sampled_from([1.0, 1e-3, 1e-6]),
-       seed=st.integers(0, 2**16), open_lines=st.sampled_from(["exact", "cosine"]))
-def test_a_profile_inverts_the_varying_operator_on_the_unknowns(rows, cols, axis, other_closed, spread, share, weight,
-                                                               seed, open_lines):
+@given(rows=st.integers(4, 12), cols=st.integers(4, 12), axis=st.sampled_from([0, 1]),
+       other=st.sampled_from(["open", "closed", "across"]), spread=st.floats(1.0, 100.0), share=st.floats(0.0, 0.3),
+       weight=st.sampled_from([1.0, 1e-3, 1e-6]), seed=st.integers(0, 2**16),
+       open_lines=st.sampled_from(["exact", "cosine"]))
+def test_a_profile_inverts_the_varying_operator_on_the_unknowns(rows, cols, axis, other, spread, share, weight, seed,
+                                                               open_lines):
     """Coefficients varying along an open axis by up to ``spread`` (the other axis open or closed, fixed nodes
     inside up to MAX_CORRECTED): ``P⁻¹ = E K_ff⁻¹ Eᵀ`` to single precision down to ω = 10⁻⁶, ``K`` the varying
     operator (see ``_pencil_basis`` for smaller weights with larger spreads)."""
     rng = np.random.default_rng(seed)
-    wrap = (False, other_closed) if axis == 0 else (other_closed, False)
-    n_a = (rows, cols)[axis]
+    closed = other == "closed"
+    wrap = (False, closed) if axis == 0 else (closed, False)
+    n_a, n_o = (rows, cols)[axis], (rows, cols)[1 - axis]
     windows = spread ** rng.random(n_a - 3)
     lines = spread ** rng.random(n_a)
+    across = spread ** rng.random(n_o - 3) if other == "across" else None
     free = (rng.random((rows, cols)) >= share).ravel()
     if not free.any():
         free[rng.integers(rows * cols)] = True
     P = SpectralPreconditioner((rows, cols), wrap, 1.0, 1.0, weight, free, open_lines=open_lines,
-                               profile=(axis, windows, lines))
+                               profile=(axis, windows, lines, across))
     R = rng.normal(size=(2, rows * cols))
     Z = _apply(P, R)
     assert np.all(Z[:, ~free] == 0.0)
