@@ -245,11 +245,11 @@ SPECTRAL_EXACT_FRESH_SIDE = 320
 SPECTRAL_MAX_STIFFNESS = 12.0
 #: The spectral preconditioner follows the coefficients' variation along an open axis (a grid sampled with uneven
 #: spacing, lines that shrink toward one side) where their medians along it spread by more than this factor
-#: (:func:`_coefficient_profile`). Broadband noise alone leaves 1.1–1.8 (even sheets, a cylinder, sampled design
-#: surfaces), where the profile's dearer steps cost about what the 0–4 of 27–35 they save do (a cylinder's 22 → 14:
-#: its open axis's exact pencil against the cosine lines, at the same time); from 2.1 (spacing growing 1.5-fold
-#: across a 300² sheet: 20 → 15 steps) it pays, and more the more they vary (tenfold: 110 → 17 steps, 1.3 → 0.38 s;
-#: ``benchmarks/studies/coefficient_profile.py``).
+#: (:func:`_coefficient_profile`). Even sheets and a cylinder spread 1.1–1.4; the sampled saddle, S-shape and dome
+#: 1.6–1.8 along both axes, where the profile on both halves the steps (27–28 → 15–16) at the same time per call
+#: (two dense axes cost twice the halves a step; a cylinder's 22 → 14 likewise). From 2.1 (spacing growing 1.5-fold
+#: across a 300² sheet: 20 → 15 steps) it pays, and more the more they vary (tenfold: 111 → 17 steps, 0.83 →
+#: 0.31 s; both ways tenfold 188 → 30, 1.45 → 0.46 s; ``benchmarks/studies/coefficient_profile.py``).
 PROFILE_MIN_SPREAD = 2.0
 #: ... and only along an axis of at most this many nodes: the varying axis's basis is one dense eigendecomposition
 #: of its whole span, not cached (n = 2000 took 1.55 s on one BLAS thread, 4000 took 16.1 s against 2.7 s for the
