@@ -223,14 +223,14 @@ SPECTRAL_CONTRAST = 1e4
 SPECTRAL_CONTRAST_SIDE = 1000
 #: The spectral preconditioner takes its exact lines where the Gershgorin bound exceeds this many times ω, and cosine
 #: lines (``open_lines="cosine"``) below where SciPy's transforms are imported already (or an axis closes around):
-#: their steps cost half as much, and where few are needed the exact lines' fewer steps do not repay that and their
+#: their steps cost less, and where few are needed the exact lines' fewer steps do not repay that and their
 #: set-up. An open grid's exact lines need no transforms, and in a fresh process they save the transforms' import
 #: (about 40 ms), which repays their dearer steps up to a side of :data:`SPECTRAL_EXACT_FRESH_SIDE`. On the 300²
-#: sheet with broadband noise (in-process, transforms imported): 15 exact steps 0.206 s against 24 cosine ones
-#: 0.171 s at the default weight (a bound of 168 ω), 16 against 31, 0.208 against 0.227 s at ω = 0.1 (a bound of
-#: about 500 ω), 17 against 43, 0.195 against 0.240 s at 0.03 (``python benchmarks/studies/cg_weights.py --size 300
-#: --noise broadband``).
-SPECTRAL_EXACT_CONTRAST = 3e2
+#: sheet with broadband noise (in-process, transforms imported; ``python benchmarks/studies/cg_weights.py --size 300
+#: --noise broadband``), since session 20's cheaper application: 15 exact steps 0.168 s against 24 cosine ones
+#: 0.197 s at the default weight (a bound of 168 ω), 13 against 18, 0.153 against 0.139 s at ω = 1 (about 50 ω),
+#: 11 against 13, 0.141 against 0.142 s at 3 (session 19: 300, when the default weight's were 0.206 against 0.171 s).
+SPECTRAL_EXACT_CONTRAST = 1e2
 #: ... and at any bound on an open grid up to this many nodes a side where SciPy's transforms are not imported (a
 #: fresh process): whole fair() at the default weight, medians of five fresh processes, exact against cosine lines
 #: (the import inside), 0.203 against 0.239 s on the 250² sheet, 0.499 against 0.407 s on 350², 0.499 against
@@ -244,12 +244,12 @@ SPECTRAL_EXACT_FRESH_SIDE = 320
 #: sheet's: ``cg_weights.py``).
 SPECTRAL_MAX_STIFFNESS = 12.0
 #: The spectral preconditioner follows the coefficients' variation along an open axis (a grid sampled with uneven
-#: spacing, lines that shrink toward one side) where their medians along it spread by more than this factor
-#: (:func:`_coefficient_profile`). Even sheets and a cylinder spread 1.1–1.4; the sampled saddle, S-shape and dome
-#: 1.6–1.8 along both axes, where the profile on both halves the steps (27–28 → 15–16) at the same time per call
-#: (two dense axes cost twice the halves a step; a cylinder's 22 → 14 likewise). From 2.1 (spacing growing 1.5-fold
-#: across a 300² sheet: 20 → 15 steps) it pays, and more the more they vary (tenfold: 111 → 17 steps, 0.83 →
-#: 0.31 s; both ways tenfold 188 → 30, 1.45 → 0.46 s; ``benchmarks/studies/coefficient_profile.py``).
+#: spacing, lines that shrink toward one side) where their medians along it spread by this factor or more
+#: (:func:`_coefficient_profile`). Even sheets and a cylinder spread 1.1–1.4, the sampled saddle, S-shape and dome
+#: 1.6–1.8, where exact lines with constant coefficients take 16–19 steps and the profile saves 1–3 more at dearer
+#: steps. From 2.1 (spacing growing 1.5-fold across a 300² sheet: 20 → 15 steps) it pays, and more the more they
+#: vary (tenfold: 111 → 17 steps, 0.83 → 0.31 s; both ways tenfold 188 → 30, 1.45 → 0.46 s;
+#: ``benchmarks/studies/coefficient_profile.py``).
 PROFILE_MIN_SPREAD = 2.0
 #: ... and only along an axis of at most this many nodes: the varying axis's basis is one dense eigendecomposition
 #: of its whole span, not cached (n = 2000 took 1.55 s on one BLAS thread, 4000 took 16.1 s against 2.7 s for the
@@ -687,15 +687,15 @@ def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: 
 def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int],
                          wrap: tuple[bool, bool]) -> tuple[int, np.ndarray, np.ndarray, np.ndarray | None] | None:
     """The coefficients' variation along an open axis of a grid's ``AᵀA + ωI`` in diagonal storage, where it is
-    large enough to pay (:data:`PROFILE_MIN_SPREAD`): :class:`~quadnodes.linalg.spectral.SpectralPreconditioner`'s
-    ``profile``, else None.
+    large enough to pay (a spread of :data:`PROFILE_MIN_SPREAD` or more):
+    :class:`~quadnodes.linalg.spectral.SpectralPreconditioner`'s ``profile``, else None.
 
     A window's coefficient is the magnitude of its ends' coupling (the ``+3`` diagonal for the rows' windows, the
     ``+3·cols`` one for the columns'); where an end is fixed (or no window is) that coupling is absent from the
     storage, not zero in the window, so only positive ones count. Along axis 1: the rows' window coefficients'
     median over the rows at each window position, and each column's median; along axis 0 the same with rows and
     columns swapped (the seams' windows of a closed axis are left out). Where the other family's windows vary
-    along their own (open) axis too, by more than :data:`PROFILE_MIN_SPREAD` (a sheet graded both ways), their
+    along their own (open) axis too, by :data:`PROFILE_MIN_SPREAD` or more (a sheet graded both ways), their
     medians over its lines relative to each line's, ``across``. A position or line with no coefficient takes its
     neighbours' (linear interpolation). The axis whose own medians spread more (largest over smallest) is taken, up
     to :data:`PROFILE_MAX_SIDE` nodes along it (and along the other for ``across``): where one axis's profile takes
@@ -746,7 +746,8 @@ def _positive_medians(values: np.ndarray, axis: int) -> np.ndarray | None:
 
 
 def _profile_stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float, shape: tuple[int, int],
-                       wrap: tuple[bool, bool], profile: tuple[int, np.ndarray, np.ndarray, np.ndarray | None]) -> float:
+                       wrap: tuple[bool, bool],
+                       profile: tuple[int, np.ndarray, np.ndarray, np.ndarray | None]) -> float:
     """:func:`_stiffness` against a coefficient profile (:func:`_coefficient_profile`): the largest ratio of an
     unknown's fairing diagonal to the profile's operator's (``ω`` left out of both) over the median ratio — the
     stiff spots that the profile misses."""

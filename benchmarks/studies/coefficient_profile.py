@@ -9,9 +9,10 @@ is uneven, a tower whose rings shrink toward the top — its steps grow with tha
 (``SpectralPreconditioner(profile=…)``: the windows' coefficients by position along the axis, the other family's
 by line) it inverts that variation exactly. Meshes, all with broadband noise of 0.2 local edge lengths:
 ``graded:N:r`` the bench sheet whose columns' spacing grows geometrically by ``r`` across it
-(``_common.noisy_graded``), ``both:N:r`` its rows' spacing too, ``tower:N:t`` an open cylinder tapering by ``t`` (``_common.noisy_tower``), and
-``surface:N:name`` a design surface of ``quadnodes.surfaces`` sampled at N × N even parameters. One all-free
-fair() iteration (default weight unless the case adds ``:w``), fresh processes (median of ``--repeat``, clock
+(``_common.noisy_graded``), ``both:N:r`` its rows' spacing too, ``tower:N:t`` an open cylinder tapering by ``t``
+(``_common.noisy_tower``), and ``surface:N:name`` a design surface of ``quadnodes.surfaces`` sampled at N × N even
+parameters (which imports SciPy's transforms, as a graph run has them). One all-free fair() iteration (default
+weight unless the case adds ``:w``), fresh processes (median of ``--repeat``, clock
 around fair() alone, compiled kernels not loaded: the spectral path of a fresh process): the rule
 (``PROFILE_MIN_SPREAD``), constant coefficients, and the profile always; steps and seconds; "spread" is the
 profile's (the larger of its two medians' largest over smallest, on the axis the rule would take).

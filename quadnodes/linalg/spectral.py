@@ -555,7 +555,8 @@ class SpectralPreconditioner:
     def __init__(self, shape: tuple[int, int], wrap: tuple[bool, bool], row_coefficient: float,
                  column_coefficient: float, weight: float, free: np.ndarray | None = None,
                  open_lines: Literal["exact", "cosine"] = "exact",
-                 profile: tuple[int, np.ndarray, np.ndarray] | None = None) -> None:
+                 profile: tuple[int, np.ndarray, np.ndarray] | tuple[int, np.ndarray, np.ndarray, np.ndarray | None]
+                 | None = None) -> None:
         rows, cols = (int(s) for s in shape)
         if rows < 1 or cols < 1:
             raise ValueError(f"shape: expected positive sides, got {shape}")
@@ -593,7 +594,8 @@ class SpectralPreconditioner:
                 axes.append(_Axis("exact", n, lo, hi, pencil=(windows, line_coefficients[lo:hi] / scale, self.weight)))
             elif varying >= 0 and self.profile[3] is not None:  # type: ignore[index]
                 # (the other family's windows vary along this axis too: their own orthonormal basis, S = I, ω = 0)
-                axes.append(_Axis("exact", n, lo, hi, pencil=(self.profile[3], np.ones(hi - lo), 0.0)))  # type: ignore[index]
+                across = self.profile[3]  # type: ignore[index]
+                axes.append(_Axis("exact", n, lo, hi, pencil=(across, np.ones(hi - lo), 0.0)))
             elif closed and form == "coordinates":
                 axes.append(_Axis("exact", n, lo, hi, closed=True))
             elif closed:
