@@ -248,7 +248,7 @@ SPECTRAL_MAX_STIFFNESS = 12.0
 #: (:func:`_coefficient_profile`). Even sheets and a cylinder spread 1.1–1.4, the sampled saddle, S-shape and dome
 #: 1.6–1.8, where exact lines with constant coefficients take 16–19 steps and the profile saves 1–3 more at dearer
 #: steps. From 2.1 (spacing growing 1.5-fold across a 300² sheet: 20 → 15 steps) it pays, and more the more they
-#: vary (tenfold: 111 → 17 steps, 0.83 → 0.31 s; both ways tenfold 188 → 30, 1.45 → 0.46 s;
+#: vary (tenfold: 111 → 17 steps, 1.25 → 0.40 s; both ways tenfold 188 → 30, 1.87 → 0.59 s;
 #: ``benchmarks/studies/coefficient_profile.py``).
 PROFILE_MIN_SPREAD = 2.0
 #: ... and only along an axis of at most this many nodes: the varying axis's basis is one dense eigendecomposition
