@@ -251,6 +251,13 @@ SPECTRAL_MAX_STIFFNESS = 12.0
 #: vary (tenfold: 111 → 17 steps, 1.25 → 0.40 s; both ways tenfold 188 → 30, 1.87 → 0.59 s;
 #: ``benchmarks/studies/coefficient_profile.py``).
 PROFILE_MIN_SPREAD = 2.0
+#: On an open grid the exact lines invert around the fixed vertices inside the unknowns' box in the lines'
+#: coordinates, at a set-up of ``p² N`` multiply-adds for ``p`` of them: the spectral preconditioner is taken only
+#: where ``p²`` is at most this many times the square root of the Gershgorin bound over ω (plain CG's steps grow
+#: with that root). On 300² at the default weight (a bound of about 170 ω: up to 80 fixed vertices) the set-up took
+#: 29 ms for 61 of them, 164 ms for 143 and 1.08 s for 457, where plain CG's whole solve takes about 0.3 s (a
+#: throwaway timing); at ω = 10⁻⁵ (about 5·10⁶ ω) the cap is :data:`~quadnodes.linalg.spectral.MAX_CORRECTED_EXACT`.
+CORRECTION_PAYS = 500.0
 #: ... and only along an axis of at most this many nodes: the varying axis's basis is one dense eigendecomposition
 #: of its whole span, not cached (n = 2000 took 1.55 s on one BLAS thread, 4000 took 16.1 s against 2.7 s for the
 #: constant lines' two halves, a reviewer's timing).
@@ -1273,12 +1280,19 @@ class FairingSystem:
                     profile.append(_coefficient_profile(*grid_storage(), shape, wrap))
                 return profile[0]
 
+            def correction_pays() -> bool:  # (the exact lines' correction's set-up against plain CG's steps)
+                if not exact_lines or any(wrap):
+                    return True
+                p = spectral.fixed_inside(self._grid[2].reshape(shape), wrap)
+                return p * p <= CORRECTION_PAYS * np.sqrt(contrast)
+
             def spectral_fits() -> bool:
                 # (a stiff spot: an outlier that the coefficients miss, constant or their profile)
                 if not fits:
                     fits.append(self.preconditioner == "auto" and self._third_differences
                                 and spectral.inverts_exactly(self._grid[2].reshape(shape), wrap,
                                                              "exact" if exact_lines else "cosine")
+                                and correction_pays()
                                 and (stiffness() if coefficient_profile() is None else
                                      _profile_stiffness(*grid_storage(), self._grid[2], self.weight, shape, wrap,
                                                         coefficient_profile())) <= SPECTRAL_MAX_STIFFNESS)

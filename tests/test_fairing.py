@@ -1045,6 +1045,12 @@ def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
     kinds = []
     assert pick(free=pins, kinds=kinds) is SpectralPreconditioner  # (exact lines: the lines' coordinates take them)
     assert kinds == ["exact", "exact"]
+    # more than the correction's set-up repays at this weight (p² > CORRECTION_PAYS √(bound/ω)): not at the default
+    # weight, where plain CG needs few steps, but at a small one
+    many = free.copy()
+    many[np.random.default_rng(1).choice(inner, 100, replace=False)] = False
+    assert pick(free=many) is not SpectralPreconditioner
+    assert pick(free=many, weight=0.003 / m.mean_edge_length**2) is SpectralPreconditioner
     # a stiff spot: a collapsed stretch of a line (three vertices pulled onto their neighbour)
     v = m.vertices.copy()
     v[1021:1024] = v[1020] + 0.01 * (v[1021:1024] - v[1020])
