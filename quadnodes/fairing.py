@@ -683,10 +683,16 @@ def _spectral_pays(unknowns: int, contrast: float) -> bool:
     return spectral.loaded() or unknowns * np.sqrt(contrast) >= SPECTRAL_MIN_WORK
 
 
-def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float) -> float:
+def _stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float,
+               model: np.ndarray | None = None) -> float:
     """The stiffest unknown's fairing diagonal (``AᵀA``'s, without ω) over the median unknown's, from a grid's
-    diagonal storage."""
+    diagonal storage; with ``model`` (a diagonal over all nodes, e.g. :func:`_profile_diagonal`'s) each unknown's
+    ratio to it instead (the stiff spots that the model misses)."""
     d = data[int(np.flatnonzero(offsets == 0)[0])][free] - weight
+    if model is not None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = d / model[free]
+        d = d[np.isfinite(d)]
     median = float(np.median(d)) if d.size else 0.0
     return float(d.max()) / median if median > 0 else np.inf
 
@@ -752,12 +758,10 @@ def _positive_medians(values: np.ndarray, axis: int) -> np.ndarray | None:
     return m
 
 
-def _profile_stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, weight: float, shape: tuple[int, int],
-                       wrap: tuple[bool, bool],
-                       profile: tuple[int, np.ndarray, np.ndarray, np.ndarray | None]) -> float:
-    """:func:`_stiffness` against a coefficient profile (:func:`_coefficient_profile`): the largest ratio of an
-    unknown's fairing diagonal to the profile's operator's (``ω`` left out of both) over the median ratio — the
-    stiff spots that the profile misses."""
+def _profile_diagonal(shape: tuple[int, int], wrap: tuple[bool, bool],
+                      profile: tuple[int, np.ndarray, np.ndarray, np.ndarray | None]) -> np.ndarray:
+    """The diagonal ``(rows · cols,)`` of a coefficient profile's operator (:func:`_coefficient_profile`), without
+    ``ω``: for :func:`_stiffness`'s ``model``."""
     axis, windows, lines, relative = profile
     stencil = [1.0, 9.0, 9.0, 1.0]  # (Dᵀ C D's diagonal: a window's squared stencil)
     along = np.convolve(windows, stencil)
@@ -767,15 +771,8 @@ def _profile_stiffness(offsets: np.ndarray, data: np.ndarray, free: np.ndarray, 
     else:
         across = np.full(other, 20.0) if wrap[1 - axis] else np.convolve(np.ones(max(other - 3, 0)), stencil)
     if axis == 1:
-        K = along[None, :] + across[:, None] * lines[None, :]
-    else:
-        K = along[:, None] + lines[:, None] * across[None, :]
-    d = data[int(np.flatnonzero(offsets == 0)[0])][free] - weight
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = d / K.reshape(-1)[free]
-    ratio = ratio[np.isfinite(ratio)]
-    median = float(np.median(ratio)) if ratio.size else 0.0
-    return float(ratio.max()) / median if median > 0 else np.inf
+        return (along[None, :] + across[:, None] * lines[None, :]).reshape(-1)
+    return (along[:, None] + lines[:, None] * across[None, :]).reshape(-1)
 
 
 def _spectral_preconditioner(offsets: np.ndarray, data: np.ndarray, shape: tuple[int, int], wrap: tuple[bool, bool],
@@ -1294,8 +1291,9 @@ class FairingSystem:
                                                              "exact" if exact_lines else "cosine")
                                 and correction_pays()
                                 and (stiffness() if coefficient_profile() is None else
-                                     _profile_stiffness(*grid_storage(), self._grid[2], self.weight, shape, wrap,
-                                                        coefficient_profile())) <= SPECTRAL_MAX_STIFFNESS)
+                                     _stiffness(*grid_storage(), self._grid[2], self.weight,
+                                                _profile_diagonal(shape, wrap, coefficient_profile()))
+                                     ) <= SPECTRAL_MAX_STIFFNESS)
                 return fits[0]
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
