@@ -71,6 +71,9 @@ __all__ = [
 
 #: Systems with at most this many unknown vertices are solved directly by default.
 DIRECT_LIMIT = 2000
+#: :class:`FairingSystem` keeps every window's four slots in ``A`` (a fixed vertex's as an explicit zero, the
+#: coefficients not copied) where at most one window in this many has a fixed vertex; else it compresses them.
+PARTIAL_IN_PLACE = 8
 #: Cap on conjugate-gradient steps before falling back to the direct solver.
 MAX_CG_ITERATIONS = 20000
 #: Unknowns per block of the block-Jacobi preconditioner (a patch of about 4 × 4 vertices).
@@ -747,9 +750,12 @@ def _coefficient_profile(offsets: np.ndarray, data: np.ndarray, shape: tuple[int
 def _positive_medians(values: np.ndarray, axis: int) -> np.ndarray | None:
     """Medians of the positive entries of a 2-d array along ``axis``; where there are none, interpolated from the
     neighbouring medians (None where no entry at all is positive)."""
+    positive = values > 0
+    if positive.all():  # (the common case, every window free: NumPy's median, 4× faster than its NaN-aware one)
+        return np.median(values, axis=axis)
     with warnings.catch_warnings():  # (all-NaN slices: filled below)
         warnings.simplefilter("ignore", RuntimeWarning)
-        m = np.nanmedian(np.where(values > 0, values, np.nan), axis=axis)
+        m = np.nanmedian(np.where(positive, values, np.nan), axis=axis)
     known = np.flatnonzero(np.isfinite(m))
     if not known.size:
         return None
@@ -1109,20 +1115,33 @@ class FairingSystem:
         # row-major masks: no COO sort (a row may hold one column twice on a 3-ring;
         # sparse products add such duplicates, as the sum of squares requires)
         partial = np.flatnonzero(word != np.frombuffer(b"\x01" * 4, np.uint32)[0])  # windows with a fixed vertex
-        if partial.size == 0:
-            indptr = np.arange(0, 4 * len(win) + 1, 4, dtype=idx)
-            A = sp.csr_matrix((coef.reshape(-1), cols.reshape(-1), indptr), shape=(len(win), k))
-        else:
-            count = np.full(len(win), 4, dtype=idx)
-            count[partial] = is_free[partial].sum(axis=1)
-            indptr = np.zeros(len(win) + 1, dtype=idx)
-            np.cumsum(count, out=indptr[1:])
-            A = sp.csr_matrix((coef[is_free], cols[is_free], indptr), shape=(len(win), k))
         # fixed vertices' contribution to every active row (zero where all four are free)
         b = np.zeros((len(win), 3))
         wp = win[partial]
         b[partial] = np.einsum("wk,wkj->wj", np.where(is_free[partial], 0.0, coef[partial]),
                                np.take(vertices, wp.reshape(-1), axis=0).reshape(wp.shape + (3,)))
+        pf = is_free[partial]
+        at, w_coef = cols[partial][pf], coef[partial][pf]  # (the partial windows' free slots, for -Aᵀb below)
+        if partial.size <= len(win) // PARTIAL_IN_PLACE:
+            # a few windows with a fixed vertex (a fixed boundary, a few fixed corners): every row keeps its four
+            # slots, a fixed vertex's slot turned into an explicit zero at a free vertex of its window (no new
+            # coupling; products add it as nothing), so the coefficients go into A as they are, not copied. (The
+            # grid's storage drops fixed slots by ``free`` itself.)
+            first = cols[partial, np.argmax(pf, axis=1)]
+            cols[partial] = np.where(pf, cols[partial], first[:, None])
+            coef[partial] = np.where(pf, coef[partial], 0.0)
+            partial_rows = np.array([], dtype=np.int64)
+        else:
+            partial_rows = partial
+        if partial_rows.size == 0:
+            indptr = np.arange(0, 4 * len(win) + 1, 4, dtype=idx)
+            A = sp.csr_matrix((coef.reshape(-1), cols.reshape(-1), indptr), shape=(len(win), k))
+        else:
+            count = np.full(len(win), 4, dtype=idx)
+            count[partial] = pf.sum(axis=1)
+            indptr = np.zeros(len(win) + 1, dtype=idx)
+            np.cumsum(count, out=indptr[1:])
+            A = sp.csr_matrix((coef[is_free], cols[is_free], indptr), shape=(len(win), k))
         self.weight = weight
         self._lines = _lines  # the mesh's structure lines (StructureLines): paths for the line preconditioner
         self._n_vertices = n
@@ -1135,9 +1154,6 @@ class FairingSystem:
         # -Aᵀb: only the windows with a fixed vertex have b ≠ 0
         rhs = np.zeros((k, 3))
         if partial.size:
-            pf = is_free[partial]
-            at = cols[partial][pf]
-            w_coef = coef[partial][pf]
             wb = np.repeat(b[partial], pf.sum(axis=1), axis=0)
             for j in range(3):
                 rhs[:, j] = -np.bincount(at, weights=w_coef * wb[:, j], minlength=k)

@@ -44,6 +44,40 @@ def test_sparse_system_equals_dense_least_squares(make, weight):
     np.testing.assert_allclose(s.solve(anchor), _dense_solve(m.vertices, w, free, weight, anchor), rtol=1e-9, atol=1e-12)
 
 
+@settings(max_examples=40, deadline=None)
+@given(meshes(), st.integers(0, 2**32 - 1), st.sampled_from([0.05, 0.3, 0.9]))
+def test_fixed_slots_kept_in_place_or_compressed_give_one_system(mesh, seed, share):
+    """``PARTIAL_IN_PLACE``: windows with a fixed vertex keep their four slots (explicit zeros at a free vertex of
+    the window) or are compressed; the matrix, the right-hand side, the solve and the energies are the same."""
+    import quadnodes.fairing as fairing
+
+    rng = np.random.default_rng(seed)
+    w = mesh.topology.windows
+    free = rng.random(mesh.n_vertices) > share
+    if not free.any():
+        free[0] = True
+    if not free[w].any():
+        return
+    anchor = mesh.vertices[free] + 0.01
+    made = []
+    for every in (1, 10**9):  # (one: always in place; a billion: only where no window has a fixed vertex)
+        old = fairing.PARTIAL_IN_PLACE
+        fairing.PARTIAL_IN_PLACE = every
+        try:
+            made.append(FairingSystem(mesh.vertices, w, free, 0.5))
+        finally:
+            fairing.PARTIAL_IN_PLACE = old
+    a, b = made
+    np.testing.assert_array_equal(a.A.toarray(), b.A.toarray())
+    np.testing.assert_array_equal(a.b, b.b)
+    np.testing.assert_allclose(a._rhs, b._rhs, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(a.matrix.toarray(), b.matrix.toarray(), rtol=1e-12, atol=1e-12)
+    xa, xb = a.solve(anchor), b.solve(anchor)
+    np.testing.assert_allclose(xa, xb, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(xa, _dense_solve(mesh.vertices, w, free, 0.5, anchor), rtol=1e-8, atol=1e-10)
+    assert a.objective(xa, anchor) == pytest.approx(b.objective(xa, anchor), rel=1e-12)
+
+
 @given(meshes(), st.tuples(*[st.floats(-50, 50)] * 3))
 def test_translation_equivariance(mesh, t):
     a, _ = fair(mesh, **SETTINGS)

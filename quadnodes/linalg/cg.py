@@ -53,13 +53,13 @@ class DiagonalBlocks(RowBlocks):
         if split is None and data is None and not accumulate:
             split = self._split = self._main_and_rest()
         if split is not None and split[0] is not None:
-            # y = diag · x first, the other diagonals added by SciPy's kernel: no pass to zero y
-            main, off_offsets, rest = split
-            off = off_offsets + off_offsets.dtype.type(lo)
+            # y = diag · x first, the diagonals before and after it added by SciPy's kernel: no pass to zero y
+            main, parts = split
             for x, y in zip(X, Y):
                 y = y[lo:hi]
                 np.multiply(main[lo:hi], x[lo:hi], out=y)
-                _dia_matvec(hi - lo, n, off.size, n, off, rest, x, y)
+                for offsets, rest in parts:
+                    _dia_matvec(hi - lo, n, offsets.size, n, offsets + offsets.dtype.type(lo), rest, x, y)
             return
         off = self.offsets + self.offsets.dtype.type(lo)
         for x, y in zip(X, Y):
@@ -71,12 +71,14 @@ class DiagonalBlocks(RowBlocks):
     _split: tuple | None = None
 
     def _main_and_rest(self) -> tuple:
-        """``(main diagonal, other offsets, other diagonals)`` (contiguous), or ``(None,)`` without a main diagonal."""
+        """``(main diagonal, [(offsets, diagonals), …])``: the storage's rows before and after the main diagonal as
+        views (contiguous rows of ``data``: no copy of the storage), or ``(None,)`` without a main diagonal."""
         zero = np.flatnonzero(self.offsets == 0)
-        if zero.size != 1:
+        if zero.size != 1 or not self.data.flags.c_contiguous:
             return (None,)
-        keep = self.offsets != 0
-        return (self.data[zero[0]].copy(), self.offsets[keep].copy(), np.ascontiguousarray(self.data[keep]))
+        z = int(zero[0])
+        parts = [(self.offsets[a:b], self.data[a:b]) for a, b in ((0, z), (z + 1, self.offsets.size)) if b > a]
+        return (self.data[z], parts)
 
 
 
