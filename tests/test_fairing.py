@@ -71,6 +71,7 @@ def test_fixed_slots_kept_in_place_or_compressed_give_one_system(mesh, seed, sha
     np.testing.assert_array_equal(a.A.toarray(), b.A.toarray())
     np.testing.assert_array_equal(a.b, b.b)
     np.testing.assert_allclose(a._rhs, b._rhs, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(a._rhs, -(b.A.T @ b.b), rtol=1e-12, atol=1e-12)  # (−Aᵀb, by the count or in place)
     np.testing.assert_allclose(a.matrix.toarray(), b.matrix.toarray(), rtol=1e-12, atol=1e-12)
     xa, xb = a.solve(anchor), b.solve(anchor)
     np.testing.assert_allclose(xa, xb, rtol=1e-9, atol=1e-12)
