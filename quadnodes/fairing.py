@@ -1135,7 +1135,13 @@ class FairingSystem:
             partial_rows = partial
         if partial_rows.size == 0:
             indptr = np.arange(0, 4 * len(win) + 1, 4, dtype=idx)
-            A = sp.csr_matrix((coef.reshape(-1), cols.reshape(-1), indptr), shape=(len(win), k))
+            # A's data is a read-only view of the coefficients — on the grid path the same memory the grid's storage
+            # is made from at the first solve: SciPy's tidying methods (abs, max, sort_indices … sort and sum a
+            # row's slots in place) then raise instead of rewriting them. (The array itself stays writable: the
+            # compiled kernels are loaded for writable arrays.)
+            data = coef.reshape(-1)
+            data.flags.writeable = False
+            A = sp.csr_matrix((data, cols.reshape(-1), indptr), shape=(len(win), k))
         else:
             count = np.full(len(win), 4, dtype=idx)
             count[partial] = pf.sum(axis=1)

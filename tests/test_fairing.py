@@ -79,6 +79,50 @@ def test_fixed_slots_kept_in_place_or_compressed_give_one_system(mesh, seed, sha
     assert a.objective(xa, anchor) == pytest.approx(b.objective(xa, anchor), rel=1e-12)
 
 
+@pytest.mark.parametrize("fixed", ["corners", "boundary"])
+@pytest.mark.parametrize("shape", [(40, 50), "torus"])  # (the torus: 30 rings of 40)
+def test_fixed_slots_in_place_on_the_grid_path_equal_the_direct_solve(monkeypatch, fixed, shape):
+    """The grid path (diagonal storage from the same coefficients as ``A``, CG) with the windows' slots kept in place
+    and compressed; ``-Aᵀb`` added in place for a few slots; ``A``'s data read-only where it is the grid's
+    coefficients (SciPy's tidying methods would sort and sum them in place)."""
+    import quadnodes.fairing as fairing
+    from quadnodes.fairing import even_lengths
+    from quadnodes.mesh import torus
+    from quadnodes.zigzag import window_edges
+
+    g = torus(30, 40) if shape == "torus" else grid(*shape)
+    rng = np.random.default_rng(5)
+    m = QuadMesh(g.vertices + rng.normal(scale=0.1 * g.mean_edge_length, size=g.vertices.shape), g.faces)
+    t, w = m.topology, m.topology.windows
+    inverse = even_lengths(1.0 / np.sqrt(np.stack([np.einsum("ij,ij->i", d, d) for d in window_edges(m.vertices, w)],
+                                                  axis=1)))
+    free = np.ones(m.n_vertices, bool)
+    if fixed == "corners":
+        free[rng.choice(m.n_vertices, 4, replace=False)] = False
+    elif shape == "torus":  # (a torus has no boundary: one of its rings)
+        free[:40] = False
+    else:
+        free.reshape(shape)[[0, -1]] = False
+        free.reshape(shape)[:, [0, -1]] = False
+    weight = 0.3 / m.mean_edge_length**2
+    reference = FairingSystem(m.vertices, w, free, weight, solver="direct", _inverse_lengths=inverse)
+    expected = reference.solve(m.vertices[free])
+    extent = np.ptp(m.vertices, axis=0).max()
+    in_place = fairing.PARTIAL_IN_PLACE
+    for every in (in_place, 10**9):
+        monkeypatch.setattr(fairing, "PARTIAL_IN_PLACE", every)
+        s = FairingSystem(m.vertices, w, free, weight, solver="cg", _topology=t, _inverse_lengths=inverse)
+        assert s._grid is not None
+        np.testing.assert_allclose(s._rhs, -(s.A.T @ s.b), rtol=1e-12, atol=1e-12 * np.abs(s._rhs).max())
+        if every == in_place:
+            assert s.A.nnz == 4 * s.A.shape[0]  # (every window's four slots kept)
+            assert not s.A.data.flags.writeable
+            with pytest.raises(ValueError):
+                abs(s.A)  # (would sort and sum the grid's coefficients in place)
+        np.testing.assert_allclose(s.solve(m.vertices[free]), expected, atol=1e-8 * extent)
+        assert s.solver == "cg" and s.iterations > 0
+
+
 @given(meshes(), st.tuples(*[st.floats(-50, 50)] * 3))
 def test_translation_equivariance(mesh, t):
     a, _ = fair(mesh, **SETTINGS)
