@@ -3,10 +3,11 @@
 Backs docs/methods.md "Speed" and its sub-tables.
 
 Input (every row but Fourier): the noisy height field of ``bench_core.py`` — an
-n × n grid over the unit square, z = 0.3 sin(3x) cos(2y), with seeded zigzag
-noise (``perturb(tangential=0.2, normal=0.05, seed=0)[0]``: every vertex, the
-boundary too). Fourier descriptors need closed lines, so their row runs on an
-open cylinder of n rings × n vertices (radius 1, height 1) with the same noise.
+n × n grid over the unit square, z = 0.3 sin(3x) cos(2y), with seeded noise on every vertex, the boundary too:
+``--noise zigzag`` (the default: ``perturb(tangential=0.2, normal=0.05, seed=0)[0]``, the highest frequency)
+or ``--noise broadband`` (independent Gaussian offsets of 0.2 edge lengths per coordinate, as a scan
+has: ``_common.noisy_grid``'s; on the cylinder 0.2 of its mean edge length). Fourier descriptors need closed lines, so their row runs on an
+open cylinder of n rings × n vertices (radius 1, height 1) with the same noise. The table's first line names it.
 
 Rows (settings as named; each in a fresh process, modules imported before the clock):
 
@@ -40,7 +41,7 @@ memory after the mesh was built (as in ``bench_core.py``).
 
 Run:  python benchmarks/perf/bench_methods.py [--sizes 100 300] [--only spring fair ...] [--cap 200]
           [--cylinders bench|small|mixed|large] [--energy E2] [--closeness 0] [--web-cap 1000]
-          [--linalg auto|superlu|superlu-md]
+          [--linalg auto|superlu|superlu-md] [--noise zigzag|broadband]
 """
 
 from __future__ import annotations
@@ -51,8 +52,12 @@ import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import _common  # noqa: E402
 
 ROWS = ("fair", "fair_web", "fair_web_newton", "fair_web_admm", "fair_web_pg",
         "spring", "schneider_kobbelt", "curvature", "fourier")
@@ -63,7 +68,7 @@ def _rss_mb() -> float:
         return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
 
 
-def _mesh(kind: str, n: int):
+def _mesh(kind: str, n: int, noise: str = "zigzag"):
     from quadnodes.mesh import QuadMesh, cylinder, grid
     from quadnodes.noise import perturb
 
@@ -72,7 +77,14 @@ def _mesh(kind: str, n: int):
     else:
         y, x = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
         base = grid(n, n, spacing=1.0 / (n - 1), height=0.3 * np.sin(3 * x) * np.cos(2 * y))
-    noisy, _ = perturb(base, tangential=0.2, normal=0.05, seed=0)
+    if noise == "broadband" and kind != "fourier":
+        noisy = _common.noisy_grid(n, "broadband")
+    elif noise == "broadband":  # (the cylinder: 0.2 of its mean edge length)
+        rng = np.random.default_rng(0)
+        noisy = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length,
+                                                              size=base.vertices.shape))
+    else:
+        noisy, _ = perturb(base, tangential=0.2, normal=0.05, seed=0)
     return QuadMesh(noisy.vertices, noisy.faces)  # fresh: no cached topology
 
 
@@ -95,7 +107,7 @@ def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
     import quadnodes as qn
 
     _backend((web or {}).get("linalg", "auto"))
-    m = _mesh(kind, n)
+    m = _mesh(kind, n, (web or {}).get("noise", "zigzag"))
     h = m.mean_edge_length
     base = _rss_mb()
     t = time.perf_counter()
@@ -170,16 +182,18 @@ def main() -> None:
                     help="fair_web_*: also the largest distance to a Newton run to 1e-9 h (not timed)")
     ap.add_argument("--linalg", choices=("auto", "superlu", "superlu-md"), default="auto",
                     help="sparse direct back-end: auto (CHOLMOD if importable), superlu, superlu-md (minimum degree)")
+    ap.add_argument("--noise", choices=("zigzag", "broadband"), default="zigzag",
+                    help="the input's noise (see above; the table's first line names it)")
     ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         print(json.dumps(run_row(args.child[0], int(args.child[1]), int(args.child[2]), json.loads(args.child[3]))))
         return
     web = {"cylinders": args.cylinders, "energy": args.energy, "closeness": args.closeness, "cap": args.web_cap,
-           "distance": args.distance, "linalg": args.linalg}
+           "distance": args.distance, "linalg": args.linalg, "noise": args.noise}
     if any(k.startswith("fair_web_") for k in args.only):
         print(f"fair_web_*: {args.energy}, closeness {args.closeness}, cylinders {args.cylinders}, corners fixed")
-    print(f"linalg: {args.linalg}")
+    print(f"noise: {args.noise}; linalg: {args.linalg}")
     print(f"{'method':<20} {'n':>5} {'to convergence':>15} {'iterations':>10} {'per iteration':>14} "
           f"{'peak MB':>8}  note")
     for n in args.sizes:
