@@ -9,7 +9,13 @@ to its relative residual 1e-8 (``LARGE_RTOL``). Rows: ``QuadraticProblem`` with 
 (``linalg.cg.PathLinePreconditioner`` along the grid's rows and columns, half-bandwidth 2) on CSR.
 Columns: set-up CPU, CG steps, solve wall and CPU, largest difference from the first row.
 
-Run:  python benchmarks/studies/planarize_cg.py [--size 300|1000] [--cache]
+``--peers`` adds issue 15's peers on the same system (the unknowns' block ``Q_uu`` and its right-hand side, all
+coordinates): SciPy's SuperLU (COLAMD; at 1000² only with ``--slow``: minutes and gigabytes, as in
+``bench_core.py``), CG preconditioned by pyamg's smoothed aggregation from the same guess to the same rtol, and
+CHOLMOD's supernodal Cholesky where scikit-sparse is installed (``pip install -e .[bench]``); their set-up
+(factorization, hierarchy) and solve in one, as "solve".
+
+Run:  python benchmarks/studies/planarize_cg.py [--size 300|1000] [--cache] [--peers [--slow]]
 """
 
 from __future__ import annotations
@@ -62,6 +68,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=300)
     ap.add_argument("--cache", action="store_true", help="reuse out/bench-cache/ (see bench_planarize.py)")
+    ap.add_argument("--peers", action="store_true", help="also SuperLU, pyamg-preconditioned CG and CHOLMOD")
+    ap.add_argument("--slow", action="store_true", help="with --peers: SuperLU above 300² too")
     args = ap.parse_args()
     Q, kw, B, Y, guess = captured_system(args.size, args.cache)
     compiled.wait()  # (loaded before timing: its one-off cost is not the solve's)
@@ -104,6 +112,39 @@ def main() -> None:
     wall, cpu = time.perf_counter() - t, time.process_time() - c
     print(f"| csr | lines (rows and columns) | {setup:.2f} | {its} | {wall:.2f} | {cpu:.2f} "
           f"| {np.abs(zu - first[qp.unknown]).max():.1e} |", flush=True)
+    if args.peers:
+        _peers(qp._Quu.tocsr(), rhs, guess, kw["rtol"], first[qp.unknown], superlu=args.size <= 300 or args.slow)
+
+
+def _peers(M, rhs: np.ndarray, guess: np.ndarray, rtol: float, reference: np.ndarray, superlu: bool) -> None:
+    """Rows of the peers on ``M x = rhs`` (every column), against ``reference``."""
+    from scipy.sparse.linalg import cg, splu
+
+    def row(name: str, solve) -> None:
+        t, c = time.perf_counter(), time.process_time()
+        x = solve()
+        wall, cpu = time.perf_counter() - t, time.process_time() - c
+        print(f"| peer | {name} | — | — | {wall:.2f} | {cpu:.2f} | {np.abs(x - reference).max():.1e} |", flush=True)
+
+    if superlu:
+        row("SciPy SuperLU (COLAMD), factorized and solved", lambda: splu(M.tocsc()).solve(rhs))
+    try:
+        import pyamg
+    except ImportError:
+        print("| peer | pyamg: not installed | | | | | |")
+    else:
+        def amg() -> np.ndarray:
+            P = pyamg.smoothed_aggregation_solver(M).aspreconditioner(cycle="V")
+            return np.stack([cg(M, rhs[:, k], x0=guess[:, k], rtol=rtol, M=P)[0] for k in range(rhs.shape[1])],
+                            axis=1)
+
+        row("CG + pyamg smoothed aggregation (hierarchy included)", amg)
+    try:
+        from sksparse.cholmod import cholesky
+    except ImportError:
+        print("| peer | CHOLMOD: scikit-sparse not installed | | | | | |")
+    else:
+        row("CHOLMOD supernodal Cholesky, factorized and solved", lambda: cholesky(M.tocsc())(rhs))
 
 
 if __name__ == "__main__":
