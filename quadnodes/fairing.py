@@ -1045,6 +1045,11 @@ class FairingSystem:
 
     Attributes
     ----------
+    A : (w, k) scipy.sparse.csr_matrix
+        The active windows' rows over the free vertices (a row may hold a column twice, or an explicit zero where a
+        window's vertex is fixed). Its data is read-only — on the grid path it is the memory the diagonal storage
+        is built from — so SciPy's methods that tidy a matrix in place (``abs``, ``max``, ``sort_indices`` …) raise
+        on it; use ``A.copy()`` for those.
     iterations : int
         CG steps of the last :meth:`solve` (0 for the direct solver).
     residual : float

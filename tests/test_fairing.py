@@ -71,7 +71,7 @@ def test_fixed_slots_kept_in_place_or_compressed_give_one_system(mesh, seed, sha
     np.testing.assert_array_equal(a.A.toarray(), b.A.toarray())
     np.testing.assert_array_equal(a.b, b.b)
     np.testing.assert_allclose(a._rhs, b._rhs, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(a._rhs, -(b.A.T @ b.b), rtol=1e-12, atol=1e-12)  # (−Aᵀb, by the count or in place)
+    np.testing.assert_allclose(a._rhs, -(b.A.T @ b.b), rtol=1e-12, atol=1e-12)  # (−Aᵀb; here by the counts)
     np.testing.assert_allclose(a.matrix.toarray(), b.matrix.toarray(), rtol=1e-12, atol=1e-12)
     xa, xb = a.solve(anchor), b.solve(anchor)
     np.testing.assert_allclose(xa, xb, rtol=1e-9, atol=1e-12)
@@ -97,7 +97,7 @@ def test_fixed_slots_in_place_on_the_grid_path_equal_the_direct_solve(monkeypatc
     inverse = even_lengths(1.0 / np.sqrt(np.stack([np.einsum("ij,ij->i", d, d) for d in window_edges(m.vertices, w)],
                                                   axis=1)))
     free = np.ones(m.n_vertices, bool)
-    if fixed == "corners":
+    if fixed == "corners":  # (four vertices anywhere, as fair's four fixed corners: few windows touch them)
         free[rng.choice(m.n_vertices, 4, replace=False)] = False
     elif shape == "torus":  # (a torus has no boundary: one of its rings)
         free[:40] = False
@@ -116,11 +116,14 @@ def test_fixed_slots_in_place_on_the_grid_path_equal_the_direct_solve(monkeypatc
         np.testing.assert_allclose(s._rhs, -(s.A.T @ s.b), rtol=1e-12, atol=1e-12 * np.abs(s._rhs).max())
         if every == in_place:
             assert s.A.nnz == 4 * s.A.shape[0]  # (every window's four slots kept)
+            if s.active.all():  # (no window wholly fixed: A's data is the grid's coefficients themselves)
+                assert np.shares_memory(s.A.data, s._grid[1])
             assert not s.A.data.flags.writeable
             with pytest.raises(ValueError):
                 abs(s.A)  # (would sort and sum the grid's coefficients in place)
         np.testing.assert_allclose(s.solve(m.vertices[free]), expected, atol=1e-8 * extent)
         assert s.solver == "cg" and s.iterations > 0
+        assert isinstance(s._cg[0], DiagonalBlocks)  # (the grid's diagonal storage, built from those coefficients)
 
 
 @given(meshes(), st.tuples(*[st.floats(-50, 50)] * 3))

@@ -8,8 +8,8 @@ the solver's pool and beside whatever else runs, and a fairing's time swings by 
 For each ``--sizes`` it runs ``fair(iterations=1, threshold=0)`` on the bench sheet with broadband noise
 (``_common.noisy_grid``) in ``--repeat`` fresh processes, quiet and then under load (``--load`` busy-looping Python
 processes, one per core by default, started before and stopped after the rows), each with BLAS pinned (the
-solver as shipped) and unpinned (``blas_pinned`` replaced by a no-op in that process, so BLAS keeps its default
-threads). Prints each row's wall times: the median, the range, and the spread (largest over smallest).
+solver as shipped) and unpinned (``blas_pinned`` and CHOLMOD's own limit replaced by no-ops in that process, so
+BLAS keeps its default threads), the two in turn after one warm-up process. Prints each row's wall times: the median, the range, and the spread (largest over smallest).
 
 Run:  python benchmarks/studies/loaded_machine.py [--sizes 100 300] [--repeat 7] [--load 2]
 """
@@ -38,9 +38,10 @@ def _row(n: int, pinned: bool) -> dict:
     from quadnodes.fairing import fair
     from quadnodes.mesh import QuadMesh
 
-    if not pinned:  # (every module that took the name, and the one the others read it from)
+    if not pinned:  # (every module that took the name, the one the others read it from, and CHOLMOD's own limit)
         for module in (threads, cg, direct):
             module.blas_pinned = contextlib.nullcontext
+        direct._one_thread = contextlib.nullcontext
     noisy = _common.noisy_grid(n, "broadband")
     m = QuadMesh(noisy.vertices, noisy.faces)
     t = time.perf_counter()
@@ -59,15 +60,19 @@ def main() -> None:
         print(json.dumps(_row(int(args.row[0]), args.row[1] == "pinned")))
         return
 
-    def runs(n: int, mode: str) -> tuple[list[float], int]:
-        walls, steps = [], 0
-        for _ in range(args.repeat):
-            out = subprocess.run([sys.executable, __file__, "--row", str(n), mode], capture_output=True, text=True,
-                                 check=True)
-            r = json.loads(out.stdout.strip().splitlines()[-1])
-            walls.append(r["wall_s"])
-            steps = r["steps"]
-        return walls, steps
+    def one(n: int, mode: str) -> dict:
+        out = subprocess.run([sys.executable, __file__, "--row", str(n), mode], capture_output=True, text=True,
+                             check=True)
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    def runs(n: int) -> dict[str, tuple[list[float], int]]:  # (the two modes in turn: no order between them)
+        one(n, "pinned")  # (a warm-up process: the first of a run is slow, whatever it runs)
+        got: dict[str, tuple[list[float], int]] = {"pinned": ([], 0), "unpinned": ([], 0)}
+        for i in range(args.repeat):
+            for mode in (("pinned", "unpinned") if i % 2 == 0 else ("unpinned", "pinned")):
+                r = one(n, mode)
+                got[mode] = (got[mode][0] + [r["wall_s"]], r["steps"])
+        return got
 
     print(f"fair(iterations=1, threshold=0), bench sheet with broadband noise; {args.repeat} fresh processes a row; "
           f"load: {args.load} busy processes on {os.cpu_count()} cores\n")
@@ -78,8 +83,9 @@ def main() -> None:
         try:
             time.sleep(1.0 if loaded else 0.0)
             for n in args.sizes:
+                got = runs(n)
                 for mode in ("pinned", "unpinned"):
-                    walls, steps = runs(n, mode)
+                    walls, steps = got[mode]
                     w = np.array(walls)
                     print(f"| {n}×{n} | {'loaded' if loaded else 'quiet'} | "
                           f"{'one thread (as shipped)' if mode == 'pinned' else 'its own threads'} | {steps} | "
