@@ -156,6 +156,26 @@ def noisy_cube_sphere(k: int, seed: int = 0):
     return c.with_vertices(c.vertices + rng.normal(scale=0.2 * c.mean_edge_length, size=c.vertices.shape))
 
 
+def peer_solve(kind: str, M, rhs: np.ndarray, x0: np.ndarray, rtol: float) -> np.ndarray:
+    """``M X = rhs`` (every column) by one of issue 15's peers, set-up included: ``"cholmod"`` (scikit-sparse's
+    supernodal Cholesky), ``"pyamg"`` (SciPy's CG from ``x0`` to ``rtol``, preconditioned by pyamg's smoothed
+    aggregation V-cycle), ``"superlu"`` (SciPy's SuperLU, COLAMD) or ``"superlu_mmd"`` (MMD(AᵀA + A))."""
+    from scipy.sparse.linalg import cg, splu
+
+    if kind == "cholmod":
+        from sksparse.cholmod import cholesky
+
+        return cholesky(M.tocsc())(rhs)
+    if kind == "pyamg":
+        import pyamg
+
+        P = pyamg.smoothed_aggregation_solver(M).aspreconditioner(cycle="V")
+        return np.stack([cg(M, rhs[:, k], x0=x0[:, k], rtol=rtol, M=P)[0] for k in range(rhs.shape[1])], axis=1)
+    if kind in ("superlu", "superlu_mmd"):
+        return splu(M.tocsc(), permc_spec="MMD_AT_PLUS_A" if kind == "superlu_mmd" else "COLAMD").solve(rhs)
+    raise ValueError(f"peer_solve: unknown peer {kind!r}")
+
+
 def fresh_runs(script: str, args: list[str], repeat: int) -> tuple[dict, list[float]]:
     """Run ``script --row ARGS`` in ``repeat`` fresh processes; the median run's JSON and all wall times."""
     runs = []

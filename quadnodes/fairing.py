@@ -1128,17 +1128,13 @@ class FairingSystem:
         pf = is_free[partial]
         at, w_coef = cols[partial][pf], coef[partial][pf]  # (the partial windows' free slots, for -Aᵀb below)
         if partial.size <= len(win) // PARTIAL_IN_PLACE:
-            # a few windows with a fixed vertex (a fixed boundary, a few fixed corners): every row keeps its four
-            # slots, a fixed vertex's slot turned into an explicit zero at a free vertex of its window (no new
+            # none or a few windows with a fixed vertex (a fixed boundary, a few fixed corners): every row keeps its
+            # four slots, a fixed vertex's slot turned into an explicit zero at a free vertex of its window (no new
             # coupling; products add it as nothing), so the coefficients go into A as they are, not copied. (The
             # grid's storage drops fixed slots by ``free`` itself.)
             first = cols[partial, np.argmax(pf, axis=1)]
             cols[partial] = np.where(pf, cols[partial], first[:, None])
             coef[partial] = np.where(pf, coef[partial], 0.0)
-            partial_rows = np.array([], dtype=np.int64)
-        else:
-            partial_rows = partial
-        if partial_rows.size == 0:
             indptr = np.arange(0, 4 * len(win) + 1, 4, dtype=idx)
             # A's data is a read-only view of the coefficients — on the grid path the same memory the grid's storage
             # is made from at the first solve: SciPy's tidying methods (abs, max, sort_indices … sort and sum a

@@ -116,8 +116,6 @@ def run_row(kind: str, n: int, noise: str = "zigzag") -> dict:
 
 def _peer(kind: str, m) -> tuple[float, str]:
     """Solve the same one-iteration system with a peer solver; returns (seconds, note)."""
-    from scipy.sparse.linalg import cg, splu
-
     from quadnodes.fairing import DEFAULT_WEIGHT, FairingSystem, even_lengths
     from quadnodes.zigzag import detect, window_edges
 
@@ -136,18 +134,7 @@ def _peer(kind: str, m) -> tuple[float, str]:
     M = s.matrix
     rhs = s._rhs + s.weight * m.vertices[free]
     t = time.perf_counter()
-    if kind == "cholmod":
-        from sksparse.cholmod import cholesky
-
-        x = cholesky(M.tocsc())(rhs)
-    elif kind == "pyamg":
-        import pyamg
-
-        P = pyamg.smoothed_aggregation_solver(M).aspreconditioner(cycle="V")
-        x = np.stack([cg(M, rhs[:, k], x0=m.vertices[free][:, k], rtol=1e-9, M=P)[0] for k in range(3)], axis=1)
-    else:
-        spec = "MMD_AT_PLUS_A" if kind == "superlu_mmd" else "COLAMD"
-        x = splu(M.tocsc(), permc_spec=spec).solve(rhs)
+    x = _common.peer_solve(kind, M, rhs, m.vertices[free], 1e-9)
     wall = time.perf_counter() - t
     res = np.linalg.norm(rhs - M @ x, axis=0) / np.linalg.norm(rhs, axis=0)
     return wall, f"residual {res.max():.0e}"

@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
 import time
@@ -61,11 +60,6 @@ import _common  # noqa: E402
 
 ROWS = ("fair", "fair_web", "fair_web_newton", "fair_web_admm", "fair_web_pg",
         "spring", "schneider_kobbelt", "curvature", "fourier")
-
-
-def _rss_mb() -> float:
-    with open("/proc/self/statm") as fh:
-        return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
 
 
 def _mesh(kind: str, n: int, noise: str = "zigzag"):
@@ -109,7 +103,7 @@ def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
     _backend((web or {}).get("linalg", "auto"))
     m = _mesh(kind, n, (web or {}).get("noise", "zigzag"))
     h = m.mean_edge_length
-    base = _rss_mb()
+    base = _common.rss_mb()
     t = time.perf_counter()
     cpu0 = time.process_time()
     if kind == "fair":
@@ -161,7 +155,7 @@ def run_row(kind: str, n: int, cap: int, web: dict | None = None) -> dict:
     else:
         raise SystemExit(f"unknown row {kind!r}")
     wall = time.perf_counter() - t if not kind.startswith("fair_web_") else wall_web
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - base
+    peak = _common.peak_mb() - base
     if not kind.startswith("fair_web_"):
         note = f"CPU {time.process_time() - cpu0:.1f} s" + (f", {note}" if note else "")
     return {"row": kind, "n": n, "wall_s": wall, "iterations": int(its), "per_iteration_s": wall / max(its, 1),

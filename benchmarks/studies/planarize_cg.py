@@ -117,34 +117,20 @@ def main() -> None:
 
 
 def _peers(M, rhs: np.ndarray, guess: np.ndarray, rtol: float, reference: np.ndarray, superlu: bool) -> None:
-    """Rows of the peers on ``M x = rhs`` (every column), against ``reference``."""
-    from scipy.sparse.linalg import cg, splu
+    """Rows of the peers on ``M x = rhs`` (every column, ``_common.peer_solve``), against ``reference``."""
+    import importlib.util
 
-    def row(name: str, solve) -> None:
+    peers = [("superlu", "scipy", "SciPy SuperLU (COLAMD), factorized and solved")] if superlu else []
+    peers += [("pyamg", "pyamg", "CG + pyamg smoothed aggregation (hierarchy included)"),
+              ("cholmod", "sksparse", "CHOLMOD supernodal Cholesky, factorized and solved")]
+    for kind, module, name in peers:
+        if importlib.util.find_spec(module) is None:
+            print(f"| peer | {kind}: {module} not installed | | | | | |")
+            continue
         t, c = time.perf_counter(), time.process_time()
-        x = solve()
+        x = _common.peer_solve(kind, M, rhs, guess, rtol)
         wall, cpu = time.perf_counter() - t, time.process_time() - c
         print(f"| peer | {name} | — | — | {wall:.2f} | {cpu:.2f} | {np.abs(x - reference).max():.1e} |", flush=True)
-
-    if superlu:
-        row("SciPy SuperLU (COLAMD), factorized and solved", lambda: splu(M.tocsc()).solve(rhs))
-    try:
-        import pyamg
-    except ImportError:
-        print("| peer | pyamg: not installed | | | | | |")
-    else:
-        def amg() -> np.ndarray:
-            P = pyamg.smoothed_aggregation_solver(M).aspreconditioner(cycle="V")
-            return np.stack([cg(M, rhs[:, k], x0=guess[:, k], rtol=rtol, M=P)[0] for k in range(rhs.shape[1])],
-                            axis=1)
-
-        row("CG + pyamg smoothed aggregation (hierarchy included)", amg)
-    try:
-        from sksparse.cholmod import cholesky
-    except ImportError:
-        print("| peer | CHOLMOD: scikit-sparse not installed | | | | | |")
-    else:
-        row("CHOLMOD supernodal Cholesky, factorized and solved", lambda: cholesky(M.tocsc())(rhs))
 
 
 if __name__ == "__main__":
