@@ -494,9 +494,9 @@ class Session:
             self.file_error = None
             self.revision += 1
             rev = self.revision
+            if rerun:  # (under the lock: the worker takes the wake-up and the revision together, see run_once)
+                self._wake.set()
         self._emit({"type": "graph", "revision": rev})
-        if rerun:
-            self._wake.set()
         return EditResult(ok=True, revision=rev)
 
     def set_settings(self, node_id: str, settings: Mapping[str, Any]) -> EditResult:
@@ -641,15 +641,14 @@ class Session:
             self.revision += 1
             rev = self.revision
             self._read_stamps = snapshot(self._read_files())
+            self._wake.set()  # (under the lock, as in _edit)
         self._emit({"type": "graph", "revision": rev})
-        self._wake.set()
         return True
 
     # ---------------------------------------------------------------- runs
     def _work(self) -> None:
         while not self._stop.is_set():
             self._wake.wait()
-            self._wake.clear()
             if self._stop.is_set():
                 return
             try:
@@ -666,6 +665,9 @@ class Session:
             When a newer edit arrived during the run (the worker then runs again).
         """
         with self._lock:
+            # the wake-up taken with the revision it asked for (edits set it under this lock): one that comes later
+            # is a later change, never a second run of this one (which would report everything as cached)
+            self._wake.clear()
             rev, g = self.revision, self._run_graph(self.graph)
             order = g.order()
             nodes = {nid: {"status": "waiting", "seconds": None, "error": None, "key": None} for nid in order}
