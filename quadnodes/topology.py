@@ -345,12 +345,16 @@ class Topology:
 
         Open lines run from their smaller end vertex; closed lines start at their
         smallest vertex and go towards its smaller neighbour. Lines are sorted by
-        their first two vertices. A complete vertex grid (:attr:`grid_shape`) gets
-        its rows and columns without tracing (the same lines in the same order).
+        their first two vertices. A complete vertex grid (:attr:`grid_shape`), and a cylinder or torus grid
+        (:attr:`closed_grid`) of at least 4 × 4 vertices, gets its rows and columns without tracing (the same
+        lines in the same order).
         """
         shape = self.grid_shape
         if shape is not None:
             return _grid_lines(*shape)
+        closed = self.closed_grid
+        if closed is not None and min(closed[:2]) >= 4:
+            return _closed_grid_lines(*closed)
         return _trace_lines(self.edges, self._successor)
 
     @cached_property
@@ -440,10 +444,35 @@ def _closed_grid(faces: np.ndarray, n: int) -> tuple[int, int, bool, bool] | Non
         count = (rows - (not wrap[0])) * (cols - (not wrap[1]))
         if rows < (3 if wrap[0] else 2) or count != len(faces):
             continue
+        if _closed_cells_in_order(faces, rows, cols, *wrap):  # (the common case: as cylinder() and torus() make them)
+            return rows, cols, wrap[0], wrap[1]
         base = grid_cell_base(faces, rows, cols, wrap_rows=wrap[0], wrap_cols=wrap[1])
-        if (base >= 0).all() and unique_values(base).size == len(faces):
+        if (base >= 0).all() and np.bincount(base, minlength=n).max() == 1:  # (every cell once)
             return rows, cols, wrap[0], wrap[1]
     return None
+
+
+def _closed_cells_in_order(faces: np.ndarray, rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) -> bool:
+    """Whether ``faces`` are a closed grid's cells row by row, each from its base vertex ``(i, j)`` to
+    ``(i, j+1)``, ``(i+1, j+1)``, ``(i+1, j)`` or the other way round (:func:`quadnodes.mesh.grid_faces`'s layout):
+    compared by index arithmetic, one row of cells at a time (no (m, 4) temporaries)."""
+    nr, nc = rows - (not wrap_rows), cols - (not wrap_cols)
+    cells = faces.reshape(nr, nc, 4)
+    j = np.arange(nc, dtype=np.int64)
+    j1 = (j + 1) % cols
+    forward = None
+    for i in range(nr):
+        i1 = (i + 1) % rows
+        c = cells[i]
+        if not (np.array_equal(c[:, 0], i * cols + j) and np.array_equal(c[:, 2], i1 * cols + j1)):
+            return False
+        right, down = i * cols + j1, i1 * cols + j
+        if forward is None:
+            forward = bool(c[0, 1] == right[0])
+        if not (np.array_equal(c[:, 1], right if forward else down)
+                and np.array_equal(c[:, 3], down if forward else right)):
+            return False
+    return True
 
 
 def _grid_lines(rows: int, cols: int) -> StructureLines:
@@ -466,6 +495,27 @@ def _grid_lines(rows: int, cols: int) -> StructureLines:
     for a in (flat, offsets, closed):
         a.setflags(write=False)
     return StructureLines(flat, offsets, closed)
+
+
+def _closed_grid_lines(rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) -> StructureLines:
+    """The rows and columns of a cylinder or torus grid (:attr:`Topology.closed_grid`), in canonical order.
+
+    Its rows are closed where ``wrap_cols``, its columns where ``wrap_rows``: every vertex inside the grid has
+    valence 4, so tracing would follow exactly these lines; :func:`_canonical` orients and orders them as it
+    orders traced ones (one gather, no walk: a 1000 × 1000 torus's lines in milliseconds, not seconds).
+
+    Examples
+    --------
+    >>> lines = _closed_grid_lines(4, 5, False, True)  # a cylinder: 4 closed rings of 5, 5 open columns of 4
+    >>> [l.tolist() for l in lines][:3], int(lines.closed.sum())
+    ([[0, 1, 2, 3, 4], [0, 5, 10, 15], [1, 6, 11, 16]], 4)
+    """
+    n = rows * cols
+    ids = np.arange(n, dtype=np.int64)
+    flat = np.concatenate([ids, ids.reshape(rows, cols).T.reshape(-1)])
+    offsets = np.r_[np.arange(rows + 1) * cols, n + rows * np.arange(1, cols + 1)].astype(np.int64)
+    closed = np.r_[np.full(rows, wrap_cols), np.full(cols, wrap_rows)]
+    return _canonical(flat, offsets, closed)
 
 
 def _grid_windows(rows: int, cols: int) -> np.ndarray:

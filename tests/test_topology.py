@@ -141,6 +141,40 @@ def test_grid_fast_path_equals_tracing(rows, cols, seed, reverse):
     assert not fast.closed.any() and not traced.closed.any()
 
 
+@given(st.integers(3, 10), st.integers(3, 10), st.sampled_from(["cylinder", "torus", "rings"]),
+       st.integers(0, 10_000), st.booleans(), st.booleans())
+def test_closed_grid_fast_path_equals_tracing(rows, cols, kind, seed, shuffle, reverse):
+    """A cylinder or torus grid of at least 4 × 4 skips the tracing too; its lines are exactly the traced ones,
+    whatever the faces' order, starting vertex and orientation; smaller ones are traced."""
+    from quadnodes.topology import Topology, _trace_lines
+
+    wrap_rows, wrap_cols = {"cylinder": (False, True), "torus": (True, True), "rings": (True, False)}[kind]
+    rng = np.random.default_rng(seed)
+    f = grid_faces(rows, cols, wrap_rows=wrap_rows, wrap_cols=wrap_cols)
+    if shuffle:
+        f = f[rng.permutation(len(f))]
+        f = np.take_along_axis(f, (np.arange(4) + rng.integers(0, 4, len(f))[:, None]) % 4, axis=1)
+    if reverse:
+        f = f[:, ::-1]
+    topo = Topology.from_faces(np.ascontiguousarray(f), rows * cols)
+    assert topo.closed_grid == (rows, cols, wrap_rows, wrap_cols)
+    fast, traced = topo.structure_lines, _trace_lines(topo.edges, topo._successor)
+    assert np.array_equal(fast.indices, traced.indices) and np.array_equal(fast.offsets, traced.offsets)
+    assert np.array_equal(fast.closed, traced.closed)
+    assert int(fast.closed.sum()) == rows * wrap_cols + cols * wrap_rows
+
+
+def test_closed_grid_refuses_a_cell_twice_and_a_missing_cell():
+    from quadnodes.topology import _closed_grid
+
+    f = grid_faces(5, 6, wrap_rows=True, wrap_cols=True)
+    assert _closed_grid(f, 30) == (5, 6, True, True)
+    twice = f.copy()
+    twice[7] = f[8]
+    assert _closed_grid(twice, 30) is None
+    assert _closed_grid(f[:-1], 30) is None
+
+
 @given(st.integers(2, 9), st.integers(2, 9), st.integers(0, 10_000))
 def test_grid_boundary_and_corners_by_index_arithmetic_equal_the_edge_counts(rows, cols, seed):
     """A complete vertex grid's boundary ring, boundary-edge counts, corners, valences and face counts come

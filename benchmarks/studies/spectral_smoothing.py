@@ -43,12 +43,13 @@ def _system(kind: str, n: int, weight: float):
     """``(mesh, free, make)``: ``make(preconditioner)`` builds fair()'s first-iteration system."""
     from quadnodes.fairing import FairingSystem, even_lengths
     from quadnodes.mesh import QuadMesh
-    from quadnodes.zigzag import detect, window_edges
+    from quadnodes.zigzag import detect, line_gaps, window_edges
 
     noisy = {"torus": lambda: _common.noisy_torus(n, n), "sheet": lambda: _common.noisy_grid(n, "broadband"),
              "graded": lambda: _common.noisy_graded(n, 10.0)}[kind]()
     m = QuadMesh(noisy.vertices, noisy.faces)
-    free = detect(m, 0.0).free
+    found = detect(m, 0.0)
+    free = line_gaps(found.free, m.topology.windows, found.fixed)  # (fair()'s: gaps="auto" fills them)
     inverse = even_lengths(1.0 / np.sqrt(np.stack(
         [np.einsum("ij,ij->i", d, d) for d in window_edges(m.vertices, m.topology.windows)], axis=1)))
 

@@ -99,6 +99,36 @@ class GridPattern:
         # of the walk (each holding some of its windows): those entries are summed, not written
         self.summed = bool(seam)
         self.blocks: tuple[tuple[int, int, int], ...] | None = None
+        #: per ``d > 0``, where :attr:`summed`: ``(head, partner)`` indices into ``q[d]`` — the pairs in a closed
+        #: line's repeated head and the same pairs at the line's start (one target, two places); None where the
+        #: walk is not laid out so (then every pair's entry is summed by bincount)
+        self.repeats: list[tuple[np.ndarray, np.ndarray]] | None = self._repeats() if seam else None
+
+    def _repeats(self) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """:attr:`repeats` from the walk: a line's windows start at consecutive places, and a closed line's last
+        window reaches three places past its ``L`` nodes, which repeat its first three (``ext``)."""
+        ext, start = self.ext, self.start
+        if start.size == 0:
+            return None
+        cut = np.flatnonzero(np.diff(start) != 1)
+        first, last = start[np.r_[0, cut + 1]], start[np.r_[cut, start.size - 1]]
+        closed = ext[last + 1] == ext[first]
+        length = (last - first + 1)[closed]  # L: a closed line's windows, one per node
+        head = last[closed] + 1  # the walk's places of its repeated nodes 0, 1, 2
+        out = []
+        for d in (1, 2, 3):
+            q = self.q[d]
+            places = (head[:, None] + np.arange(3 - d)).reshape(-1)  # pairs (k, k + d) with both in the head
+            partners = places - np.repeat(length, 3 - d)
+            h, p = np.searchsorted(q, places), np.searchsorted(q, partners)
+            if (h >= q.size).any() or (p >= q.size).any() or not (np.array_equal(q[h], places)
+                                                                 and np.array_equal(q[p], partners)):
+                return None
+            t = self.target[d]
+            if not all(np.array_equal(side[h], side[p]) for side in t):
+                return None
+            out.append((h, p))
+        return out
 
     @classmethod
     def open_grid(cls, rows: int, cols: int, blocks: Sequence[tuple[int, int, int]]) -> GridPattern:
@@ -244,11 +274,16 @@ class GridPattern:
             v = np.take(val, self.q[d])
             if d == 0:
                 data[6] = np.bincount(self.target[0][0], weights=v, minlength=n)
-            elif self.summed:
+            elif self.summed and self.repeats is None:
                 flat += np.bincount(self.target[d][0], weights=v, minlength=flat.size)
                 flat += np.bincount(self.target[d][1], weights=v, minlength=flat.size)
             else:
                 flat[self.target[d][0]] = v
                 flat[self.target[d][1]] = v
+                if self.summed:  # a closed line's pairs at two places of the walk: their sum, written once
+                    head, partner = self.repeats[d - 1]
+                    both = v[head] + v[partner]
+                    flat[self.target[d][0][head]] = both
+                    flat[self.target[d][1][head]] = both
         data[6] += np.where(free, weight, 1.0)
         return self.offsets, data

@@ -62,3 +62,35 @@ def test_open_grid_storage_refuses_coefficients_of_another_grid():
     for loaded in (False, True):
         with pytest.raises(ValueError, match="coef: expected 13 rows"):
             _storage(pattern, np.ones((12, 4)), np.ones(20, bool), 1.0, loaded)
+
+
+@settings(max_examples=40, deadline=None)
+@given(rows=st.integers(7, 14), cols=st.integers(7, 14), kind=st.sampled_from(["cylinder", "torus", "rings"]),
+       seed=st.integers(0, 10_000))
+def test_closed_grid_storage_sums_a_seam_pair_once_and_is_the_normal_matrix(rows, cols, kind, seed):
+    """A closed line's walk repeats its first three nodes, so a pair near its start sits at two places; the storage
+    writes their sum once (:attr:`GridPattern.repeats`) — equal to summing every entry by bincount, and AᵀA."""
+    from quadnodes.mesh import grid_faces
+    from quadnodes.topology import Topology
+
+    wrap_rows, wrap_cols = {"cylinder": (False, True), "torus": (True, True), "rings": (True, False)}[kind]
+    topo = Topology.from_faces(grid_faces(rows, cols, wrap_rows=wrap_rows, wrap_cols=wrap_cols), rows * cols)
+    ext, start = topo.window_walk
+    pattern = GridPattern(ext, start, rows * cols, cols, wrap_rows=wrap_rows, wrap_cols=wrap_cols)
+    assert pattern.valid and pattern.summed and pattern.repeats is not None
+    rng = np.random.default_rng(seed)
+    w = topo.windows
+    coef = rng.normal(size=(len(w), 4))
+    free = rng.random(rows * cols) > 0.2
+    off, data = pattern.normal_matrix(coef, free, 0.7)
+    repeats, pattern.repeats = pattern.repeats, None  # every entry summed by bincount
+    off_sum, data_sum = pattern.normal_matrix(coef, free, 0.7)
+    pattern.repeats = repeats
+    assert np.array_equal(off, off_sum)
+    np.testing.assert_allclose(data, data_sum, rtol=1e-14, atol=1e-14)
+    A = sp.csr_matrix((coef.reshape(-1), (np.repeat(np.arange(len(w)), 4), w.reshape(-1))),
+                      shape=(len(w), rows * cols)) @ sp.diags(free.astype(float))
+    expected = (A.T @ A).toarray() + np.diag(np.where(free, 0.7, 1.0))
+    n = rows * cols
+    M = sp.dia_matrix((data, off), shape=(n, n)).toarray()
+    np.testing.assert_allclose(M, expected, rtol=1e-12, atol=1e-12)
