@@ -5,7 +5,8 @@ Every fairing row states its noise: ``zigzag`` (``perturb(tangential=0.2, normal
 highest frequency, the easiest case for CG) or ``broadband`` (independent Gaussian offsets of
 0.2 edge lengths per coordinate, as a scan has); the sheet is ``z = 0.3 sin 3x cos 2y``
 (``benchmarks/_common.py``). ``--torus`` adds a closed torus of about n² vertices with broadband
-noise (a torus grid: periodic grid diagonals); ``--cube-sphere`` a cube-sphere of about n² vertices
+noise (a torus grid: periodic grid diagonals); ``--cylinder`` an n × n cylinder (a tower: rows closed, columns
+open) with the same noise; ``--cube-sphere`` a cube-sphere of about n² vertices
 (six k × k grids on a sphere, eight valence-3 corners: no grid of any kind, the general CSR path)
 with the same noise; ``--graded`` the sheet sampled with uneven spacing (its columns' spacing growing tenfold
 across it, ``_common.noisy_graded``) with broadband noise of 0.2 local edge lengths.
@@ -29,14 +30,14 @@ Rows
   ordering and with MMD(AᵀA+A), quadnodes' own CG with ``preconditioner="none"`` (what the
   default does where the matrix has no stiff spots), and CG preconditioned by pyamg smoothed
   aggregation when pyamg is installed, CHOLMOD when scikit-sparse is (``pip install -e .[bench]``). SuperLU at 1000² takes minutes and
-  ~12 GB, and on the torus and the cube-sphere above 100² minutes too, so those rows run only with ``--slow``;
+  ~12 GB, and on the torus, the cylinder and the cube-sphere above 100² minutes too, so those rows run only with ``--slow``;
 - taubin, 10 steps: ``quadnodes.taubin(iterations=5)`` (5 λ|μ pairs = 10 steps) on the
   quad edge 1-ring, including building the operator;
 - trimesh filter_taubin, 10 steps: ``trimesh.smoothing.filter_taubin(iterations=10)``
   (trimesh counts single steps) on the triangulated grid, including its operator.
 
 Run:  python benchmarks/perf/bench_core.py [--sizes 100 300 1000] [--noise zigzag broadband]
-            [--only fair taubin ...] [--repeat 3] [--torus] [--cube-sphere] [--graded] [--warm] [--weight W]
+            [--only fair taubin ...] [--repeat 3] [--torus] [--cylinder] [--cube-sphere] [--graded] [--warm] [--weight W]
             [--against PATH]
 """
 
@@ -61,6 +62,8 @@ def _mesh(n: int, noise: str = "zigzag"):
         return _common.noisy_torus(n, n)
     if noise == "cube-sphere":
         return _common.noisy_cube_sphere(max(2, round(n / 6**0.5)))
+    if noise == "cylinder":
+        return _common.noisy_cylinder(n, n)
     if noise == "graded":
         return _common.noisy_graded(n, 10.0)
     return _common.noisy_grid(n, noise)
@@ -163,6 +166,9 @@ def main() -> None:
     ap.add_argument("--noise", nargs="+", choices=_common.NOISES, default=list(_common.NOISES),
                     help="noises of the fairing rows (default: both)")
     ap.add_argument("--torus", action="store_true", help="also fair a noisy torus of about n² vertices")
+    ap.add_argument("--cylinder", action="store_true",
+                    help="also fair a noisy cylinder of n × n vertices (a tower: its rows closed rings, its columns "
+                         "open)")
     ap.add_argument("--cube-sphere", action="store_true",
                     help="also fair a noisy cube-sphere of about n² vertices (irregular: no grid)")
     ap.add_argument("--graded", action="store_true",
@@ -174,7 +180,7 @@ def main() -> None:
     ap.add_argument("--weight", type=float,
                     help="fair rows: this weight (normalized) instead of fair's default; the rows say so")
     ap.add_argument("--slow", action="store_true",
-                    help="also run SuperLU at sizes above 300 (on the torus and the cube-sphere above 100)")
+                    help="also run SuperLU at sizes above 300 (on the torus, the cylinder and the cube-sphere above 100)")
     ap.add_argument("--only", nargs="+", choices=list(LABELS), help="run only these rows")
     ap.add_argument("--repeat", type=int, default=3,
                     help="fresh processes per row; the table shows the median time (default 3)")
@@ -208,21 +214,24 @@ def main() -> None:
             noises = list(args.noise) if kind in FAIR_KINDS else ["zigzag"]
             if args.torus and kind in FAIR_KINDS:
                 noises.append("torus")
+            if args.cylinder and kind in FAIR_KINDS:
+                noises.append("cylinder")
             if args.cube_sphere and kind in FAIR_KINDS:
                 noises.append("cube-sphere")
             if args.graded and kind in FAIR_KINDS:
                 noises.append("graded")
             for noise in noises:
-                if kind.startswith("superlu") and noise in ("torus", "cube-sphere") and n > 100 and not args.slow:
+                if kind.startswith("superlu") and noise in ("torus", "cylinder", "cube-sphere") and n > 100 \
+                        and not args.slow:
                     continue  # (a torus's fill: SuperLU in MMD order ran over 8 minutes and 4 GB at 300²)
                 row = [kind, str(n), noise]
                 if args.against:
                     results = _common.interleaved_runs(__file__, row, args.repeat, args.against)
                 else:
                     results = (_common.fresh_runs(__file__, row, args.repeat),)
-                mesh = {"torus": f"torus {n}×{n}", "cube-sphere": f"cube-sphere ~{n}²",
+                mesh = {"torus": f"torus {n}×{n}", "cylinder": f"cylinder {n}×{n}", "cube-sphere": f"cube-sphere ~{n}²",
                         "graded": f"{n}×{n}, spacing ×10 across"}.get(noise, f"{n}×{n}")
-                label = "broadband" if noise in ("torus", "cube-sphere", "graded") else noise
+                label = "broadband" if noise in ("torus", "cylinder", "cube-sphere", "graded") else noise
                 label += ", kernels loaded" if args.warm else ""
                 label += f", weight {args.weight:g}" if args.weight is not None else ""
                 for (r, walls), who in zip(results, ("", f" [{args.against}]")):
