@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["LANES", "symmetric_diagonal_product", "strided_line_solve", "row_line_solve", "blocked_lines",
+__all__ = ["LANES", "symmetric_diagonal_product", "entries_product", "strided_line_solve", "row_line_solve", "blocked_lines",
            "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "open_grid_family",
            "unit_backward_sweep", "unit_forward_sweep", "unit_cg_update", "unit_scaled", "csr_backward_sweep",
            "csr_forward_sweep", "rows_cg_update", "csr_separators", "csr_split_counts", "csr_split_fill"]
@@ -98,6 +98,18 @@ def symmetric_diagonal_product(U: np.ndarray, offsets: np.ndarray, X: np.ndarray
             _diagonal_product_rows(U, offsets, X, Y, b, hi)
             return
     _diagonal_product_rows(U, offsets, X, Y, lo, hi)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)
+def entries_product(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, X: np.ndarray, Y: np.ndarray, a: int,
+                    b: int) -> None:  # pragma: no cover - compiled
+    """``Y[:, rows[e]] += vals[e] X[:, cols[e]]`` for the entries ``a:b`` (a list of matrix entries by row) on
+    ``(c, m)`` vectors: the few entries of :class:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks`' sparse diagonals."""
+    for q in range(X.shape[0]):
+        x = X[q]
+        y = Y[q]
+        for e in range(a, b):
+            y[rows[e]] += vals[e] * x[cols[e]]
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, boundscheck=False)

@@ -383,13 +383,21 @@ def block_cg(
         return _run_cg(blocks, B, X0, rtol=rtol, maxiter=maxiter, precond=precond)
 
 
+#: :class:`SymmetricDiagonalBlocks` reads an upper diagonal holding fewer than one entry in this many (but the main
+#: one) as a list of entries, not as a pass of its own: a closed grid's periodic pairs.
+SPARSE_DIAGONAL_FRACTION = 16
+
+
 class SymmetricDiagonalBlocks(DiagonalBlocks):
     """A symmetric matrix in diagonal storage, applied by a compiled kernel from its upper diagonals.
 
     Same interface and input as :class:`DiagonalBlocks` (``data[d, j] = M[j - offsets[d], j]``,
     offsets symmetric about 0); the product reads each of the ``(d + 1) / 2`` upper
     diagonals once for all columns' passes from cache, about half the memory
-    traffic of the full storage (:func:`~quadnodes.linalg._kernels.symmetric_diagonal_product`).
+    traffic of the full storage (:func:`~quadnodes.linalg._kernels.symmetric_diagonal_product`). Upper
+    diagonals that hold few entries (:data:`SPARSE_DIAGONAL_FRACTION`: a closed grid's periodic pairs, a handful per
+    line) after the others are read as a list of entries instead, so a torus's product is an open grid's seven
+    diagonals (the kernel's fast rows) and a few thousand entries.
     """
 
     def __init__(self, offsets: np.ndarray, data: np.ndarray, *, threads: int | None = None) -> None:
@@ -405,16 +413,41 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
             if o < n:  # (an offset past the matrix, e.g. 3 columns on a grid of 2 rows, stays zero)
                 U[d, : n - o] = data[up[d], o:]
         self.upper = U
+        # diagonals that hold a few entries (a closed grid's periodic pairs: a handful per line, at its seam) cost a
+        # full pass each in the product: the product reads the others (a prefix of U: a view), and those entries
+        # from a list by row, both triangles
+        held = np.count_nonzero(U, axis=1)
+        sparse = held * SPARSE_DIAGONAL_FRACTION < n
+        sparse[0] = False
+        k = int(np.argmax(sparse)) if sparse.any() else up.size
+        self._dense = (U[:k], self.upper_offsets[:k])
+        #: the few entries' ``(rows, columns, values)``, by row (both triangles), or None
+        self._seam: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        if sparse[k:].all() and k < up.size:
+            parts = []
+            for d in range(k, up.size):
+                i = np.flatnonzero(U[d])
+                j = i + self.upper_offsets[d]
+                parts += [(i, j, U[d, i]), (j, i, U[d, i])]
+            r, c, v = (np.concatenate(p) for p in zip(*parts))
+            order = np.argsort(r, kind="stable")
+            self._seam = (r[order], c[order], v[order])
+        else:
+            self._dense = (U, self.upper_offsets)
 
     def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
                accumulate: bool = False) -> None:
         if data is not None or accumulate:  # (not used by block_cg; the general kernel)
             return super().matvec(X, Y, lo, hi, data=data, accumulate=accumulate)
-        from ._kernels import symmetric_diagonal_product
+        from ._kernels import entries_product, symmetric_diagonal_product
 
         n = self.upper.shape[1]
         if X.flags.c_contiguous and Y.flags.c_contiguous:
-            symmetric_diagonal_product(self.upper, self.upper_offsets, X, Y, lo, min(hi, n))
+            symmetric_diagonal_product(*self._dense, X, Y, lo, min(hi, n))
+            if self._seam is not None:
+                rows = self._seam[0]
+                a, b = np.searchsorted(rows, (lo, min(hi, n)))
+                entries_product(*self._seam, X, Y, int(a), int(b))
         else:  # pragma: no cover - block_cg's vectors are contiguous
             return super().matvec(X, Y, lo, hi)
 

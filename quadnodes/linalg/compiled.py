@@ -42,6 +42,7 @@ def _load() -> None:
         X, Y, Z = np.ones((3, 8)), np.zeros((3, 8)), np.ones((3, 8))
         out = np.zeros(3)
         k.symmetric_diagonal_product(U, off, X, Y, 0, 8)
+        k.entries_product(off, off, U[0], X, Y, 0, 2)
         k.row_dots(X, Y, 0, 8, out)
         k.cg_update(Z, Y, X, Y.copy(), out, 0, 8, out.copy())
         k.cg_direction(Z, X, out, 0, 8)

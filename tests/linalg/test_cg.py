@@ -365,10 +365,13 @@ def test_path_line_preconditioner_refuses_a_band_that_is_not_positive_definite()
         PathLinePreconditioner(M, np.array([0, 1, 2]), np.array([True, False, False]))
 
 
-@pytest.mark.parametrize("kind", ["torus 7x9", "torus 48x60", "cylinder 12x30"])
+@pytest.mark.parametrize("kind", ["torus 7x9", "torus 48x60", "cylinder 12x30", "torus 80x96", "cylinder 100x90"])
 def test_symmetric_diagonal_storage_of_closed_grids_equals_the_full_product(kind):
     """A cylinder's or torus's fairing matrix in diagonal storage (the periodic pairs after the first 13 offsets,
-    their upper offsets out of order): the compiled symmetric product equals SciPy's, whole and cut."""
+    their upper offsets out of order): the compiled symmetric product equals SciPy's, whole and cut — the
+    periodic pairs read as diagonals on a small grid, as compressed rows where they hold fewer than one entry in
+    SPARSE_DIAGONAL_FRACTION (the larger two)."""
+    from quadnodes.linalg.cg import SPARSE_DIAGONAL_FRACTION
     from quadnodes.fairing import grid_pattern, window_coefficients
     from quadnodes.linalg.cg import SymmetricDiagonalBlocks
     from quadnodes.mesh import cylinder, torus
@@ -384,6 +387,11 @@ def test_symmetric_diagonal_storage_of_closed_grids_equals_the_full_product(kind
                                           np.ones(m.n_vertices, bool), 0.3)
     n = data.shape[1]
     blocks = SymmetricDiagonalBlocks(offsets, data)
+    periodic = np.count_nonzero(blocks.upper, axis=1)[7:]  # (3 entries a line at most)
+    assert (blocks._seam is not None) == bool((periodic * SPARSE_DIAGONAL_FRACTION < n).all())
+    assert (blocks._seam is not None) == (kind in ("torus 80x96", "cylinder 100x90"))
+    if blocks._seam is not None:  # the open grid's seven diagonals, the kernel's fast rows
+        assert blocks._dense[1].tolist() == [0, 1, 2, 3, b, 2 * b, 3 * b]
     X = np.zeros((3, -(-n // 64) * 64))
     X[:, :n] = rng.normal(size=(3, n))
     ref = (sp.dia_matrix((data, offsets), shape=(n, n)) @ X[:, :n].T).T
