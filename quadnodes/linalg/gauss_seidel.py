@@ -175,6 +175,7 @@ class CsrGaussSeidel:
 
     def __init__(self, blocks: object) -> None:
         from ._kernels import csr_separators, csr_split_counts, csr_split_fill
+        from .cg import DiagonalBlocks
         from .threads import RowBlocks, run_tasks
 
         M = blocks.M.tocsr()  # type: ignore[attr-defined]  # (diagonal storage too: a closed grid's seams)
@@ -201,7 +202,12 @@ class CsrGaussSeidel:
         idx = M.indices.dtype
         self.interiors = [(lo + np.flatnonzero(~separator[lo:hi]).astype(idx), True, False) for lo, hi in ranges]
         self.separators = [(np.flatnonzero(separator).astype(idx), False, True)] if len(ranges) > 1 else []
-        self._product = RowBlocks(M, threads=1, columns=False)  # (the residual's product on (m, c) vectors)
+        if isinstance(blocks, DiagonalBlocks):  # (the residual's product from its own storage: no CSR copy kept)
+            self._diagonal: DiagonalBlocks | None = blocks
+            self._product = None
+        else:
+            self._diagonal = None
+            self._product = RowBlocks(M, threads=1, columns=False)  # (the residual's product on (m, c) vectors)
         self.scale = s
 
     def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray,
@@ -228,9 +234,17 @@ class CsrGaussSeidel:
         rows_cg_update(X, R, T, W, alpha, lo, hi, rr)
 
     def product(self, X: np.ndarray, Y: np.ndarray) -> None:
-        """``Y = M X`` on the rows of ``M`` (SciPy's multi-vector kernel, on the ranges' threads)."""
+        """``Y = M X`` on the rows of ``M`` (SciPy's multi-vector kernel, on the ranges' threads; a grid's own
+        diagonal storage on transposed copies — a few products a solve — where the blocks are one)."""
         from .threads import run_tasks
 
+        if self._diagonal is not None:
+            b = self._diagonal
+            Xt = np.ascontiguousarray(X.T)
+            Yt = np.zeros_like(Xt)  # (padding rows past the matrix's stay zero)
+            b.run(lambda lo, hi: b.matvec(Xt, Yt, lo, hi))
+            Y[...] = Yt.T
+            return
         prod = self._product
         run_tasks(lambda lo, hi: prod.matvec(X, Y, lo, hi), self._ranges)
 
