@@ -212,7 +212,7 @@ def smoothed_cg(
         inner *= 0.1 if steps == start else 0.5
 
 
-# --- the smoothed cycle's sweeps (quadnodes.linalg.smoothed): compressed rows on (c, m) vectors ----------------------
+# --- the cycle's kernels: compressed-row sweeps with scatter, and its vector passes, on (c, m) vectors -----------
 
 
 @nb.njit(cache=False, nogil=True, fastmath=True, boundscheck=False)

@@ -166,7 +166,7 @@ def main() -> None:
             f = _routed_solve(fused, smoothed, m.vertices[free])
             t_fused = time.perf_counter() - t
             extent = float(np.ptp(m.vertices, axis=0).max())
-            p = _parts(fine, inverse, cycle.sweeps)
+            p = _parts(blocks, inverse, cycle.sweeps)  # (the product the transforms' path and the fused cycle use)
             worst = max(np.abs(x - y).max(), np.abs(x - f).max()) / extent
             print(f"| {kind} | {weight:g} | {alone.iterations} · {t_alone:.3f} | {cycled.iterations} · {t_cycle:.3f} "
                   f"| {fused.iterations} · {t_fused:.3f} ({t_setup:.3f}) | {worst:.1e} "

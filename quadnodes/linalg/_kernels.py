@@ -11,8 +11,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["LANES", "symmetric_diagonal_product", "entries_product", "strided_line_solve", "row_line_solve", "blocked_lines",
-           "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "open_grid_family",
+__all__ = ["LANES", "symmetric_diagonal_product", "entries_product", "strided_line_solve", "row_line_solve",
+           "blocked_lines", "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "open_grid_family",
            "unit_backward_sweep", "unit_forward_sweep", "unit_cg_update", "unit_scaled", "csr_backward_sweep",
            "csr_forward_sweep", "rows_cg_update", "csr_separators", "csr_split_counts", "csr_split_fill"]
 

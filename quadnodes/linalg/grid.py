@@ -34,7 +34,9 @@ class GridPattern:
     of 1, or a column: steps of ``cols``). ``ext`` lays every line out contiguously
     (one node sequence, all lines after one another), ``start`` lists the positions
     in ``ext`` where a 4-node row of ``A`` begins, in the order of ``A``'s rows.
-    If some row of ``A`` is not along a grid line, :attr:`valid` is False.
+    If some row of ``A`` is not along a grid line, :attr:`valid` is False. On a grid closed around, the storage
+    takes a shortcut (:attr:`repeats`) where ``ext`` and ``start`` are laid out as
+    :attr:`~quadnodes.topology.Topology.window_walk` lays them out, and sums every entry otherwise.
 
     Entry ``(ext[q], ext[q+d])`` of the window walk ``ext`` sums ``c_i c_{i+d}`` over
     the (up to ``4 - d``) windows that hold both positions; ``q[d]`` lists those
@@ -94,7 +96,7 @@ class GridPattern:
             up, down = up.astype(idx), down.astype(idx)
             self.target.append((up * idx(n) + b, down * idx(n) + a))
         self.offsets = np.array(offsets)
-        self.n, self.start, self.ext = n, start, ext
+        self.n, self.start, self.ext, self.cols = n, start, ext, cols
         # a closed line's walk repeats its first three nodes, so a pair near its start sits at two places
         # of the walk (each holding some of its windows): those entries are summed, not written
         self.summed = bool(seam)
@@ -106,15 +108,29 @@ class GridPattern:
 
     def _repeats(self) -> list[tuple[np.ndarray, np.ndarray]] | None:
         """:attr:`repeats` from the walk: a line's windows start at consecutive places, and a closed line's last
-        window reaches three places past its ``L`` nodes, which repeat its first three (``ext``)."""
-        ext, start = self.ext, self.start
-        if start.size == 0:
+        window reaches three places past its ``L`` nodes, which repeat its first three (``ext``). None unless the
+        walk is :attr:`~quadnodes.topology.Topology.window_walk`'s layout — windows in the walk's order, every
+        grid line once with all its windows, each closed line's three repeated nodes in place — so that these
+        are the only pairs at two places."""
+        ext, start, n = self.ext, self.start, self.n
+        rows, cols = n // self.cols, self.cols
+        if start.size == 0 or not (np.diff(start) > 0).all():
+            return None
+        wrap_rows, wrap_cols = self.wrap
+        windows = rows * (cols if wrap_cols else max(cols - 3, 0)) + cols * (rows if wrap_rows else max(rows - 3, 0))
+        if start.size != windows:
             return None
         cut = np.flatnonzero(np.diff(start) != 1)
         first, last = start[np.r_[0, cut + 1]], start[np.r_[cut, start.size - 1]]
         closed = ext[last + 1] == ext[first]
+        if int(closed.sum()) != rows * wrap_cols + cols * wrap_rows:
+            return None
         length = (last - first + 1)[closed]  # L: a closed line's windows, one per node
         head = last[closed] + 1  # the walk's places of its repeated nodes 0, 1, 2
+        if not all(np.array_equal(ext[head + k], ext[first[closed] + k]) for k in range(3)):
+            return None
+        if np.unique(ext[first] * np.int64(n) + ext[first + 1]).size != first.size:  # (a line twice)
+            return None
         out = []
         for d in (1, 2, 3):
             q = self.q[d]

@@ -369,11 +369,10 @@ def test_path_line_preconditioner_refuses_a_band_that_is_not_positive_definite()
 def test_symmetric_diagonal_storage_of_closed_grids_equals_the_full_product(kind):
     """A cylinder's or torus's fairing matrix in diagonal storage (the periodic pairs after the first 13 offsets,
     their upper offsets out of order): the compiled symmetric product equals SciPy's, whole and cut — the
-    periodic pairs read as diagonals on a small grid, as compressed rows where they hold fewer than one entry in
+    periodic pairs read as diagonals on a small grid, as a list of entries where they hold fewer than one entry in
     SPARSE_DIAGONAL_FRACTION (the larger two)."""
-    from quadnodes.linalg.cg import SPARSE_DIAGONAL_FRACTION
     from quadnodes.fairing import grid_pattern, window_coefficients
-    from quadnodes.linalg.cg import SymmetricDiagonalBlocks
+    from quadnodes.linalg.cg import SPARSE_DIAGONAL_FRACTION, SymmetricDiagonalBlocks
     from quadnodes.mesh import cylinder, torus
 
     name, size = kind.split()
