@@ -408,32 +408,48 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
         if offsets[up[0]] != 0 or not np.array_equal(np.sort(-offsets[offsets < 0]), np.sort(offsets[up[1:]])):
             raise ValueError("offsets: expected a main diagonal and symmetric pairs")
         self.upper_offsets = offsets[up].astype(np.int64)
-        U = np.zeros((up.size, n))
-        for d, o in zip(range(up.size), self.upper_offsets):  # M[i, i + o] = data[d, i + o]
-            if o < n:  # (an offset past the matrix, e.g. 3 columns on a grid of 2 rows, stays zero)
-                U[d, : n - o] = data[up[d], o:]
-        self.upper = U
+        self._n, self._rows = n, up  # (the storage's rows of the upper diagonals)
         # diagonals that hold a few entries (a closed grid's periodic pairs: a handful per line, at its seam) cost a
-        # full pass each in the product: the product reads the others (a prefix of U: a view), and those entries
-        # from a list by row, both triangles
-        held = np.count_nonzero(U, axis=1)
+        # full pass each in the product: the product reads the others from U, and those entries from a list by row,
+        # both triangles (their rows of U are not kept: :attr:`upper` makes the whole on request)
+        held = np.array([np.count_nonzero(data[r]) for r in up])
         sparse = held * SPARSE_DIAGONAL_FRACTION < n
         sparse[0] = False
         k = int(np.argmax(sparse)) if sparse.any() else up.size
-        self._dense = (U[:k], self.upper_offsets[:k])
+        if not (sparse[k:].all() and k < up.size):
+            k = up.size
+        U = self._upper_rows(data, k)
+        self._dense = (U, self.upper_offsets[:k])
+        self._upper = U if k == up.size else None
         #: the few entries' ``(rows, columns, values)``, by row (both triangles), or None
         self._seam: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        if sparse[k:].all() and k < up.size:
+        if k < up.size:
             parts = []
             for d in range(k, up.size):
-                i = np.flatnonzero(U[d])
-                j = i + self.upper_offsets[d]
-                parts += [(i, j, U[d, i]), (j, i, U[d, i])]
+                o = int(self.upper_offsets[d])
+                j = np.flatnonzero(data[up[d]])  # (M[i, i + o] is stored at column j = i + o)
+                j = j[j >= o]
+                parts += [(j - o, j, data[up[d], j]), (j, j - o, data[up[d], j])]
             r, c, v = (np.concatenate(p) for p in zip(*parts))
             order = np.argsort(r, kind="stable")
             self._seam = (r[order], c[order], v[order])
-        else:
-            self._dense = (U, self.upper_offsets)
+
+    def _upper_rows(self, data: np.ndarray, k: int) -> np.ndarray:
+        """The first ``k`` upper diagonals as ``(k, n)`` rows: ``U[d, i] = M[i, i + o_d]`` (zero past the end)."""
+        n = self._n
+        U = np.zeros((k, n))
+        for d, o in zip(range(k), self.upper_offsets[:k]):  # M[i, i + o] = data[d, i + o]
+            if o < n:  # (an offset past the matrix, e.g. 3 columns on a grid of 2 rows, stays zero)
+                U[d, : n - o] = data[self._rows[d], o:]
+        return U
+
+    @property
+    def upper(self) -> np.ndarray:
+        """``(d, n)``: every upper diagonal, ``U[d, i] = M[i, i + upper_offsets[d]]`` (made on first use where the
+        product keeps only some of them: a closed grid's)."""
+        if self._upper is None:
+            self._upper = self._upper_rows(self.data, self.upper_offsets.size)
+        return self._upper
 
     def matvec(self, X: np.ndarray, Y: np.ndarray, lo: int, hi: int, *, data: np.ndarray | None = None,
                accumulate: bool = False) -> None:
@@ -441,7 +457,7 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
             return super().matvec(X, Y, lo, hi, data=data, accumulate=accumulate)
         from ._kernels import entries_product, symmetric_diagonal_product
 
-        n = self.upper.shape[1]
+        n = self._n
         if X.flags.c_contiguous and Y.flags.c_contiguous:
             symmetric_diagonal_product(*self._dense, X, Y, lo, min(hi, n))
             if self._seam is not None:
