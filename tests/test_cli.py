@@ -107,11 +107,18 @@ def test_watch_reruns_after_edit_and_survives_a_broken_edit(tmp_path, capsys):
     g = _graph(tmp_path, seed=1)
     out = tmp_path / "out"
 
+    def save(text: str) -> None:  # as an editor saves by rename: never read half-written (write_text truncates
+        # first; on a loaded machine — the compiled kernels loading beside a cold start — the watcher once read the
+        # emptied file between the truncation and the write, and that error run used up --max-runs)
+        tmp = g.with_suffix(".tmp")
+        tmp.write_text(text)
+        os.replace(tmp, g)
+
     def edit():
         time.sleep(1.5)
-        g.write_text("this is not toml [")          # a broken edit: error, keep watching
+        save("this is not toml [")          # a broken edit: error, keep watching
         time.sleep(1.0)
-        g.write_text(SMALL.format(seed=2))          # fixed: re-run, only from 'noisy' on
+        save(SMALL.format(seed=2))          # fixed: re-run, only from 'noisy' on
 
     t = threading.Thread(target=edit)
     t.start()
