@@ -453,26 +453,12 @@ def _closed_grid(faces: np.ndarray, n: int) -> tuple[int, int, bool, bool] | Non
 
 
 def _closed_cells_in_order(faces: np.ndarray, rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) -> bool:
-    """Whether ``faces`` are a closed grid's cells row by row, each from its base vertex ``(i, j)`` to
-    ``(i, j+1)``, ``(i+1, j+1)``, ``(i+1, j)`` or the other way round (:func:`quadnodes.mesh.grid_faces`'s layout):
-    compared by index arithmetic, one row of cells at a time (no (m, 4) temporaries)."""
-    nr, nc = rows - (not wrap_rows), cols - (not wrap_cols)
-    cells = faces.reshape(nr, nc, 4)
-    j = np.arange(nc, dtype=np.int64)
-    j1 = (j + 1) % cols
-    forward = None
-    for i in range(nr):
-        i1 = (i + 1) % rows
-        c = cells[i]
-        if not (np.array_equal(c[:, 0], i * cols + j) and np.array_equal(c[:, 2], i1 * cols + j1)):
-            return False
-        right, down = i * cols + j1, i1 * cols + j
-        if forward is None:
-            forward = bool(c[0, 1] == right[0])
-        if not (np.array_equal(c[:, 1], right if forward else down)
-                and np.array_equal(c[:, 3], down if forward else right)):
-            return False
-    return True
+    """Whether ``faces`` are :func:`quadnodes.mesh.grid_faces`' cells of this closed grid, in its order, in either
+    orientation."""
+    from .mesh import grid_faces
+
+    expected = grid_faces(rows, cols, wrap_cols=wrap_cols, wrap_rows=wrap_rows)
+    return np.array_equal(faces, expected) or np.array_equal(faces, expected[:, [0, 3, 2, 1]])
 
 
 def _grid_lines(rows: int, cols: int) -> StructureLines:

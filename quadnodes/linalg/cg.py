@@ -415,9 +415,9 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
         held = np.array([np.count_nonzero(data[r]) for r in up])
         sparse = held * SPARSE_DIAGONAL_FRACTION < n
         sparse[0] = False
-        k = int(np.argmax(sparse)) if sparse.any() else up.size
-        if not (sparse[k:].all() and k < up.size):
-            k = up.size
+        k = up.size  # (the sparse ones taken apart where they follow all the others)
+        if sparse.any() and sparse[int(np.argmax(sparse)):].all():
+            k = int(np.argmax(sparse))
         U = self._upper_rows(data, k)
         self._dense = (U, self.upper_offsets[:k])
         self._upper = U if k == up.size else None
