@@ -628,7 +628,7 @@ def grid_pattern(topology: object) -> GridPattern | None:
     Made from the topology alone (its :attr:`~quadnodes.topology.Topology.grid_shape`,
     or :attr:`~quadnodes.topology.Topology.closed_grid` for a cylinder or torus grid
     with at least 7 vertices around every closed direction, whose windows across
-    the seam get periodic diagonals, and the window walk) and kept in a declared
+    the seam get periodic diagonals) and kept in a declared
     cache keyed weakly by the topology, so every iteration and weight on the same
     mesh reuses it and it goes with the mesh.
 
@@ -654,9 +654,9 @@ def grid_pattern(topology: object) -> GridPattern | None:
     closed = topology.closed_grid if shape is None else None  # type: ignore[attr-defined]
     if closed is not None and closed[1] >= (7 if closed[3] else 4) and (closed[0] >= 7 or not closed[2]):
         # a cylinder or torus grid: periodic diagonals for the windows across the seam (at least 7 vertices
-        # around, so that no two diagonals share an offset)
-        pattern = GridPattern(*topology.window_walk, topology.n_vertices, closed[1],  # type: ignore[attr-defined]
-                              wrap_rows=closed[2], wrap_cols=closed[3])
+        # around, so that no two diagonals share an offset); its windows come in the open grid's order of lines
+        pattern = GridPattern.closed_grid(closed[0], closed[1], [(0, 0, 1), (1, 0, closed[1]), (0, 1, closed[0] - 1)],
+                                          wrap_rows=closed[2], wrap_cols=closed[3])
     if pattern is not None and not pattern.valid:
         pattern = None
     _GRID_PATTERNS[topology] = pattern

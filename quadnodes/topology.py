@@ -352,10 +352,17 @@ class Topology:
         shape = self.grid_shape
         if shape is not None:
             return _grid_lines(*shape)
-        closed = self.closed_grid
-        if closed is not None and min(closed[:2]) >= 4:
+        closed = self._laid_out_closed_grid
+        if closed is not None:
             return _closed_grid_lines(*closed)
         return _trace_lines(self.edges, self._successor)
+
+    @property
+    def _laid_out_closed_grid(self) -> tuple[int, int, bool, bool] | None:
+        """:attr:`closed_grid` where its lines, windows and walk are laid out by index arithmetic (at least 4 × 4
+        vertices; smaller ones are traced), else None."""
+        closed = self.closed_grid
+        return closed if closed is not None and min(closed[:2]) >= 4 else None
 
     @cached_property
     def windows(self) -> np.ndarray:
@@ -363,6 +370,9 @@ class Topology:
         shape = self.grid_shape
         if shape is not None:
             return _grid_windows(*shape)
+        closed = self._laid_out_closed_grid
+        if closed is not None:
+            return _grid_windows(*closed)
         ext, start = self.window_walk
         return ext[start[:, None] + np.arange(4)]
 
@@ -382,6 +392,9 @@ class Topology:
             start += np.arange(start.size, dtype=np.int64)
             start.setflags(write=False)
             return lines.indices, start
+        closed = self._laid_out_closed_grid
+        if closed is not None:
+            return _closed_grid_walk(*closed)
         return _window_walk(self.structure_lines)[:2]
 
     @cached_property
@@ -396,6 +409,8 @@ class Topology:
             if rows >= 4:
                 mask[1:-1] = True
             return mask.reshape(-1)
+        if self._laid_out_closed_grid is not None:  # every vertex is on a closed row or a closed column
+            return np.ones(self.n_vertices, dtype=bool)
         mask = np.zeros(self.n_vertices, dtype=bool)
         mask[self.windows[:, 1:3].reshape(-1)] = True
         return mask
@@ -504,22 +519,56 @@ def _closed_grid_lines(rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) -
     return _canonical(flat, offsets, closed)
 
 
-def _grid_windows(rows: int, cols: int) -> np.ndarray:
+def _grid_windows(rows: int, cols: int, wrap_rows: bool = False, wrap_cols: bool = False) -> np.ndarray:
     """The windows of :func:`_grid_lines`' lines in order, built by index arithmetic (no gather).
+
+    On a cylinder or torus grid (``wrap_cols``: its rows closed, ``wrap_rows``: its columns, as
+    :attr:`Topology.closed_grid`; at least 4 × 4), those of :func:`_closed_grid_lines`' lines — in the same order
+    (row 0, the columns, rows 1 …), a closed line of ``L`` giving ``L`` windows from each of its vertices on.
 
     Examples
     --------
     >>> _grid_windows(4, 5).tolist()  # row 0, then the columns, then rows 1 … 3
     [[0, 1, 2, 3], [1, 2, 3, 4], [0, 5, 10, 15], [1, 6, 11, 16], [2, 7, 12, 17], [3, 8, 13, 18], [4, 9, 14, 19], [5, 6, 7, 8], [6, 7, 8, 9], [10, 11, 12, 13], [11, 12, 13, 14], [15, 16, 17, 18], [16, 17, 18, 19]]
+    >>> _grid_windows(4, 4, wrap_cols=True)[:5].tolist()  # a ring of 4: its windows wrap around
+    [[0, 1, 2, 3], [1, 2, 3, 0], [2, 3, 0, 1], [3, 0, 1, 2], [0, 4, 8, 12]]
     """
-    kr, kc = max(cols - 3, 0), max(rows - 3, 0)
-    row_base = (np.arange(rows, dtype=np.int64)[:, None] * cols + np.arange(kr)).reshape(rows, kr, 1)
-    col_base = (np.arange(cols, dtype=np.int64)[:, None] + cols * np.arange(kc)).reshape(cols, kc, 1)
+    kr = cols if wrap_cols else max(cols - 3, 0)
+    kc = rows if wrap_rows else max(rows - 3, 0)
+    along_row = (np.arange(kr, dtype=np.int64)[:, None] + np.arange(4)) % cols  # a row's windows, from node 0
+    along_col = (np.arange(kc, dtype=np.int64)[:, None] + np.arange(4)) % rows * cols
     out = np.empty((rows * kr + cols * kc, 4), dtype=np.int64)
-    out[:kr].reshape(1, kr, 4)[...] = row_base[:1] + np.arange(4)
-    out[kr : kr + cols * kc].reshape(cols, kc, 4)[...] = col_base + cols * np.arange(4)
-    out[kr + cols * kc :].reshape(rows - 1, kr, 4)[...] = row_base[1:] + np.arange(4)
+    out[:kr] = along_row
+    out[kr : kr + cols * kc].reshape(cols, kc, 4)[...] = np.arange(cols, dtype=np.int64)[:, None, None] + along_col
+    out[kr + cols * kc :].reshape(rows - 1, kr, 4)[...] = (cols * np.arange(1, rows, dtype=np.int64))[:, None, None] \
+        + along_row
     return out
+
+
+def _closed_grid_walk(rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) -> tuple[np.ndarray, np.ndarray]:
+    """:attr:`Topology.window_walk` of a cylinder or torus grid (at least 4 × 4), by index arithmetic: its lines in
+    :func:`_closed_grid_lines`' order, a closed one followed by its first three vertices again.
+
+    Examples
+    --------
+    >>> ext, start = _closed_grid_walk(4, 4, False, True)  # rings of 4 (each laid out as 7), open columns of 4
+    >>> ext[:11].tolist(), start[:6].tolist()
+    ([0, 1, 2, 3, 0, 1, 2, 0, 4, 8, 12], [0, 1, 2, 3, 7, 11])
+    """
+    ids = np.arange(rows * cols, dtype=np.int64).reshape(rows, cols)
+    row_walk = np.concatenate([ids, ids[:, :3]], axis=1) if wrap_cols else ids
+    col_walk = np.concatenate([ids.T, ids.T[:, :3]], axis=1) if wrap_rows else ids.T
+    ext = np.concatenate([row_walk[0], col_walk.reshape(-1), row_walk[1:].reshape(-1)])
+    (_, rw), (_, cw) = row_walk.shape, col_walk.shape
+    kr = cols if wrap_cols else cols - 3
+    kc = rows if wrap_rows else rows - 3
+    start = np.concatenate([np.arange(kr, dtype=np.int64),
+                            (rw + cw * np.arange(cols, dtype=np.int64)[:, None] + np.arange(kc)).reshape(-1),
+                            (rw + cols * cw + rw * np.arange(rows - 1, dtype=np.int64)[:, None]
+                             + np.arange(kr)).reshape(-1)])
+    for a in (ext, start):
+        a.setflags(write=False)
+    return ext, start
 
 
 def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:

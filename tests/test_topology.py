@@ -146,7 +146,7 @@ def test_grid_fast_path_equals_tracing(rows, cols, seed, reverse):
 def test_closed_grid_fast_path_equals_tracing(rows, cols, kind, seed, shuffle, reverse):
     """A cylinder or torus grid of at least 4 × 4 skips the tracing too; its lines are exactly the traced ones,
     whatever the faces' order, starting vertex and orientation; smaller ones are traced."""
-    from quadnodes.topology import Topology, _trace_lines
+    from quadnodes.topology import Topology, _trace_lines, _window_walk
 
     wrap_rows, wrap_cols = {"cylinder": (False, True), "torus": (True, True), "rings": (True, False)}[kind]
     rng = np.random.default_rng(seed)
@@ -162,6 +162,14 @@ def test_closed_grid_fast_path_equals_tracing(rows, cols, kind, seed, shuffle, r
     assert np.array_equal(fast.indices, traced.indices) and np.array_equal(fast.offsets, traced.offsets)
     assert np.array_equal(fast.closed, traced.closed)
     assert int(fast.closed.sum()) == rows * wrap_cols + cols * wrap_rows
+    # its windows, window walk and window middles by index arithmetic too: those of the traced lines
+    ext, start, _ = _window_walk(traced)
+    assert np.array_equal(topo.windows, ext[start[:, None] + np.arange(4)])
+    fast_ext, fast_start = topo.window_walk
+    assert np.array_equal(fast_ext, ext) and np.array_equal(fast_start, start)
+    middle = np.zeros(rows * cols, bool)
+    middle[ext[start[:, None] + np.arange(1, 3)].reshape(-1)] = True
+    assert np.array_equal(topo.window_middle, middle)
 
 
 def test_closed_grid_refuses_a_cell_twice_and_a_missing_cell():

@@ -12,7 +12,7 @@ import numba as nb
 import numpy as np
 
 __all__ = ["LANES", "symmetric_diagonal_product", "entries_product", "strided_line_solve", "row_line_solve",
-           "blocked_lines", "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "open_grid_family",
+           "blocked_lines", "cg_update", "cg_direction", "row_dots", "strided_band_cholesky", "grid_family",
            "unit_backward_sweep", "unit_forward_sweep", "unit_cg_update", "unit_scaled", "csr_backward_sweep",
            "csr_forward_sweep", "rows_cg_update", "csr_separators", "csr_split_counts", "csr_split_fill"]
 
@@ -409,20 +409,24 @@ def strided_band_cholesky(A: np.ndarray, F: np.ndarray, stride: int, length: int
 
 
 @nb.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
-def open_grid_family(coef: np.ndarray, first: np.ndarray, F: np.ndarray, rows: int, cols: int, family: int,
-                     weight: float, data: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover - compiled
-    """One family's share of an open grid's ``AᵀA + ωI`` in diagonal storage, its lines ``lo:hi``.
+def grid_family(coef: np.ndarray, first: np.ndarray, F: np.ndarray, rows: int, cols: int, family: int,
+                closed: bool, seam: int, weight: float, data: np.ndarray, lo: int,
+                hi: int) -> None:  # pragma: no cover - compiled
+    """One family's share of a grid's ``AᵀA + ωI`` in diagonal storage, its lines ``lo:hi``.
 
     ``coef`` ``(w, 4)``: the rows of ``A``; the windows of line ``l`` of ``family`` (0: grid rows,
-    1: grid columns) are ``coef[first[l] : first[l] + L - 3]`` in order along it. ``F`` ``(n,)``:
-    1.0 on the unknowns, 0.0 elsewhere (a fixed node drops out of every window). ``data`` ``(13, n)``
+    1: grid columns) are ``coef[first[l] : first[l] + k]`` in order along it (``k = L − 3``, or ``L`` on a
+    ``closed`` line, window ``j`` holding its nodes ``j … j + 3`` mod ``L``). ``F`` ``(n,)``:
+    1.0 on the unknowns, 0.0 elsewhere (a fixed node drops out of every window). ``data`` ``(13 + …, n)``
     as ``GridPattern.normal_matrix``: family 0 writes its diagonals and sets the main diagonal,
     family 1 (after it) writes its own, adds to the main diagonal and then ``ω`` (1 off the
-    unknowns). Sums in ``GridPattern._open_normal_matrix``'s order, so the numbers are its to the bit.
-    Columns are taken 16 side by side, row by row, so that reads and writes stay near each other.
+    unknowns); a closed family's pairs across the seam go to its periodic slots ``seam + 2(d − 1)`` (``M[a, b]``
+    at column ``b``) and the next (``M[b, a]`` at column ``a``). Sums in ``GridPattern._laid_out_normal_matrix``'s
+    order, so the numbers are its to the bit. Columns are taken 16 side by side, row by row, so that reads and
+    writes stay near each other.
     """
     length = cols if family == 0 else rows
-    k = length - 3
+    k = length if closed else length - 3
     step = 1 if family == 0 else cols
     tile = 1 if family == 0 else 16
     for t0 in range(lo, hi, tile):
@@ -432,11 +436,14 @@ def open_grid_family(coef: np.ndarray, first: np.ndarray, F: np.ndarray, rows: i
                 node = line * cols + x if family == 0 else x * cols + line
                 p = first[line]
                 for d in range(4):
+                    partner = node + d * step if x + d < length else node + (d - length) * step
                     s = 0.0
                     for i in range(4 - d):
                         j = x - i  # the window whose slot i is this node (slot i + d is d steps on)
+                        if closed and j < 0:
+                            j += length
                         if 0 <= j and j < k:
-                            s += (coef[p + j, i] * F[node]) * (coef[p + j, i + d] * F[node + d * step])
+                            s += (coef[p + j, i] * F[node]) * (coef[p + j, i + d] * F[partner])
                     if d == 0:
                         if family == 0:
                             data[6, node] = s
@@ -450,6 +457,9 @@ def open_grid_family(coef: np.ndarray, first: np.ndarray, F: np.ndarray, rows: i
                         else:
                             data[9 + d, node + d * cols] = s
                             data[3 - d, node] = s
+                    elif closed:  # across the seam: the partner is d − L steps on
+                        data[seam + 2 * (d - 1), partner] = s
+                        data[seam + 2 * (d - 1) + 1, node] = s
 
 
 # Symmetric Gauss–Seidel sweeps (quadnodes.linalg.gauss_seidel). Each row depends on the rows

@@ -49,8 +49,8 @@ def _load() -> None:
         band = np.ones((4, 8))
         k.path_band_solve(band, band[3].copy(), np.arange(8, dtype=np.int64), X.T.copy(), np.zeros((8, 3)),
                           np.empty((8, 3)), 0, 8)
-        k.open_grid_family(np.ones((2, 4)), np.zeros(2, dtype=np.int64), np.ones(8), 2, 4, 0, 1.0,
-                           np.zeros((13, 8)), 0, 2)
+        k.grid_family(np.ones((2, 4)), np.zeros(2, dtype=np.int64), np.ones(8), 2, 4, 0, False, 13, 1.0,
+                      np.zeros((13, 8)), 0, 2)
         # the Gauss–Seidel sweeps and their CG step, on a small open grid (both sweeps' fast and row paths)
         from .cg import SymmetricDiagonalBlocks
         from .gauss_seidel import gauss_seidel_cg

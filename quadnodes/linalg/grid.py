@@ -9,8 +9,8 @@ closed and whose windows wrap across the seam) adds the periodic diagonals
 :meth:`GridPattern.normal_matrix` then fills the diagonals for any coefficients,
 with nodes outside the unknowns as identity rows.
 
-An open grid whose operator rows come line by line in a known order
-(:meth:`GridPattern.open_grid`) needs no walk at all: the diagonals are sums of
+An open or closed grid whose operator rows come line by line in a known order
+(:meth:`GridPattern.open_grid`, :meth:`GridPattern.closed_grid`) needs no walk at all: the diagonals are sums of
 shifted products of the coefficients laid out per line, computed on grid-shaped
 arrays (about 20 passes over the nodes, no gather, no scatter).
 """
@@ -26,6 +26,28 @@ from . import compiled, threads
 __all__ = ["GridPattern"]
 
 
+def _diagonals(n: int, cols: int, wrap_rows: bool, wrap_cols: bool) -> tuple[list[int], list[tuple[int, int, int, int]]]:
+    """The storage's offsets, and per pair ``d`` apart across a closed line's seam ``(d, b − a, slot of M[a, b],
+    slot of M[b, a])``: the rows' (``wrap_cols``) periodic slots first, then the columns'.
+
+    Raises
+    ------
+    ValueError
+        When two diagonals would share an offset (fewer than 7 nodes along a closed direction).
+    """
+    offsets = [-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols]
+    seam: list[tuple[int, int, int, int]] = []
+    for closed, period, step in ((wrap_cols, cols, 1), (wrap_rows, n, cols)):
+        if closed:
+            for d in (1, 2, 3):
+                seam.append((d, d * step - period, len(offsets), len(offsets) + 1))
+                offsets += [d * step - period, period - d * step]
+    if len(set(offsets)) != len(offsets):
+        raise ValueError(f"GridPattern: a {n // cols} x {cols} grid closed around is too small for distinct "
+                         "diagonals (at least 7 nodes along every closed direction)")
+    return offsets, seam
+
+
 class GridPattern:
     """Where every entry of a grid's line operator ``AᵀA`` goes in diagonal storage (pattern only).
 
@@ -34,9 +56,8 @@ class GridPattern:
     of 1, or a column: steps of ``cols``). ``ext`` lays every line out contiguously
     (one node sequence, all lines after one another), ``start`` lists the positions
     in ``ext`` where a 4-node row of ``A`` begins, in the order of ``A``'s rows.
-    If some row of ``A`` is not along a grid line, :attr:`valid` is False. On a grid closed around, the storage
-    takes a shortcut (:attr:`repeats`) where ``ext`` and ``start`` are laid out as
-    :attr:`~quadnodes.topology.Topology.window_walk` lays them out, and sums every entry otherwise.
+    If some row of ``A`` is not along a grid line, :attr:`valid` is False. (A grid whose rows of ``A`` come whole
+    lines at a time in a known order needs no walk: :meth:`open_grid`, :meth:`closed_grid`.)
 
     Entry ``(ext[q], ext[q+d])`` of the window walk ``ext`` sums ``c_i c_{i+d}`` over
     the (up to ``4 - d``) windows that hold both positions; ``q[d]`` lists those
@@ -51,21 +72,15 @@ class GridPattern:
         m = ext.size
         #: ``(wrap_rows, wrap_cols)``: whether the grid's columns (row index) and rows (column index) close around.
         self.wrap = (bool(wrap_rows), bool(wrap_cols))
-        offsets = [-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols]
-        # a pair d apart along a closed line, across its seam: (d, b - a, slot of M[a, b], slot of M[b, a])
-        seam: list[tuple[int, int, int, int]] = []
-        for closed, period, step in ((wrap_cols, cols, 1), (wrap_rows, n, cols)):
-            if closed:
-                for d in (1, 2, 3):
-                    seam.append((d, d * step - period, len(offsets), len(offsets) + 1))
-                    offsets += [d * step - period, period - d * step]
-        if len(set(offsets)) != len(offsets):
-            raise ValueError(f"GridPattern: a {n // cols} x {cols} grid closed around is too small for distinct "
-                             "diagonals (at least 7 nodes along every closed direction)")
+        offsets, seam = _diagonals(n, cols, *self.wrap)
         idx = np.int32 if len(offsets) * n < 2**31 - 1 else np.int64  # (kept per mesh: half the memory of int64)
         starts = np.zeros(m, dtype=bool)
         starts[start] = True
         self.valid = True
+        # a closed line's walk repeats its first three nodes, so a pair near its start sits at two places
+        # of the walk (each holding some of its windows): those entries are summed, not written
+        self.summed = bool(seam)
+        self.blocks: tuple[tuple[int, int, int], ...] | None = None
         self.q: list[np.ndarray] = []
         self.target: list[tuple[np.ndarray, ...]] = []
         for d in range(4):
@@ -97,54 +112,6 @@ class GridPattern:
             self.target.append((up * idx(n) + b, down * idx(n) + a))
         self.offsets = np.array(offsets)
         self.n, self.start, self.ext, self.cols = n, start, ext, cols
-        # a closed line's walk repeats its first three nodes, so a pair near its start sits at two places
-        # of the walk (each holding some of its windows): those entries are summed, not written
-        self.summed = bool(seam)
-        self.blocks: tuple[tuple[int, int, int], ...] | None = None
-        #: per ``d > 0``, where :attr:`summed`: ``(head, partner)`` indices into ``q[d]`` — the pairs in a closed
-        #: line's repeated head and the same pairs at the line's start (one target, two places); None where the
-        #: walk is not laid out so (then every pair's entry is summed by bincount)
-        self.repeats: list[tuple[np.ndarray, np.ndarray]] | None = self._repeats() if seam else None
-
-    def _repeats(self) -> list[tuple[np.ndarray, np.ndarray]] | None:
-        """:attr:`repeats` from the walk: a line's windows start at consecutive places, and a closed line's last
-        window reaches three places past its ``L`` nodes, which repeat its first three (``ext``). None unless the
-        walk is :attr:`~quadnodes.topology.Topology.window_walk`'s layout — windows in the walk's order, every
-        grid line once with all its windows, each closed line's three repeated nodes in place — so that these
-        are the only pairs at two places."""
-        ext, start, n = self.ext, self.start, self.n
-        rows, cols = n // self.cols, self.cols
-        if start.size == 0 or not (np.diff(start) > 0).all():
-            return None
-        wrap_rows, wrap_cols = self.wrap
-        windows = rows * (cols if wrap_cols else max(cols - 3, 0)) + cols * (rows if wrap_rows else max(rows - 3, 0))
-        if start.size != windows:
-            return None
-        cut = np.flatnonzero(np.diff(start) != 1)
-        first, last = start[np.r_[0, cut + 1]], start[np.r_[cut, start.size - 1]]
-        closed = ext[last + 1] == ext[first]
-        if int(closed.sum()) != rows * wrap_cols + cols * wrap_rows:
-            return None
-        length = (last - first + 1)[closed]  # L: a closed line's windows, one per node
-        head = last[closed] + 1  # the walk's places of its repeated nodes 0, 1, 2
-        if not all(np.array_equal(ext[head + k], ext[first[closed] + k]) for k in range(3)):
-            return None
-        if np.unique(ext[first] * np.int64(n) + ext[first + 1]).size != first.size:  # (a line twice)
-            return None
-        out = []
-        for d in (1, 2, 3):
-            q = self.q[d]
-            places = (head[:, None] + np.arange(3 - d)).reshape(-1)  # pairs (k, k + d) with both in the head
-            partners = places - np.repeat(length, 3 - d)
-            h, p = np.searchsorted(q, places), np.searchsorted(q, partners)
-            if (h >= q.size).any() or (p >= q.size).any() or not (np.array_equal(q[h], places)
-                                                                 and np.array_equal(q[p], partners)):
-                return None
-            t = self.target[d]
-            if not all(np.array_equal(side[h], side[p]) for side in t):
-                return None
-            out.append((h, p))
-        return out
 
     @classmethod
     def open_grid(cls, rows: int, cols: int, blocks: Sequence[tuple[int, int, int]]) -> GridPattern:
@@ -167,48 +134,96 @@ class GridPattern:
         >>> p.offsets.tolist()
         [-15, -10, -5, -3, -2, -1, 0, 1, 2, 3, 5, 10, 15]
         """
+        return cls._laid_out(rows, cols, blocks, False, False)
+
+    @classmethod
+    def closed_grid(cls, rows: int, cols: int, blocks: Sequence[tuple[int, int, int]], *, wrap_rows: bool = False,
+                    wrap_cols: bool = False) -> GridPattern:
+        """The pattern of a cylinder or torus grid whose operator rows come whole lines at a time.
+
+        As :meth:`open_grid`, but the grid's rows are closed where ``wrap_cols`` (node ``i*cols + cols-1`` joins
+        ``i*cols``) and its columns where ``wrap_rows``: a closed line of ``L`` nodes gives ``L`` windows in order
+        along it, window ``j`` holding its nodes ``j, j+1, j+2, j+3`` (mod ``L``) — the layout of
+        :attr:`~quadnodes.topology.Topology.window_walk` on such a grid. The storage gets the periodic diagonals
+        ``±(cols − d)`` and ``±(n − d·cols)`` (``d = 1, 2, 3``) for the entries across a seam; as on an open grid it
+        is computed on grid-shaped arrays (shifted products, no walk, no gather).
+
+        Raises
+        ------
+        ValueError
+            As :meth:`open_grid`, and when a closed direction has fewer than 7 nodes (the periodic diagonals would
+            share offsets with the others).
+
+        Examples
+        --------
+        >>> p = GridPattern.closed_grid(4, 8, [(0, 0, 1), (1, 0, 8), (0, 1, 3)], wrap_cols=True)  # rings of 8
+        >>> p.offsets[13:].tolist(), p.wrap
+        ([-7, 7, -6, 6, -5, 5], (False, True))
+        """
+        return cls._laid_out(rows, cols, blocks, bool(wrap_rows), bool(wrap_cols))
+
+    @classmethod
+    def _laid_out(cls, rows: int, cols: int, blocks: Sequence[tuple[int, int, int]], wrap_rows: bool,
+                  wrap_cols: bool) -> GridPattern:
+        """:meth:`open_grid` and :meth:`closed_grid`."""
+        name = "closed_grid" if wrap_rows or wrap_cols else "open_grid"
         if cols < 4 or rows < 2:
-            raise ValueError(f"GridPattern.open_grid: a {rows} x {cols} grid has no distinct diagonals")
+            raise ValueError(f"GridPattern.{name}: a {rows} x {cols} grid has no distinct diagonals")
         seen = [np.zeros(rows, dtype=np.int64), np.zeros(cols, dtype=np.int64)]
         for family, first, count in blocks:
             seen[family][first : first + count] += 1
         if not all((s == 1).all() for s in seen) or sum(c for _, _, c in blocks) != rows + cols:
-            raise ValueError("GridPattern.open_grid: the blocks must cover every row and column once")
+            raise ValueError(f"GridPattern.{name}: the blocks must cover every row and column once")
         self = cls.__new__(cls)
-        self.offsets = np.array([-3 * cols, -2 * cols, -cols, -3, -2, -1, 0, 1, 2, 3, cols, 2 * cols, 3 * cols])
+        offsets, _ = _diagonals(rows * cols, cols, wrap_rows, wrap_cols)
+        self.offsets = np.array(offsets)
         self.n, self.rows, self.cols = rows * cols, rows, cols
         self.valid, self.summed = True, False
-        self.wrap = (False, False)
+        self.wrap = (wrap_rows, wrap_cols)
         self.blocks = tuple((int(f), int(a), int(c)) for f, a, c in blocks)
         return self
 
-    def _open_normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:
-        """:meth:`normal_matrix`'s data for :meth:`open_grid`: shifted products on grid-shaped arrays."""
+    def _line_windows(self, family: int) -> tuple[int, int, bool]:
+        """``(L, k, closed)`` of a line of ``family`` (0: grid rows, 1: grid columns): its nodes, its windows and
+        whether it closes around."""
+        length = self.cols if family == 0 else self.rows
+        closed = self.wrap[1] if family == 0 else self.wrap[0]
+        return length, (length if closed else max(length - 3, 0)), closed
+
+    def _laid_out_normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:
+        """:meth:`normal_matrix`'s data for :meth:`open_grid` and :meth:`closed_grid`: shifted products on
+        grid-shaped arrays."""
         rows, cols, n = self.rows, self.cols, self.n
-        expected = sum(count * max((cols if family == 0 else rows) - 3, 0) for family, _, count in self.blocks)
+        expected = sum(count * self._line_windows(family)[1] for family, _, count in self.blocks)
         if len(coef) != expected:
             raise ValueError(f"coef: expected {expected} rows for this grid, got {len(coef)}")
         if compiled.ready():  # one pass per family, the same numbers to the bit
-            return self._compiled_open_normal_matrix(coef, free, weight)
+            return self._compiled_laid_out_normal_matrix(coef, free, weight)
         F = free.reshape(rows, cols).astype(np.float64)
-        # upper[f][d][l, x]: entry (node x of line l, node x + d of line l) of family f's AᵀA, lines as rows
+        # upper[f][d][l, x]: entry (node x of line l, node x + d of line l — mod L on a closed line) of family f's
+        # AᵀA, lines as rows
         upper = [np.zeros((4, rows, cols)), np.zeros((4, cols, rows))]
         lines_free = (F, F.T)
         pos = 0
         for family, first, count in self.blocks:
-            length = cols if family == 0 else rows
-            k = max(length - 3, 0)
+            _, k, closed = self._line_windows(family)
             c = coef[pos : pos + count * k].reshape(count, k, 4)
             pos += count * k
             if k == 0:
                 continue
             on = lines_free[family][first : first + count]
-            c = np.stack([c[:, :, i] * on[:, i : i + k] for i in range(4)])  # a fixed node drops out
             u = upper[family][:, first : first + count]
+            if closed:  # window j's slot i is node j + i (mod L): a fixed node drops out
+                c = np.stack([c[:, :, i] * np.roll(on, -i, axis=1) for i in range(4)])
+                for d in range(4):
+                    for i in range(4 - d):
+                        u[d] += np.roll(c[i] * c[i + d], i, axis=1)
+                continue
+            c = np.stack([c[:, :, i] * on[:, i : i + k] for i in range(4)])  # a fixed node drops out
             for d in range(4):
                 for i in range(4 - d):
                     u[d][:, i : i + k] += c[i] * c[i + d]
-        data = np.zeros((13, rows, cols))
+        data = np.zeros((self.offsets.size, rows, cols))
         ur, uc = upper[0], upper[1].transpose(0, 2, 1)  # both as (4, rows, cols)
         data[6] = ur[0] + uc[0]
         data[6] += np.where(free, weight, 1.0).reshape(rows, cols)
@@ -217,27 +232,40 @@ class GridPattern:
             data[6 - d][:, : cols - d] = ur[d][:, : cols - d]  # M[a + d, a] stored at column a
             data[9 + d][d:] = uc[d][: rows - d]
             data[3 - d][: rows - d] = uc[d][: rows - d]
-        return data.reshape(13, n)
+        seam = 13
+        for d in (1, 2, 3):  # across a seam: node a near a line's end, b = a + d − L near its start
+            if self.wrap[1]:
+                up = seam + 2 * (d - 1)
+                data[up][:, :d] = ur[d][:, cols - d :]  # M[a, b] at column b
+                data[up + 1][:, cols - d :] = ur[d][:, cols - d :]  # M[b, a] at column a
+            if self.wrap[0]:
+                up = seam + 6 * self.wrap[1] + 2 * (d - 1)
+                data[up][:d] = uc[d][rows - d :]
+                data[up + 1][rows - d :] = uc[d][rows - d :]
+        return data.reshape(-1, n)
 
-    def _compiled_open_normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:
-        """:meth:`_open_normal_matrix` by :func:`quadnodes.linalg._kernels.open_grid_family` (rows split over threads)."""
-        from ._kernels import open_grid_family
+    def _compiled_laid_out_normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> np.ndarray:
+        """:meth:`_laid_out_normal_matrix` by :func:`quadnodes.linalg._kernels.grid_family` (lines split over
+        threads)."""
+        from ._kernels import grid_family
 
         rows, cols, n = self.rows, self.cols, self.n
         first = [np.zeros(rows, dtype=np.int64), np.zeros(cols, dtype=np.int64)]
         pos = 0
         for family, line, count in self.blocks:
-            k = max((cols if family == 0 else rows) - 3, 0)
+            k = self._line_windows(family)[1]
             first[family][line : line + count] = pos + k * np.arange(count)
             pos += count * k
         coef = np.ascontiguousarray(coef, dtype=np.float64)
         F = free.astype(np.float64)
-        data = np.zeros((13, n))
+        data = np.zeros((self.offsets.size, n))
         t = min(threads.thread_count(), max(1, n // threads.PARALLEL_MIN_ROWS))  # (counted by nodes, cut by lines)
+        seams = (13, 13 + 6 * self.wrap[1])  # each family's first periodic slot (used where its lines close)
         for family in (0, 1):  # (family 1 adds to the main diagonal family 0 wrote)
+            closed = self._line_windows(family)[2]
             ranges = threads.split_ranges(rows if family == 0 else cols, parts=t, align=16)  # (its column tile)
-            args = (coef, first[family], F, rows, cols, family, float(weight), data)
-            threads.run_tasks(open_grid_family, [args + r for r in ranges])
+            args = (coef, first[family], F, rows, cols, family, closed, seams[family], float(weight), data)
+            threads.run_tasks(grid_family, [args + r for r in ranges])
         return data
 
     def normal_matrix(self, coef: np.ndarray, free: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray]:
@@ -273,7 +301,7 @@ class GridPattern:
         (1.5, 9.5, -1.0, True)
         """
         if self.blocks is not None:
-            return self.offsets, self._open_normal_matrix(coef, free, weight)
+            return self.offsets, self._laid_out_normal_matrix(coef, free, weight)
         n, m, start = self.n, self.ext.size, self.start
         on = free[self.ext]
         C = np.zeros((4, m))
@@ -290,16 +318,11 @@ class GridPattern:
             v = np.take(val, self.q[d])
             if d == 0:
                 data[6] = np.bincount(self.target[0][0], weights=v, minlength=n)
-            elif self.summed and self.repeats is None:
+            elif self.summed:
                 flat += np.bincount(self.target[d][0], weights=v, minlength=flat.size)
                 flat += np.bincount(self.target[d][1], weights=v, minlength=flat.size)
             else:
                 flat[self.target[d][0]] = v
                 flat[self.target[d][1]] = v
-                if self.summed:  # a closed line's pairs at two places of the walk: their sum, written once
-                    head, partner = self.repeats[d - 1]
-                    both = v[head] + v[partner]
-                    flat[self.target[d][0][head]] = both
-                    flat[self.target[d][1][head]] = both
         data[6] += np.where(free, weight, 1.0)
         return self.offsets, data

@@ -1,4 +1,4 @@
-"""Large temporaries from the heap while a big solve runs, instead of fresh pages each time.
+"""Large temporaries from the heap, in small pages, while a big solve runs, instead of fresh pages each time.
 
 glibc's ``malloc`` hands out every block above its mmap threshold (at most 32 MB) as new
 pages from the kernel and gives them back on ``free``; NumPy's temporaries of a
@@ -9,6 +9,13 @@ every allocation: about a third of the time of a pass over them
 heap memory goes back to the kernel (``malloc_trim``) and glibc's thresholds return to what
 its own adaptation reaches (blocks up to 32 MB from the heap). Elsewhere
 (another C library, another system) it does nothing.
+
+Inside it NumPy also stops asking the kernel for transparent huge pages (``madvise(MADV_HUGEPAGE)`` on every
+array of 4 MB or more, its default on Linux): the first touch of such an array then faults in 2 MB pages, which
+on this project's machines (virtual ones, THP ``defrag=madvise``) cost more than the small pages they replace —
+a 1000 × 1000 fairing 2.2 → 1.6 s, the torus 4.4 → 3.2 s (``python benchmarks/studies/huge_pages.py``). A user's
+own choice (the ``NUMPY_MADVISE_HUGEPAGE`` environment variable) is left alone, and NumPy's setting is restored
+on leaving.
 
 Examples
 --------
@@ -23,9 +30,11 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import ctypes.util
+import importlib
+import os
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 __all__ = ["reused_heap"]
 
@@ -36,6 +45,7 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD, _M_MMAP_MAX = -1, -3, -4
 _AFTER_MMAP_THRESHOLD, _AFTER_TRIM, _DEFAULT_MMAP_MAX = 32 * 1024 * 1024, 64 * 1024 * 1024, 65536
 _LOCK = threading.Lock()
 _DEPTH = 0
+_HUGE_PAGES: list[bool] = []  # NumPy's setting when the first use entered (restored by the last to leave)
 
 
 def _libc() -> object | None:
@@ -53,29 +63,54 @@ def _libc() -> object | None:
 _LIBC = _libc()
 
 
+def _numpy_huge_pages() -> Callable[[bool], bool] | None:
+    """NumPy's switch of ``madvise(MADV_HUGEPAGE)`` (it returns the previous setting), or None where the user set
+    ``NUMPY_MADVISE_HUGEPAGE`` or NumPy has no such switch."""
+    if "NUMPY_MADVISE_HUGEPAGE" in os.environ:
+        return None
+    for name in ("numpy._core.multiarray", "numpy.core.multiarray"):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:  # pragma: no cover - the other NumPy major version
+            continue
+        switch = getattr(module, "_set_madvise_hugepage", None)
+        if callable(switch):
+            return switch
+    return None  # pragma: no cover - a NumPy without the switch
+
+
+_NUMPY_HUGE_PAGES = _numpy_huge_pages()
+
+
 @contextlib.contextmanager
 def reused_heap() -> Iterator[None]:
-    """Serve large blocks from the heap (no mmap) for the duration; trim and restore after.
+    """Serve large blocks from the heap (no mmap), in small pages, for the duration; trim and restore after.
 
     Nested and concurrent uses share one setting: the first to enter sets it, the last
-    to leave restores glibc's defaults and returns free memory to the kernel.
+    to leave restores glibc's defaults and NumPy's huge-page setting, and returns free memory to the kernel.
     """
     global _DEPTH
-    if _LIBC is None:
+    if _LIBC is None and _NUMPY_HUGE_PAGES is None:
         yield
         return
     with _LOCK:
         _DEPTH += 1
         if _DEPTH == 1:
-            _LIBC.mallopt(_M_TRIM_THRESHOLD, 2**31 - 1)  # type: ignore[attr-defined]
-            _LIBC.mallopt(_M_MMAP_MAX, 0)  # type: ignore[attr-defined]
+            if _NUMPY_HUGE_PAGES is not None:
+                _HUGE_PAGES.append(_NUMPY_HUGE_PAGES(False))
+            if _LIBC is not None:
+                _LIBC.mallopt(_M_TRIM_THRESHOLD, 2**31 - 1)  # type: ignore[attr-defined]
+                _LIBC.mallopt(_M_MMAP_MAX, 0)  # type: ignore[attr-defined]
     try:
         yield
     finally:
         with _LOCK:
             _DEPTH -= 1
             if _DEPTH == 0:
-                _LIBC.mallopt(_M_MMAP_MAX, _DEFAULT_MMAP_MAX)  # type: ignore[attr-defined]
-                _LIBC.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_THRESHOLD)  # type: ignore[attr-defined]
-                _LIBC.mallopt(_M_TRIM_THRESHOLD, _AFTER_TRIM)  # type: ignore[attr-defined]
-                _LIBC.malloc_trim(0)  # type: ignore[attr-defined]
+                if _HUGE_PAGES:
+                    _NUMPY_HUGE_PAGES(_HUGE_PAGES.pop())  # type: ignore[misc]
+                if _LIBC is not None:
+                    _LIBC.mallopt(_M_MMAP_MAX, _DEFAULT_MMAP_MAX)  # type: ignore[attr-defined]
+                    _LIBC.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_THRESHOLD)  # type: ignore[attr-defined]
+                    _LIBC.mallopt(_M_TRIM_THRESHOLD, _AFTER_TRIM)  # type: ignore[attr-defined]
+                    _LIBC.malloc_trim(0)  # type: ignore[attr-defined]

@@ -35,7 +35,7 @@ def test_warm_up_loads_in_the_background_and_fair_uses_the_kernels_at_any_size_t
         from quadnodes.mesh import cylinder
         from quadnodes.noise import perturb
         kernels = [wk.window_geometry, wk.window_coefficients, _kernels.symmetric_diagonal_product,
-                   _kernels.cg_update, _kernels.cg_direction, _kernels.row_dots, _kernels.open_grid_family,
+                   _kernels.cg_update, _kernels.cg_direction, _kernels.row_dots, _kernels.grid_family,
                    _kernels.unit_backward_sweep, _kernels.unit_forward_sweep, _kernels.unit_cg_update,
                    _kernels.unit_scaled, _kernels.csr_backward_sweep, _kernels.csr_forward_sweep,
                    _kernels.rows_cg_update, _kernels.csr_separators]

@@ -72,3 +72,41 @@ def test_the_real_libc_takes_the_settings():
     with heap.reused_heap():
         big = np.ones(5_000_000)  # 40 MB: from the heap here
         assert float(big.sum()) == 5e6
+
+
+def test_numpy_huge_pages_are_off_inside_and_restored_by_the_last_to_leave(monkeypatch):
+    state = {"on": True}
+    seen = []
+
+    def switch(enabled):
+        seen.append(enabled)
+        previous, state["on"] = state["on"], bool(enabled)
+        return previous
+
+    monkeypatch.setattr(heap, "_NUMPY_HUGE_PAGES", switch)
+    with heap.reused_heap():
+        assert state["on"] is False
+        with heap.reused_heap():
+            assert state["on"] is False
+        assert state["on"] is False  # the outer use still runs
+    assert state["on"] is True and seen == [False, True] and heap._DEPTH == 0
+    state["on"] = False  # a process that had switched them off itself keeps them off
+    with heap.reused_heap():
+        pass
+    assert state["on"] is False and heap._DEPTH == 0
+
+
+def test_the_users_numpy_huge_page_setting_is_left_alone(monkeypatch):
+    monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", "1")
+    assert heap._numpy_huge_pages() is None
+    monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE")
+    switch = heap._numpy_huge_pages()
+    assert switch is not None  # NumPy ≥ 1.26 has it (numpy._core or numpy.core)
+    monkeypatch.setattr(heap, "_NUMPY_HUGE_PAGES", switch)  # (whatever this process's environment said)
+    previous = switch(True)
+    try:
+        with heap.reused_heap():
+            assert switch(False) is False  # (it was off inside)
+        assert switch(True) is True  # and restored on leaving
+    finally:
+        switch(previous)
