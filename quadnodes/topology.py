@@ -24,6 +24,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, depth_first_order
 
 from ._arrays import unique_values
+from .linalg import compiled as _compiled
 from ._validate import grid_cell_base, grid_cells
 
 if TYPE_CHECKING:
@@ -572,6 +573,9 @@ def _closed_grid_walk(rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) ->
 
 
 def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
+    """The structure lines of the successor map ``succ`` (directed edge ``2e`` runs along ``edges[e]``, ``2e + 1``
+    back), by the compiled kernel where it is loaded (:func:`quadnodes._topology_kernels.trace_lines`), else by
+    SciPy's graph walks; :func:`_canonical` orders and orients them, so both give the same lines."""
     D = succ.size
     dstart = edges.reshape(-1)  # directed edge 2e starts at edges[e,0], 2e+1 at edges[e,1]
     dend = edges[:, ::-1].reshape(-1)
@@ -580,7 +584,45 @@ def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
     dst = succ[src]
     pred = np.full(D, -1, dtype=np.int64)
     pred[dst] = src
+    traced = _compiled_trace(succ, pred) if D >= _COMPILED_MIN_EDGES and _compiled.ready() else None
+    order, n_edges, closed = traced if traced is not None else _scipy_trace(succ, pred, src, dst)
+    return _lines_from_edges(order, n_edges, closed, dstart, dend)
 
+
+#: Directed edges from which :func:`_trace_lines` takes the compiled kernel where it is loaded (below, SciPy's walks
+#: take a millisecond or two).
+_COMPILED_MIN_EDGES = 20_000
+
+
+def _compiled_trace(succ: np.ndarray, pred: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(order, edges per line, closed)`` by :func:`quadnodes._topology_kernels.trace_lines`; None where it
+    refuses the map (then SciPy traces it)."""
+    from ._topology_kernels import trace_lines
+
+    D = succ.size
+    order = np.empty(D // 2, dtype=np.int64)
+    lengths = np.empty(D // 2, dtype=np.int64)
+    closed = np.empty(D // 2, dtype=np.bool_)
+    count = trace_lines(np.ascontiguousarray(succ, dtype=np.int64), pred, order, lengths, closed)
+    if count < 0:
+        return None
+    return order, lengths[:count], closed[:count]
+
+
+def _load_kernel() -> None:
+    """First call of the compiled tracer (loads its machine code; :func:`quadnodes.linalg.compiled.also_load`)."""
+    succ = np.array([2, -1, -1, 1], dtype=np.int64)  # one open line of two edges, 0 then 2
+    pred = np.array([-1, 3, 0, -1], dtype=np.int64)
+    _compiled_trace(succ, pred)
+
+
+_compiled.also_load(_load_kernel)
+
+
+def _scipy_trace(succ: np.ndarray, pred: np.ndarray, src: np.ndarray,
+                 dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(order, edges per line, closed)`` of :func:`_trace_lines` by SciPy's depth-first walks."""
+    D = succ.size
     # open lines: a depth-first walk from a virtual root joined to every chain's first
     # edge visits the chains (each line in both directions) one after the other, whole
     heads = np.flatnonzero(pred < 0)
@@ -618,7 +660,13 @@ def _trace_lines(edges: np.ndarray, succ: np.ndarray) -> StructureLines:
         order = np.r_[order, loops]
         n_edges = np.r_[n_edges, np.diff(np.r_[starts, loops.size])]
         closed = np.r_[closed, np.ones(starts.size, dtype=bool)]
+    return order, n_edges, closed
 
+
+def _lines_from_edges(order: np.ndarray, n_edges: np.ndarray, closed: np.ndarray, dstart: np.ndarray,
+                      dend: np.ndarray) -> StructureLines:
+    """The lines whose directed edges ``order`` lists line after line (``n_edges`` each), as vertex sequences in
+    canonical order (:func:`_canonical`)."""
     starts = np.r_[0, np.cumsum(n_edges)[:-1]].astype(np.int64)
     n_vert = n_edges + (~closed)
     offsets = np.r_[0, np.cumsum(n_vert)].astype(np.int64)

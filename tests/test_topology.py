@@ -418,3 +418,89 @@ def test_fixed_vertices_holds_a_vertex_in_no_face():
     for fix, want in [("none", [9]), ("corners", [0, 2, 6, 8, 9]), ("boundary", [0, 1, 2, 3, 5, 6, 7, 8, 9])]:
         assert np.flatnonzero(fixed_vertices(m, fix)).tolist() == want
     assert np.flatnonzero(fixed_vertices(g, "none")).tolist() == []
+
+
+def _both_tracers(mesh):
+    """The lines of ``mesh`` by the compiled tracer and by SciPy's walks (both through ``_canonical``)."""
+    from quadnodes.topology import _compiled_trace, _lines_from_edges, _scipy_trace
+
+    topo = mesh.topology
+    e, succ = topo.edges, topo._successor
+    pred = np.full(succ.size, -1, dtype=np.int64)
+    src = np.flatnonzero(succ >= 0)
+    pred[succ[src]] = src
+    ends = (e.reshape(-1), e[:, ::-1].reshape(-1))
+    compiled = _compiled_trace(succ, pred)
+    assert compiled is not None
+    return _lines_from_edges(*compiled, *ends), _lines_from_edges(*_scipy_trace(succ, pred, src, succ[src]), *ends)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from(["grid", "cylinder", "torus", "extraordinary", "lhole", "cube", "holes"]),
+       st.integers(0, 10_000))
+def test_compiled_tracer_gives_the_scipy_tracers_lines(kind, seed):
+    """Open lines, closed lines, lines ending at extraordinary vertices and at holes, any face order: the
+    compiled tracer's lines are SciPy's, vertex for vertex, after the canonical ordering."""
+    rng = np.random.default_rng(seed)
+    m = {"grid": lambda: grid(int(rng.integers(2, 9)), int(rng.integers(2, 9))),
+         "cylinder": lambda: cylinder(int(rng.integers(2, 8)), int(rng.integers(3, 9))),
+         "torus": lambda: torus(int(rng.integers(3, 8)), int(rng.integers(3, 9))),
+         "extraordinary": extraordinary_mesh, "lhole": l_shape_with_hole,
+         "cube": lambda: _cube_sphere(int(rng.integers(1, 6))),  # every line closes, eight valence-3 corners
+         "holes": lambda: _grid_with_holes(rng)}[kind]()
+    f = m.faces[rng.permutation(m.n_faces)]
+    f = np.take_along_axis(f, (np.arange(4) + rng.integers(0, 4, len(f))[:, None]) % 4, axis=1)
+    if rng.random() < 0.5:
+        f = f[:, ::-1]
+    fast, traced = _both_tracers(QuadMesh(m.vertices, np.ascontiguousarray(f)))
+    assert np.array_equal(fast.indices, traced.indices) and np.array_equal(fast.offsets, traced.offsets)
+    assert np.array_equal(fast.closed, traced.closed)
+
+
+def test_compiled_tracer_refuses_what_is_not_chains_and_cycles_and_scipy_traces_it():
+    from quadnodes.topology import _compiled_trace
+
+    # two edges leading into one (a successor shared), and a walk into a cycle it does not start on
+    shared_succ = np.array([4, -1, 4, -1, -1, -1], dtype=np.int64)  # 0 → 4 and 2 → 4
+    shared_pred = np.array([-1, -1, -1, -1, 2, -1], dtype=np.int64)
+    assert _compiled_trace(shared_succ, shared_pred) is None
+    rho_succ = np.array([2, -1, 4, -1, 2, -1], dtype=np.int64)  # 0 → 2 → 4 → 2 …
+    rho_pred = np.array([-1, -1, 4, -1, 2, -1], dtype=np.int64)
+    assert _compiled_trace(rho_succ, rho_pred) is None
+
+
+def _cube_sphere(k: int) -> QuadMesh:
+    """Six ``k × k`` grids on the faces of a cube, glued along its edges (vertices merged by position)."""
+    t = np.linspace(-1.0, 1.0, k + 1)
+    pts, faces = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            a, b = np.meshgrid(t, t, indexing="ij")
+            p = np.zeros((k + 1, k + 1, 3))
+            p[..., axis] = sign
+            p[..., (axis + 1) % 3], p[..., (axis + 2) % 3] = a, b
+            base = sum(len(q) for q in pts)
+            pts.append(p.reshape(-1, 3))
+            g = grid_faces(k + 1, k + 1) + base
+            faces.append(g if sign > 0 else g[:, ::-1])
+    P = np.concatenate(pts)
+    _, first, inverse = np.unique(np.round(P, 9), axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    order = np.argsort(first)
+    renumber = np.empty_like(order)
+    renumber[order] = np.arange(order.size)
+    return QuadMesh(P[first[order]] / np.linalg.norm(P[first[order]], axis=1)[:, None],
+                    renumber[inverse][np.concatenate(faces)])
+
+
+def _grid_with_holes(rng) -> QuadMesh:
+    """A grid with a few faces taken out (lines end at the holes' rims) and its unused vertices dropped."""
+    rows, cols = int(rng.integers(5, 10)), int(rng.integers(5, 10))
+    m = grid(rows, cols)
+    keep = np.ones(m.n_faces, bool)
+    keep[rng.choice(m.n_faces, size=int(rng.integers(1, 4)), replace=False)] = False
+    f = m.faces[keep]
+    used = np.unique(f)
+    index = np.full(m.n_vertices, -1)
+    index[used] = np.arange(used.size)
+    return QuadMesh(m.vertices[used], index[f])
