@@ -444,6 +444,13 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
         return U
 
     @property
+    def split(self) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+        """``(U, offsets, entries)``: the upper diagonals the product reads as diagonals (``U[d, i] = M[i, i +
+        offsets[d]]``) and the few it reads as a list, ``(rows, columns, values)`` by row, both triangles (a closed
+        grid's periodic pairs; None where there are none)."""
+        return self._dense[0], self._dense[1], self._seam
+
+    @property
     def upper(self) -> np.ndarray:
         """``(d, n)``: every upper diagonal, ``U[d, i] = M[i, i + upper_offsets[d]]`` (made on first use where the
         product keeps only some of them: a closed grid's)."""

@@ -89,16 +89,25 @@ class SymmetricGaussSeidel:
         from ._kernels import unit_scaled
         from .threads import RANGE_ALIGN, run_tasks, split_ranges
 
-        U = blocks.upper  # type: ignore[attr-defined]
-        offsets = blocks.upper_offsets  # type: ignore[attr-defined]
+        U, offsets, entries = blocks.split  # type: ignore[attr-defined]
+        fast = self.fits(blocks)
+        g = int(offsets[4]) if fast else 0
+        if entries is not None and not fast:  # (the entries go into the sweeps: every diagonal read as one)
+            U, offsets, entries = blocks.upper, blocks.upper_offsets, None  # type: ignore[attr-defined]
         s = _unit_scale(U[0])
-        g = int(offsets[4]) if offsets.size == 7 else 0
-        fast = g > 3 and np.array_equal(offsets, [0, 1, 2, 3, g, 2 * g, 3 * g])
         Us = np.empty_like(U)
         F = np.empty((4, U.shape[1])) if fast else np.zeros((0, 0))
         self.row = g if fast else 1  # (the sweeps' scratch: one grid row per column)
         run_tasks(lambda lo, hi: unit_scaled(U, offsets, s, Us, F, lo, hi), blocks.ranges)  # type: ignore[attr-defined]
         self.upper, self.offsets, self.forward_rows, self.scale = Us, offsets, F, s
+        #: a closed grid's periodic couplings, scaled to the unit diagonal, kept out of the sweeps (see
+        #: :func:`gauss_seidel_cg`): ``(rows, first, columns, values)`` — each row once in ``rows``, its entries
+        #: ``first[i]:first[i + 1]`` of ``columns`` and ``values`` — or None
+        self.seam: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        if entries is not None:
+            r, c, v = entries
+            rows, first = np.unique(r, return_index=True)
+            self.seam = (rows, np.r_[first, r.size], c, v * s[r] * s[c])
         self._blocks = blocks
         n, w = U.shape[1], int(offsets.max())
         ranges = list(blocks.ranges)  # type: ignore[attr-defined]
@@ -110,6 +119,15 @@ class SymmetricGaussSeidel:
             top = hi - w if r < last else hi  # (the interior: lo:top; the separator: top:hi)
             self.interiors.append((lo, top, lo - w if r else lo, hi, lo, top))
         self.separators = [(hi - w, hi, hi - w, hi, hi - 2 * w, min(n, hi + w)) for _, hi in ranges[:-1]]
+
+    @staticmethod
+    def fits(blocks: object) -> bool:
+        """Whether ``blocks`` (:class:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks`) take the grid's compiled
+        sweeps: an open grid's seven upper diagonals ``0, 1, 2, 3, g, 2g, 3g``, and on a closed grid those once its
+        periodic pairs are read as entries (:attr:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks.split`)."""
+        offsets = blocks.split[1]  # type: ignore[attr-defined]
+        g = int(offsets[4]) if offsets.size == 7 else 0
+        return g > 3 and np.array_equal(offsets, [0, 1, 2, 3, g, 2 * g, 3 * g])
 
     def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray,
                  part: tuple) -> None:
@@ -388,6 +406,26 @@ def gauss_seidel_cg(
         sw.forward(P, T, W, S, p, d)
         return d.copy()
 
+    seam = getattr(sw, "seam", None)
+
+    def seam_step() -> np.ndarray:
+        """A step's sweeps where the couplings ``S̃`` across a closed grid's seams are kept out of them: with
+        ``M̃ = (I + L) + (I + U) − I + S̃``, ``Âp = t + (I + L)⁻¹ (p − t + S̃ t)`` — the backward sweeps whole, then
+        ``S̃ t`` added to ``p`` on the seam's rows for the forward sweeps (and taken off after); the dots ``p·Âp``."""
+        rows, first, cols, vals = seam  # type: ignore[misc]
+        for i, p in enumerate(separators, len(interiors)):
+            sw.backward(Rh, P, T, beta, scratch[i][0], p)
+        run_tasks(lambda i, p: sw.backward(Rh, P, T, beta, scratch[i][0], p), tasks)
+        ST = np.add.reduceat(T[:, cols] * vals, first[:-1], axis=1)
+        P[:, rows] += ST
+        run_tasks(lambda i, p: sw.forward(P, T, W, scratch[i][0], p, scratch[i][1]), tasks)
+        dots = sum(scratch[i][1] for i in range(len(interiors)))
+        for i, p in enumerate(separators, len(interiors)):
+            sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
+            dots = dots + scratch[i][1]
+        P[:, rows] -= ST
+        return dots - np.einsum("ij,ij->i", ST, T[:, rows] + W[:, rows])
+
     def update(lo: int, hi: int) -> np.ndarray:
         out = np.empty(c)
         sw.update(Xs, Rh, T, W, alpha, lo, hi, out)
@@ -413,12 +451,15 @@ def gauss_seidel_cg(
         beta = zero
         start = steps
         while steps < maxiter and (rr > tol2).any():
-            for i, p in enumerate(separators, len(interiors)):
-                sw.backward(Rh, P, T, beta, scratch[i][0], p)
-            pq = sum(run_tasks(interior, tasks))
-            for i, p in enumerate(separators, len(interiors)):
-                sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
-                pq = pq + scratch[i][1]
+            if seam is not None:
+                pq = seam_step()
+            else:
+                for i, p in enumerate(separators, len(interiors)):
+                    sw.backward(Rh, P, T, beta, scratch[i][0], p)
+                pq = sum(run_tasks(interior, tasks))
+                for i, p in enumerate(separators, len(interiors)):
+                    sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
+                    pq = pq + scratch[i][1]
             if not (pq[rr > tol2] > 0).all():  # a breakdown (M not positive definite in floating point)
                 return result(float(np.inf))
             alpha = np.divide(rr, pq, out=np.zeros(c), where=pq > 0)
