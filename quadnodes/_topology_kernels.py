@@ -17,6 +17,25 @@ __all__ = ["trace_lines"]
 
 
 @nb.njit(cache=True, nogil=True, boundscheck=False)
+def _follow(succ: np.ndarray, seen: np.ndarray, order: np.ndarray, k: int, first: int,
+            closed: bool) -> int:  # pragma: no cover - compiled
+    """Append the line from directed edge ``first`` to ``order[k:]`` (to its end, or round to ``first`` again where
+    ``closed``), marking both directions of its edges seen; the new ``k``, or −1 where the walk meets an edge seen
+    already, runs off a closed line's end, or overflows ``order``."""
+    e = first
+    while True:
+        if e < 0 or seen[e] or k >= order.size:
+            return -1
+        seen[e] = True
+        seen[e ^ 1] = True
+        order[k] = e
+        k += 1
+        e = succ[e]
+        if (e < 0 and not closed) or e == first:
+            return k
+
+
+@nb.njit(cache=True, nogil=True, boundscheck=False)
 def trace_lines(succ: np.ndarray, pred: np.ndarray, order: np.ndarray, lengths: np.ndarray,
                 closed: np.ndarray) -> int:  # pragma: no cover - compiled
     """Trace the lines of the successor map ``succ`` ``(D,)`` (−1 where a line ends; ``pred`` its inverse, −1
@@ -31,43 +50,17 @@ def trace_lines(succ: np.ndarray, pred: np.ndarray, order: np.ndarray, lengths: 
     seen = np.zeros(D, dtype=np.bool_)
     k = 0
     lines = 0
-    cap = order.size
-    for first in range(D):  # open lines: from every chain's first edge, the smaller of a line's two
-        if pred[first] >= 0 or seen[first]:
-            continue
-        e = first
-        count = 0
-        while e >= 0:
-            if seen[e] or k >= cap:
+    for cycles in (False, True):  # open lines from every chain's first edge (the smaller of a line's two), then
+        for first in range(D):  # the cycles among the edges left, each from its smallest edge
+            if seen[first] or (not cycles and pred[first] >= 0):
+                continue
+            end = _follow(succ, seen, order, k, first, cycles)
+            if end < 0:
                 return -1
-            seen[e] = True
-            seen[e ^ 1] = True
-            order[k] = e
-            k += 1
-            count += 1
-            e = succ[e]
-        lengths[lines] = count
-        closed[lines] = False
-        lines += 1
-    for first in range(D):  # closed lines: the edges left lie on cycles, each taken from its smallest edge
-        if seen[first]:
-            continue
-        e = first
-        count = 0
-        while True:
-            if e < 0 or seen[e] or k >= cap:
-                return -1
-            seen[e] = True
-            seen[e ^ 1] = True
-            order[k] = e
-            k += 1
-            count += 1
-            e = succ[e]
-            if e == first:
-                break
-        lengths[lines] = count
-        closed[lines] = True
-        lines += 1
-    if k != cap:
+            lengths[lines] = end - k
+            closed[lines] = cycles
+            lines += 1
+            k = end
+    if k != order.size:
         return -1
     return lines

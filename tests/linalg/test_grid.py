@@ -26,6 +26,19 @@ def _open_operator(rows, cols, coef, blocks):
     return sp.csr_matrix((v, (r, c)), shape=(w, rows * cols))
 
 
+def _compiled_equals_numpy(pattern, coef, free, threads_):
+    """The storage by the compiled kernel (several line ranges even on a small grid) and by NumPy, equal to the
+    bit; returns it."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threads, "PARALLEL_MIN_ROWS", 4)
+        mp.setattr(threads, "thread_count", lambda: threads_)
+        off, data = _storage(pattern, coef, free, 0.7, loaded=True)
+    off_np, data_np = _storage(pattern, coef, free, 0.7, loaded=False)
+    assert np.array_equal(off, off_np)
+    assert np.array_equal(data.view(np.int64), data_np.view(np.int64))
+    return off, data
+
+
 def _storage(pattern, coef, free, weight, loaded):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(grid_module.compiled, "ready", lambda: loaded)
@@ -42,13 +55,7 @@ def test_compiled_open_grid_storage_equals_numpy_to_the_bit_and_the_normal_matri
     coef = rng.normal(size=(w, 4))
     free = rng.random(rows * cols) > 0.2
     pattern = GridPattern.open_grid(rows, cols, blocks)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(threads, "PARALLEL_MIN_ROWS", 4)  # several line ranges even on a small grid
-        mp.setattr(threads, "thread_count", lambda: threads_)
-        off, data = _storage(pattern, coef, free, 0.7, loaded=True)
-    off_np, data_np = _storage(pattern, coef, free, 0.7, loaded=False)
-    assert np.array_equal(off, off_np)
-    assert np.array_equal(data.view(np.int64), data_np.view(np.int64))
+    off, data = _compiled_equals_numpy(pattern, coef, free, threads_)
     # and it is the system: AᵀA + ωI on the unknowns (fixed nodes dropped from A), the identity elsewhere
     A = _open_operator(rows, cols, coef, blocks) @ sp.diags(free.astype(float))
     expected = (A.T @ A).toarray() + np.diag(np.where(free, 0.7, 1.0))
@@ -95,13 +102,7 @@ def test_closed_grid_storage_is_the_walks_and_the_normal_matrix(rows, cols, kind
     rng = np.random.default_rng(seed)
     coef = rng.normal(size=(len(topo.windows), 4))
     free = rng.random(rows * cols) > 0.2
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(threads, "PARALLEL_MIN_ROWS", 4)  # several line ranges even on a small grid
-        mp.setattr(threads, "thread_count", lambda: threads_)
-        off, data = _storage(pattern, coef, free, 0.7, loaded=True)
-    off_np, data_np = _storage(pattern, coef, free, 0.7, loaded=False)
-    assert np.array_equal(off, off_np)
-    assert np.array_equal(data.view(np.int64), data_np.view(np.int64))
+    off, data = _compiled_equals_numpy(pattern, coef, free, threads_)
     walk = GridPattern(*topo.window_walk, rows * cols, cols, wrap_rows=wrap_rows, wrap_cols=wrap_cols)
     off_walk, data_walk = walk.normal_matrix(coef, free, 0.7)
     assert np.array_equal(off, off_walk)
