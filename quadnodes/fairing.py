@@ -1003,9 +1003,9 @@ class FairingSystem:
         kernels are loaded), where the Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω,
         symmetric Gauss–Seidel in Eisenstat's form: 2.2–6.2× fewer steps than plain CG on two
         threads, each step two sweeps and no product. An open grid takes the grid's fast sweeps
-        (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), and so does a cylinder or torus
-        grid of at least 49 vertices around every closed direction (its seams' few couplings kept out of the
-        sweeps); smaller closed grids and any other mesh sweep compressed rows
+        (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), and so does a cylinder grid of at
+        least 49 vertices around (its seam's few couplings kept out of the sweeps); tori, smaller cylinders
+        and any other mesh sweep compressed rows
         (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`). Where the bound exceeds
         :data:`TWO_GRID_CONTRAST` ω (a weight below about 2.5·10⁻⁴) and Gauss–Seidel's rate after
         :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more, the
@@ -1220,10 +1220,10 @@ class FairingSystem:
         """The CG operator (row ranges), its preconditioner and the unknowns' order, made once.
 
         With the compiled kernels at hand and a Gershgorin bound above :data:`GAUSS_SEIDEL_CONTRAST` ω:
-        symmetric Gauss–Seidel, the fast sweeps on a mostly free open vertex grid and on a cylinder or torus grid
+        symmetric Gauss–Seidel, the fast sweeps on a mostly free open vertex grid and on a cylinder grid
         whose periodic pairs the storage reads as entries
-        (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), compressed rows on a smaller closed
-        grid and any other mesh (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
+        (:class:`~quadnodes.linalg.gauss_seidel.SymmetricGaussSeidel`), compressed rows on a torus, a smaller
+        cylinder and any other mesh (:class:`~quadnodes.linalg.gauss_seidel.CsrGaussSeidel`).
         Where the bound exceeds :data:`TWO_GRID_CONTRAST` ω — on such a grid (open or closed around) with more
         than :data:`TWO_GRID_MIN_SIDE` rows and columns and a coarse grid of at most :data:`TWO_GRID_COARSE_MAX`
         vertices, on any other mesh with its structure lines (``_lines``) from :data:`TWO_GRID_MIN_SIDE`² to
@@ -1351,8 +1351,8 @@ class FairingSystem:
             if (chosen or (self.preconditioner == "auto" and wanted and contrast > GAUSS_SEIDEL_CONTRAST
                            and not spectral_only and not stiff_lines)) \
                     and kernels.wait():
-                # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps, and a closed grid's with
-                # its seams' couplings kept out of them; a small closed grid and any other mesh in compressed rows,
+                # symmetric Gauss–Seidel in Eisenstat's form: an open grid's fast sweeps, and a cylinder's with
+                # its seam's couplings kept out of them; a torus and any other mesh in compressed rows,
                 # in their own order. At tiny weights, the two-grid cycle around those sweeps.
                 if not grid:  # any other mesh: the cycle's coarse nodes along its structure lines
                     if self.preconditioner == "two-grid" and self._lines is None:
@@ -1373,11 +1373,14 @@ class FairingSystem:
                     return self._two_grid(blocks, (shape, wrap, strides))
                 if may_switch:
                     self._switch_to = (shape, wrap, strides)
-                # a closed grid too: the open grid's sweeps, its seams' few couplings kept out of them
+                # a cylinder too: the open grid's sweeps, its seam's few couplings kept out of them (on a torus
+                # leaving both seams out cost more steps than the fast sweeps save: a 51,200-vertex torus 603
+                # against 467 steps at ω = 0.3, a reviewer's throwaway timing)
+                if all(wrap):
+                    return self._gauss_seidel(DiagonalBlocks(offsets, data), CsrGaussSeidel)
                 blocks = SymmetricDiagonalBlocks(offsets, data)
-                if open_grid or SymmetricGaussSeidel.fits(blocks):
-                    return self._gauss_seidel(blocks, SymmetricGaussSeidel)
-                return self._gauss_seidel(DiagonalBlocks(offsets, data), CsrGaussSeidel)
+                return self._gauss_seidel(blocks, SymmetricGaussSeidel if SymmetricGaussSeidel.fits(blocks)
+                                          else CsrGaussSeidel)
             if self.preconditioner in ("gauss-seidel", "two-grid"):
                 raise InputError(f"preconditioner={self.preconditioner!r} needs the compiled kernels (Numba); use 'auto'")
             if self.preconditioner == "spectral" and not grid:

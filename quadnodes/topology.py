@@ -310,6 +310,9 @@ class Topology:
         same = dir_he[da] >= 0  # walking with the boundary half-edge
         succ[da[same]] = he_dir[b_out[va[same]]]
         succ[da[~same]] = he_dir[b_in[va[~same]]] ^ 1
+        # a vertex whose faces fold back (two faces sharing both its edges there, a "pillow"): straight through
+        # leads back along the arriving edge; no line passes there, it ends
+        succ[succ == (d ^ 1)] = -1
         return succ
 
     @cached_property

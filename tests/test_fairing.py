@@ -1631,8 +1631,8 @@ def test_curvature_windows_needs_two_consecutive_windows_above_every_level():
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
-    """``preconditioner="gauss-seidel"`` loads the kernels and runs at any size: an open grid's fast sweeps, a
-    torus grid's and an irregular mesh's compressed rows (shuffled numbering too); within 1e-8 of the mesh's size
+    """``preconditioner="gauss-seidel"`` loads the kernels and runs at any size: an open grid's and a cylinder's
+    fast sweeps (its seam's couplings kept out of them), a torus grid's and an irregular mesh's compressed rows (shuffled numbering too); within 1e-8 of the mesh's size
     of the direct solve at tiny (the error guard), small, default and large weights; "auto" takes it on a mesh that is no grid once the
     kernels are at hand."""
     import quadnodes.fairing as fairing_module
@@ -1650,8 +1650,10 @@ def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
     e = e.with_vertices(e.vertices + rng.normal(scale=0.1 * e.mean_edge_length, size=e.vertices.shape))
     p = rng.permutation(e.n_vertices)
     shuffled = QuadMesh(e.vertices[p], np.argsort(p)[e.faces])
-    for m, kind, topology in ((g, SymmetricGaussSeidel, True), (t, CsrGaussSeidel, True), (e, CsrGaussSeidel, False),
-                              (shuffled, CsrGaussSeidel, False)):
+    c = cylinder(20, 56, radius=300.0, height=400.0)  # (56 around: its seam's pairs read as entries)
+    c = c.with_vertices(c.vertices + rng.normal(scale=0.2 * c.mean_edge_length, size=c.vertices.shape))
+    for m, kind, topology in ((g, SymmetricGaussSeidel, True), (t, CsrGaussSeidel, True), (c, SymmetricGaussSeidel, True),
+                              (e, CsrGaussSeidel, False), (shuffled, CsrGaussSeidel, False)):
         free = m.topology.window_middle & (rng.random(m.n_vertices) > 0.1)
         for weight in (1e-6, 0.003, 0.3, 10.0):
             w = weight / m.mean_edge_length**2
@@ -1660,6 +1662,7 @@ def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
             x = s.solve(m.vertices[free])
             assert isinstance(s._cg[1], kind) and s.residual <= 1e-9
             assert len(s._cg[0].ranges) == threads
+            assert (getattr(s._cg[1], "seam", None) is not None) == (m is c)  # (the cylinder's seam kept outside)
             d = FairingSystem(m.vertices, m.topology.windows, free, w, solver="direct").solve(m.vertices[free])
             assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
     monkeypatch.setattr(fairing_module.kernels, "ready", lambda: True)

@@ -504,3 +504,17 @@ def _grid_with_holes(rng) -> QuadMesh:
     index = np.full(m.n_vertices, -1)
     index[used] = np.arange(used.size)
     return QuadMesh(m.vertices[used], index[f])
+
+
+def test_a_pillow_vertex_ends_its_lines_instead_of_crashing_the_tracer():
+    """Two faces sharing both their edges at a vertex (a "pillow", which QuadMesh accepts): straight through leads
+    back along the arriving edge; lines end there, every edge on one line (a reviewer's input crashed SciPy's
+    tracer with a negative index)."""
+    from quadnodes import fair
+
+    rng = np.random.default_rng(0)
+    m = QuadMesh(rng.normal(size=(9, 3)), np.array([[0, 1, 3, 2], [0, 2, 4, 1], [0, 5, 7, 6], [0, 6, 8, 5]]))
+    _every_edge_once(m)
+    assert not structure_lines(m).closed.any()
+    out, report = fair(m)
+    assert np.isfinite(out.vertices).all() and report.iterations

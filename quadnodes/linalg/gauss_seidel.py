@@ -18,6 +18,11 @@ CG runs in Eisenstat's form (:func:`gauss_seidel_cg`): with ``M`` scaled to a un
 the preconditioned operator's product is one backward and one forward sweep, so a step costs
 the two sweeps and no product with ``M``.
 
+**A closed grid's seams kept out of the sweeps.** On a cylinder's diagonal storage the few couplings across its
+seam (:attr:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks.split`) would rule out the open grid's fast sweeps;
+:class:`SymmetricGaussSeidel` sweeps ``M − S`` instead (``P`` built from its ``L`` and ``U``) and CG's product takes
+``S`` in as a correction (:func:`gauss_seidel_cg`), so the solve is still of ``M``.
+
 On a fairing matrix (a sum of per-line operators coupling four consecutive vertices, plus ω)
 the sweeps damp the oscillating error that makes plain CG slow: on the bench sheets
 (``benchmarks/_common.py``, all free, 300², two threads) 2.2–3.0× fewer steps than plain CG at every
@@ -47,6 +52,24 @@ __all__ = ["SymmetricGaussSeidel", "CsrGaussSeidel", "gauss_seidel_cg", "sweep_s
            "backward_solve"]
 
 
+def _fast(offsets: np.ndarray) -> bool:
+    """Whether upper diagonals at ``offsets`` are an open grid's ``0, 1, 2, 3, g, 2g, 3g`` (the compiled sweeps)."""
+    g = int(offsets[4]) if offsets.size == 7 else 0
+    return g > 3 and np.array_equal(offsets, [0, 1, 2, 3, g, 2 * g, 3 * g])
+
+
+def _layout(blocks: object) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+    """``(U, offsets, entries)`` the sweeps take: every upper diagonal where they are an open grid's (or no grid's:
+    the row-by-row sweeps), else the open grid's seven and the closed grid's periodic pairs as ``entries``, kept out
+    of the sweeps."""
+    offsets = blocks.upper_offsets  # type: ignore[attr-defined]
+    if not _fast(offsets):
+        U, dense, entries = blocks.split  # type: ignore[attr-defined]
+        if entries is not None and _fast(dense):
+            return U, dense, entries
+    return blocks.upper, offsets, None  # type: ignore[attr-defined]
+
+
 def _unit_scale(diagonal: np.ndarray) -> np.ndarray:
     """``D^{-1/2}``: the scaling to a unit diagonal (refused where an entry is not positive)."""
     bad = np.flatnonzero(~(diagonal > 0))
@@ -62,7 +85,9 @@ class SymmetricGaussSeidel:
     grid (upper offsets ``0, 1, 2, 3, g, 2g, 3g``) the couplings along a grid row again at the
     row they act on (``F[d, i] = M̃[i, i − d]``) for the forward sweep's recurrence. A thread's
     separator is the last ``w`` rows of its range (``w`` the largest offset: three grid rows),
-    so the numbering stays the grid's. Passed to :func:`~quadnodes.linalg.cg.block_cg` as
+    so the numbering stays the grid's. On a closed grid whose periodic pairs the storage reads as entries
+    (:attr:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks.split`) the sweeps take the other seven diagonals and the
+    pairs stay out of them (:attr:`seam`). Passed to :func:`~quadnodes.linalg.cg.block_cg` as
     ``precond``, it makes the solve :func:`gauss_seidel_cg`, on ``(c, m)`` vectors (``columns``).
 
     Parameters
@@ -89,11 +114,9 @@ class SymmetricGaussSeidel:
         from ._kernels import unit_scaled
         from .threads import RANGE_ALIGN, run_tasks, split_ranges
 
-        U, offsets, entries = blocks.split  # type: ignore[attr-defined]
-        fast = self.fits(blocks)
+        U, offsets, entries = _layout(blocks)
+        fast = _fast(offsets)
         g = int(offsets[4]) if fast else 0
-        if entries is not None and not fast:  # (the entries go into the sweeps: every diagonal read as one)
-            U, offsets, entries = blocks.upper, blocks.upper_offsets, None  # type: ignore[attr-defined]
         s = _unit_scale(U[0])
         Us = np.empty_like(U)
         F = np.empty((4, U.shape[1])) if fast else np.zeros((0, 0))
@@ -107,7 +130,7 @@ class SymmetricGaussSeidel:
         if entries is not None:
             r, c, v = entries
             rows, first = np.unique(r, return_index=True)
-            self.seam = (rows, np.r_[first, r.size], c, v * s[r] * s[c])
+            self.seam = (rows, np.r_[first, r.size], c, v * (s[r] * s[c]))  # (s_r s_c first: S̃ symmetric to the bit)
         self._blocks = blocks
         n, w = U.shape[1], int(offsets.max())
         ranges = list(blocks.ranges)  # type: ignore[attr-defined]
@@ -123,11 +146,9 @@ class SymmetricGaussSeidel:
     @staticmethod
     def fits(blocks: object) -> bool:
         """Whether ``blocks`` (:class:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks`) take the grid's compiled
-        sweeps: an open grid's seven upper diagonals ``0, 1, 2, 3, g, 2g, 3g``, and on a closed grid those once its
-        periodic pairs are read as entries (:attr:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks.split`)."""
-        offsets = blocks.split[1]  # type: ignore[attr-defined]
-        g = int(offsets[4]) if offsets.size == 7 else 0
-        return g > 3 and np.array_equal(offsets, [0, 1, 2, 3, g, 2 * g, 3 * g])
+        sweeps: an open grid's seven upper diagonals ``0, 1, 2, 3, g, 2g, 3g``, or a closed grid's once its periodic
+        pairs are read as entries (:attr:`~quadnodes.linalg.cg.SymmetricDiagonalBlocks.split`)."""
+        return _fast(blocks.upper_offsets) or _fast(blocks.split[1])  # type: ignore[attr-defined]
 
     def backward(self, R: np.ndarray, P: np.ndarray, T: np.ndarray, beta: np.ndarray, S: np.ndarray,
                  part: tuple) -> None:
@@ -333,7 +354,8 @@ def gauss_seidel_cg(
     ----------
     blocks : SymmetricDiagonalBlocks or RowBlocks
         ``M`` (symmetric positive definite) and its row ranges, one per thread: diagonal
-        storage (an open grid's fast sweeps) or compressed rows (row by row).
+        storage (an open grid's fast sweeps; a closed grid's with its seam's couplings ``S̃`` kept out of them and
+        the product taken as ``t + (I + L)⁻¹ (p − t + S̃ t)``) or compressed rows (row by row).
     B : (k, c) float64
     X0 : (k, c) float64
         Starting guesses.
@@ -417,13 +439,14 @@ def gauss_seidel_cg(
             sw.backward(Rh, P, T, beta, scratch[i][0], p)
         run_tasks(lambda i, p: sw.backward(Rh, P, T, beta, scratch[i][0], p), tasks)
         ST = np.add.reduceat(T[:, cols] * vals, first[:-1], axis=1)
-        P[:, rows] += ST
+        kept = P[:, rows]  # (a copy: P is restored exactly after)
+        P[:, rows] = kept + ST
         run_tasks(lambda i, p: sw.forward(P, T, W, scratch[i][0], p, scratch[i][1]), tasks)
         dots = sum(scratch[i][1] for i in range(len(interiors)))
         for i, p in enumerate(separators, len(interiors)):
             sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
             dots = dots + scratch[i][1]
-        P[:, rows] -= ST
+        P[:, rows] = kept
         return dots - np.einsum("ij,ij->i", ST, T[:, rows] + W[:, rows])
 
     def update(lo: int, hi: int) -> np.ndarray:

@@ -7,13 +7,14 @@ every allocation: about a third of the time of a pass over them
 (``np.empty`` + ``fill`` of 48 MB: 29 ms fresh, 16 ms from the heap on this machine). Inside
 :func:`reused_heap` such blocks come from the heap and are reused; on leaving, the free
 heap memory goes back to the kernel (``malloc_trim``) and glibc's thresholds return to what
-its own adaptation reaches (blocks up to 32 MB from the heap). Elsewhere
-(another C library, another system) it does nothing.
+its own adaptation reaches (blocks up to 32 MB from the heap). With another C library or on another system the
+heap is left as it is.
 
 Inside it NumPy also stops asking the kernel for transparent huge pages (``madvise(MADV_HUGEPAGE)`` on every
 array of 4 MB or more, its default on Linux): the first touch of such an array then faults in 2 MB pages, which
 on this project's machines (virtual ones, THP ``defrag=madvise``) cost more than the small pages they replace —
-a 1000 × 1000 fairing 2.2 → 1.6 s, the torus 4.4 → 3.2 s (``python benchmarks/studies/huge_pages.py``). A user's
+a 1000 × 1000 fairing 1.83 → 1.63 s, the torus 3.75 → 3.00 s (``python benchmarks/studies/huge_pages.py``, its
+table in docs/linalg.md). A user's
 own choice (the ``NUMPY_MADVISE_HUGEPAGE`` environment variable) is left alone, and NumPy's setting is restored
 on leaving.
 
@@ -95,12 +96,18 @@ def reused_heap() -> Iterator[None]:
         return
     with _LOCK:
         _DEPTH += 1
-        if _DEPTH == 1:
-            if _NUMPY_HUGE_PAGES is not None:
-                _HUGE_PAGES.append(_NUMPY_HUGE_PAGES(False))
-            if _LIBC is not None:
-                _LIBC.mallopt(_M_TRIM_THRESHOLD, 2**31 - 1)  # type: ignore[attr-defined]
-                _LIBC.mallopt(_M_MMAP_MAX, 0)  # type: ignore[attr-defined]
+        try:
+            if _DEPTH == 1:
+                if _NUMPY_HUGE_PAGES is not None:
+                    _HUGE_PAGES.append(_NUMPY_HUGE_PAGES(False))
+                if _LIBC is not None:
+                    _LIBC.mallopt(_M_TRIM_THRESHOLD, 2**31 - 1)  # type: ignore[attr-defined]
+                    _LIBC.mallopt(_M_MMAP_MAX, 0)  # type: ignore[attr-defined]
+        except BaseException:  # (a setting refused: this use never entered)
+            _DEPTH -= 1
+            if _DEPTH == 0 and _HUGE_PAGES:
+                _NUMPY_HUGE_PAGES(_HUGE_PAGES.pop())  # type: ignore[misc]
+            raise
     try:
         yield
     finally:

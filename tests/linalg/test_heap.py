@@ -110,3 +110,27 @@ def test_the_users_numpy_huge_page_setting_is_left_alone(monkeypatch):
         assert switch(True) is True  # and restored on leaving
     finally:
         switch(previous)
+
+
+def test_a_setting_refused_on_entry_leaves_no_use_behind(monkeypatch):
+    state = {"on": True}
+
+    def switch(enabled):
+        previous, state["on"] = state["on"], bool(enabled)
+        return previous
+
+    class RefusingLibc:
+        def mallopt(self, param, value):
+            raise OSError("mallopt refused")
+
+        def malloc_trim(self, pad):
+            return 1
+
+    monkeypatch.setattr(heap, "_NUMPY_HUGE_PAGES", switch)
+    monkeypatch.setattr(heap, "_LIBC", RefusingLibc())
+    try:
+        with heap.reused_heap():
+            raise AssertionError("not entered")
+    except OSError:
+        pass
+    assert heap._DEPTH == 0 and state["on"] is True and not heap._HUGE_PAGES
