@@ -1632,7 +1632,8 @@ def test_curvature_windows_needs_two_consecutive_windows_above_every_level():
 @pytest.mark.parametrize("threads", [1, 2])
 def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
     """``preconditioner="gauss-seidel"`` loads the kernels and runs at any size: an open grid's and a cylinder's
-    fast sweeps (its seam's couplings kept out of them), a torus grid's and an irregular mesh's compressed rows (shuffled numbering too); within 1e-8 of the mesh's size
+    fast sweeps (its seam's couplings kept out of them), a torus grid's, a narrow cylinder's and an irregular mesh's
+    compressed rows (shuffled numbering too); within 1e-8 of the mesh's size
     of the direct solve at tiny (the error guard), small, default and large weights; "auto" takes it on a mesh that is no grid once the
     kernels are at hand."""
     import quadnodes.fairing as fairing_module
@@ -1652,8 +1653,12 @@ def test_gauss_seidel_on_any_mesh_equals_the_direct_solve(monkeypatch, threads):
     shuffled = QuadMesh(e.vertices[p], np.argsort(p)[e.faces])
     c = cylinder(20, 56, radius=300.0, height=400.0)  # (56 around: its seam's pairs read as entries)
     c = c.with_vertices(c.vertices + rng.normal(scale=0.2 * c.mean_edge_length, size=c.vertices.shape))
+    narrow = cylinder(20, 30, radius=300.0, height=400.0)  # (30 around: its seam's pairs too many for entries)
+    narrow = narrow.with_vertices(narrow.vertices + rng.normal(scale=0.2 * narrow.mean_edge_length,
+                                                               size=narrow.vertices.shape))
     for m, kind, topology in ((g, SymmetricGaussSeidel, True), (t, CsrGaussSeidel, True), (c, SymmetricGaussSeidel, True),
-                              (e, CsrGaussSeidel, False), (shuffled, CsrGaussSeidel, False)):
+                              (narrow, CsrGaussSeidel, True), (e, CsrGaussSeidel, False),
+                              (shuffled, CsrGaussSeidel, False)):
         free = m.topology.window_middle & (rng.random(m.n_vertices) > 0.1)
         for weight in (1e-6, 0.003, 0.3, 10.0):
             w = weight / m.mean_edge_length**2
