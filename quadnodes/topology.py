@@ -880,6 +880,8 @@ def corner_vertices(mesh: QuadMesh, *, angle: float = CORNER_ANGLE) -> np.ndarra
     topo = mesh.topology
     n = mesh.n_vertices
     x = mesh.vertices
+    if topo.closed_grid is not None:  # a cylinder's boundary is its two end rings, regular throughout; a torus has none
+        return np.zeros(n, dtype=bool)
     if topo.grid_shape is not None:  # the boundary loop by index arithmetic (the test below is the
         rows, cols = topo.grid_shape  # same walked either way round)
         ids = np.arange(n, dtype=np.int64).reshape(rows, cols)

@@ -518,3 +518,18 @@ def test_a_pillow_vertex_ends_its_lines_instead_of_crashing_the_tracer():
     assert not structure_lines(m).closed.any()
     out, report = fair(m)
     assert np.isfinite(out.vertices).all() and report.iterations
+
+
+@pytest.mark.parametrize("make", [lambda: cylinder(5, 9), lambda: cylinder(2, 3), lambda: torus(6, 7),
+                                  lambda: QuadMesh(torus(6, 7).vertices, grid_faces(6, 7, wrap_rows=True))])
+def test_a_closed_grid_has_no_corners_without_walking_its_boundary(make, monkeypatch):
+    """A cylinder's or torus's corners by its layout (none: its end rings are regular boundary) — what the
+    boundary walk gives."""
+    from quadnodes.topology import corner_vertices
+
+    m = make()
+    assert m.topology.closed_grid is not None
+    fast = corner_vertices(m)
+    monkeypatch.setattr(type(m.topology), "closed_grid", property(lambda self: None))
+    walked = corner_vertices(QuadMesh(m.vertices, m.faces))
+    assert not fast.any() and np.array_equal(fast, walked)
