@@ -353,30 +353,28 @@ class Topology:
         (:attr:`closed_grid`) of at least 4 × 4 vertices, gets its rows and columns without tracing (the same
         lines in the same order).
         """
-        shape = self.grid_shape
-        if shape is not None:
-            return _grid_lines(*shape)
-        closed = self._laid_out_closed_grid
-        if closed is not None:
-            return _closed_grid_lines(*closed)
+        layout = self._grid_layout
+        if layout is not None:
+            return _closed_grid_lines(*layout) if any(layout[2:]) else _grid_lines(*layout[:2])
         return _trace_lines(self.edges, self._successor)
 
     @property
-    def _laid_out_closed_grid(self) -> tuple[int, int, bool, bool] | None:
-        """:attr:`closed_grid` where its lines, windows and walk are laid out by index arithmetic (at least 4 × 4
-        vertices; smaller ones are traced), else None."""
+    def _grid_layout(self) -> tuple[int, int, bool, bool] | None:
+        """``(rows, cols, wrap_rows, wrap_cols)`` of a grid whose lines, windows and walk are laid out by index
+        arithmetic — an open grid (:attr:`grid_shape`), or a cylinder or torus grid (:attr:`closed_grid`) of at least
+        4 × 4 vertices (smaller ones are traced) — else None."""
+        shape = self.grid_shape
+        if shape is not None:
+            return shape[0], shape[1], False, False
         closed = self.closed_grid
         return closed if closed is not None and min(closed[:2]) >= 4 else None
 
     @cached_property
     def windows(self) -> np.ndarray:
         """``(w, 4)`` consecutive vertex quadruples of all structure lines (as :func:`windows`)."""
-        shape = self.grid_shape
-        if shape is not None:
-            return _grid_windows(*shape)
-        closed = self._laid_out_closed_grid
-        if closed is not None:
-            return _grid_windows(*closed)
+        layout = self._grid_layout
+        if layout is not None:
+            return _grid_windows(*layout)
         ext, start = self.window_walk
         return ext[start[:, None] + np.arange(4)]
 
@@ -388,17 +386,9 @@ class Topology:
         ``ext[start[i] : start[i] + 4]`` and consecutive windows of a line share
         edges: per-edge quantities are computed once per line edge, not per window.
         """
-        shape = self.grid_shape
-        if shape is not None:  # open lines laid out one after another: windows start at each line's L - 3 first nodes
-            lines = self.structure_lines
-            count = np.maximum(lines.lengths - 3, 0)
-            start = np.repeat(lines.offsets[:-1] - (np.cumsum(count) - count), count)
-            start += np.arange(start.size, dtype=np.int64)
-            start.setflags(write=False)
-            return lines.indices, start
-        closed = self._laid_out_closed_grid
-        if closed is not None:
-            return _closed_grid_walk(*closed)
+        layout = self._grid_layout
+        if layout is not None:
+            return _grid_walk(*layout)
         return _window_walk(self.structure_lines)[:2]
 
     @cached_property
@@ -413,7 +403,7 @@ class Topology:
             if rows >= 4:
                 mask[1:-1] = True
             return mask.reshape(-1)
-        if self._laid_out_closed_grid is not None:  # every vertex is on a closed row or a closed column
+        if self._grid_layout is not None:  # a closed grid: every vertex is on a closed row or a closed column
             return np.ones(self.n_vertices, dtype=bool)
         mask = np.zeros(self.n_vertices, dtype=bool)
         mask[self.windows[:, 1:3].reshape(-1)] = True
@@ -549,13 +539,14 @@ def _grid_windows(rows: int, cols: int, wrap_rows: bool = False, wrap_cols: bool
     return out
 
 
-def _closed_grid_walk(rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) -> tuple[np.ndarray, np.ndarray]:
-    """:attr:`Topology.window_walk` of a cylinder or torus grid (at least 4 × 4), by index arithmetic: its lines in
-    :func:`_closed_grid_lines`' order, a closed one followed by its first three vertices again.
+def _grid_walk(rows: int, cols: int, wrap_rows: bool = False, wrap_cols: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """:attr:`Topology.window_walk` of a grid (open, or a cylinder or torus of at least 4 × 4), by index arithmetic:
+    its lines in :func:`_grid_lines`' order, a closed one followed by its first three vertices again; windows start
+    at each open line's first ``L − 3`` nodes and at every node of a closed one.
 
     Examples
     --------
-    >>> ext, start = _closed_grid_walk(4, 4, False, True)  # rings of 4 (each laid out as 7), open columns of 4
+    >>> ext, start = _grid_walk(4, 4, False, True)  # rings of 4 (each laid out as 7), open columns of 4
     >>> ext[:11].tolist(), start[:6].tolist()
     ([0, 1, 2, 3, 0, 1, 2, 0, 4, 8, 12], [0, 1, 2, 3, 7, 11])
     """
@@ -564,8 +555,8 @@ def _closed_grid_walk(rows: int, cols: int, wrap_rows: bool, wrap_cols: bool) ->
     col_walk = np.concatenate([ids.T, ids.T[:, :3]], axis=1) if wrap_rows else ids.T
     ext = np.concatenate([row_walk[0], col_walk.reshape(-1), row_walk[1:].reshape(-1)])
     (_, rw), (_, cw) = row_walk.shape, col_walk.shape
-    kr = cols if wrap_cols else cols - 3
-    kc = rows if wrap_rows else rows - 3
+    kr = cols if wrap_cols else max(cols - 3, 0)
+    kc = rows if wrap_rows else max(rows - 3, 0)
     start = np.concatenate([np.arange(kr, dtype=np.int64),
                             (rw + cw * np.arange(cols, dtype=np.int64)[:, None] + np.arange(kc)).reshape(-1),
                             (rw + cols * cw + rw * np.arange(rows - 1, dtype=np.int64)[:, None]

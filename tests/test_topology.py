@@ -127,7 +127,7 @@ def test_line_indexing():
 def test_grid_fast_path_equals_tracing(rows, cols, seed, reverse):
     """A complete vertex grid skips the tracing; the lines are exactly the traced ones,
     whatever the faces' order, starting corner and orientation."""
-    from quadnodes.topology import Topology, _trace_lines
+    from quadnodes.topology import Topology, _trace_lines, _window_walk
 
     rng = np.random.default_rng(seed)
     f = grid(rows, cols).faces[rng.permutation((rows - 1) * (cols - 1))]
@@ -139,6 +139,8 @@ def test_grid_fast_path_equals_tracing(rows, cols, seed, reverse):
     fast, traced = topo.structure_lines, _trace_lines(topo.edges, topo._successor)
     assert np.array_equal(fast.indices, traced.indices) and np.array_equal(fast.offsets, traced.offsets)
     assert not fast.closed.any() and not traced.closed.any()
+    ext, start, _ = _window_walk(traced)  # and its walk by index arithmetic, the traced lines' walk
+    assert all(np.array_equal(a, b) for a, b in zip(topo.window_walk, (ext, start)))
 
 
 @given(st.integers(3, 10), st.integers(3, 10), st.sampled_from(["cylinder", "torus", "rings"]),

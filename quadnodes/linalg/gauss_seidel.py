@@ -430,24 +430,18 @@ def gauss_seidel_cg(
 
     seam = getattr(sw, "seam", None)
 
-    def seam_step() -> np.ndarray:
-        """A step's sweeps where the couplings ``S̃`` across a closed grid's seams are kept out of them: with
-        ``M̃ = (I + L) + (I + U) − I + S̃``, ``Âp = t + (I + L)⁻¹ (p − t + S̃ t)`` — the backward sweeps whole, then
-        ``S̃ t`` added to ``p`` on the seam's rows for the forward sweeps (and taken off after); the dots ``p·Âp``."""
+    def interiors_with_seam() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Both sweeps of the interiors where the couplings ``S̃`` across a closed grid's seam are kept out of them:
+        with ``M̃ = (I + L) + (I + U) − I + S̃``, ``Âp = t + (I + L)⁻¹ (p − t + S̃ t)`` — the backward sweeps whole,
+        then ``S̃ t`` added to ``p`` on the seam's rows for the forward sweeps (the separators' too: the caller
+        restores ``p`` after them). Returns the interiors' dots, ``S̃ t`` and ``p``'s kept rows."""
         rows, first, cols, vals = seam  # type: ignore[misc]
-        for i, p in enumerate(separators, len(interiors)):
-            sw.backward(Rh, P, T, beta, scratch[i][0], p)
         run_tasks(lambda i, p: sw.backward(Rh, P, T, beta, scratch[i][0], p), tasks)
         ST = np.add.reduceat(T[:, cols] * vals, first[:-1], axis=1)
         kept = P[:, rows]  # (a copy: P is restored exactly after)
         P[:, rows] = kept + ST
         run_tasks(lambda i, p: sw.forward(P, T, W, scratch[i][0], p, scratch[i][1]), tasks)
-        dots = sum(scratch[i][1] for i in range(len(interiors)))
-        for i, p in enumerate(separators, len(interiors)):
-            sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
-            dots = dots + scratch[i][1]
-        P[:, rows] = kept
-        return dots - np.einsum("ij,ij->i", ST, T[:, rows] + W[:, rows])
+        return sum(scratch[i][1] for i in range(len(interiors))), ST, kept
 
     def update(lo: int, hi: int) -> np.ndarray:
         out = np.empty(c)
@@ -474,15 +468,18 @@ def gauss_seidel_cg(
         beta = zero
         start = steps
         while steps < maxiter and (rr > tol2).any():
-            if seam is not None:
-                pq = seam_step()
-            else:
-                for i, p in enumerate(separators, len(interiors)):
-                    sw.backward(Rh, P, T, beta, scratch[i][0], p)
+            for i, p in enumerate(separators, len(interiors)):
+                sw.backward(Rh, P, T, beta, scratch[i][0], p)
+            if seam is None:
                 pq = sum(run_tasks(interior, tasks))
-                for i, p in enumerate(separators, len(interiors)):
-                    sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
-                    pq = pq + scratch[i][1]
+            else:
+                pq, ST, kept = interiors_with_seam()
+            for i, p in enumerate(separators, len(interiors)):
+                sw.forward(P, T, W, scratch[i][0], p, scratch[i][1])
+                pq = pq + scratch[i][1]
+            if seam is not None:  # p restored; p·Âp from the dots the sweeps took with p + S̃ t
+                P[:, seam[0]] = kept
+                pq = pq - np.einsum("ij,ij->i", ST, T[:, seam[0]] + W[:, seam[0]])
             if not (pq[rr > tol2] > 0).all():  # a breakdown (M not positive definite in floating point)
                 return result(float(np.inf))
             alpha = np.divide(rr, pq, out=np.zeros(c), where=pq > 0)
