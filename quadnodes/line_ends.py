@@ -58,38 +58,65 @@ RING_SCALE = 0.5
 LINE_END_MARGIN = 4.0
 
 
-def ring_arms(topology: object) -> np.ndarray:
+def ring_arms(topology: object, where: np.ndarray | None = None) -> np.ndarray:
     """Directed arms ``(v, j)``: every edge at an interior vertex, the boundary edges at a boundary vertex.
 
     Parameters
     ----------
     topology : quadnodes.topology.Topology
+    where : (n,) bool or int indices, optional
+        Only the arms of these vertices (the rows of the whole ring whose ``v`` is one), made from the
+        edges at them alone. Fairing asks for the few vertices that are no window's middle: on a 10⁶-vertex
+        cube-sphere its eight corners' arms take 10 ms where sorting the whole ring took 0.5–0.7 s.
 
     Returns
     -------
     (a, 2) int64
-        Sorted by ``v``; each interior edge appears once per direction.
+        Sorted by ``v``, then ``j``; each interior edge appears once per direction.
+
+    Raises
+    ------
+    InputError
+        On a malformed ``where`` (as ``fixed`` in :func:`quadnodes.topology.fixed_vertices`).
 
     Examples
     --------
     >>> from quadnodes.mesh import grid
     >>> ring_arms(grid(2, 2).topology).tolist()  # a single quad: every vertex is on the boundary
     [[0, 1], [0, 2], [1, 0], [1, 3], [2, 0], [2, 3], [3, 1], [3, 2]]
+    >>> t = grid(3, 3).topology
+    >>> ring_arms(t, t.vertex_face_count == 4).tolist()  # the centre's four arms
+    [[4, 1], [4, 3], [4, 5], [4, 7]]
+    >>> ring_arms(t, [1]).tolist()  # an edge middle: its two boundary edges
+    [[1, 0], [1, 2]]
     """
+    if where is not None:
+        return _arms(topology, _validate.vertex_mask(where, topology.n_vertices, "where"))  # type: ignore[attr-defined]
     try:
         return _ARMS[topology]
     except KeyError:
         pass
-    e = topology.edges  # type: ignore[attr-defined]
-    be = topology.boundary_edges  # type: ignore[attr-defined]
-    bnd = topology.boundary_vertices  # type: ignore[attr-defined]
-    d = np.concatenate([e, e[:, ::-1]])
-    on_b = np.concatenate([be, be])
-    arm = d[~bnd[d[:, 0]] | on_b]
-    arm = arm[np.lexsort((arm[:, 1], arm[:, 0]))]
+    arm = _arms(topology, None)
     arm.setflags(write=False)
     _ARMS[topology] = arm
     return arm
+
+
+def _arms(topology: object, where: np.ndarray | None) -> np.ndarray:
+    """:func:`ring_arms` of the vertices ``where`` (all where None), from the edges at them."""
+    e = topology.edges  # type: ignore[attr-defined]
+    be = topology.boundary_edges  # type: ignore[attr-defined]
+    bnd = topology.boundary_vertices  # type: ignore[attr-defined]
+    if where is not None:  # (two gathers over the edges; the sort below then sees only the marked vertices' arms)
+        at = where[e[:, 0]] | where[e[:, 1]]
+        e, be = e[at], be[at]
+    d = np.concatenate([e, e[:, ::-1]])
+    on_b = np.concatenate([be, be])
+    keep = ~bnd[d[:, 0]] | on_b
+    if where is not None:
+        keep &= where[d[:, 0]]
+    arm = d[keep]
+    return arm[np.lexsort((arm[:, 1], arm[:, 0]))]
 
 
 #: :func:`ring_arms` per topology (made from the topology alone; goes with the mesh).
@@ -98,10 +125,9 @@ _ARMS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def _arms_of(topology: object, pairs: np.ndarray) -> np.ndarray:
     """The arms of the vertices of ``pairs`` only: the rows of ``T`` that the line-end rows use."""
-    arms = ring_arms(topology)
     used = np.zeros(topology.n_vertices, dtype=bool)  # type: ignore[attr-defined]
     used[pairs.reshape(-1)] = True
-    return arms[used[arms[:, 0]]]
+    return ring_arms(topology, used)
 
 
 def turning_matrix(vertices: np.ndarray, arms: np.ndarray, *, line_spacing: str = "fair") -> sp.csr_matrix:
@@ -169,9 +195,9 @@ def line_end_arms(topology: object, where: np.ndarray) -> np.ndarray:
     >>> line_end_arms(t, ~t.window_middle).tolist()  # the centre's arms (the edge middles' lead to corners)
     [[1, 4], [3, 4], [4, 5], [4, 7]]
     """
-    arms = ring_arms(topology)
+    arms = ring_arms(topology, where)
     corner = topology.corner_vertices  # type: ignore[attr-defined]
-    a = arms[where[arms[:, 0]] & ~corner[arms].any(axis=1)]
+    a = arms[~corner[arms].any(axis=1)]
     if len(a) == 0:
         return np.empty((0, 2), dtype=np.int64)
     return unique_rows(np.sort(a, axis=1)).astype(np.int64)

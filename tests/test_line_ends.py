@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from quadnodes.fairing import _line_end_pairs, fair
+from quadnodes.errors import InputError
 from quadnodes.io import load
 from quadnodes.line_ends import (LINE_END_MARGIN, line_end_arms, line_end_energy, line_end_free, line_end_measure,
                                  line_end_rows, ring_arms, turning_matrix)
@@ -58,6 +59,30 @@ def test_rows_are_invariant_under_translation_rotation_and_scale(mesh, spacing, 
     m0 = line_end_measure(mesh.vertices, t, pairs, line_spacing=spacing)
     m1 = line_end_measure(moved, t, pairs, line_spacing=spacing)
     np.testing.assert_allclose(m1, m0, rtol=1e-8, atol=1e-12)
+
+
+@given(irregular(), st.integers(0, 2**31 - 1), st.floats(0.0, 1.0))
+def test_the_arms_of_some_vertices_are_those_rows_of_the_whole_ring(mesh, seed, share):
+    t = mesh.topology
+    where = np.random.default_rng(seed).random(mesh.n_vertices) < share
+    whole = ring_arms(t)
+    some = ring_arms(t, where)
+    assert some.dtype == np.int64
+    np.testing.assert_array_equal(some, whole[where[whole[:, 0]]])  # the same rows, in the same order
+    np.testing.assert_array_equal(ring_arms(t, np.flatnonzero(where)), some)  # indices as a mask
+    # (line_end_arms and the turning rows take them: their results are what the whole ring gave)
+    every = ~t.window_middle
+    a = whole[every[whole[:, 0]] & ~t.corner_vertices[whole].any(axis=1)]
+    expected = np.unique(np.sort(a, axis=1), axis=0) if len(a) else np.empty((0, 2), np.int64)
+    np.testing.assert_array_equal(line_end_arms(t, every), expected)
+
+
+def test_the_arms_refuse_a_malformed_vertex_selection():
+    t = grid(3, 3).topology
+    with pytest.raises(InputError, match="where"):
+        ring_arms(t, np.ones(4, bool))
+    with pytest.raises(InputError, match="where"):
+        ring_arms(t, [9])
 
 
 @given(irregular())
