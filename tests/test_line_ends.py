@@ -12,13 +12,13 @@ from hypothesis import strategies as st
 from quadnodes.fairing import _line_end_pairs, fair
 from quadnodes.errors import InputError
 from quadnodes.io import load
-from quadnodes.line_ends import (LINE_END_MARGIN, line_end_arms, line_end_energy, line_end_free, line_end_measure,
+from quadnodes.line_ends import (LINE_END_MARGIN, RING_SCALE, line_end_arms, line_end_energy, line_end_free, line_end_measure,
                                  line_end_rows, ring_arms, turning_matrix)
-from quadnodes.mesh import QuadMesh, grid
+from quadnodes.mesh import QuadMesh, cylinder, grid, torus
 from quadnodes.noise import perturb
 from quadnodes.topology import fixed_vertices
 from meshes import extraordinary_mesh
-from strategies import irregular
+from strategies import irregular, meshes
 
 DATA = Path(__file__).parent / "data"
 
@@ -61,28 +61,59 @@ def test_rows_are_invariant_under_translation_rotation_and_scale(mesh, spacing, 
     np.testing.assert_allclose(m1, m0, rtol=1e-8, atol=1e-12)
 
 
-@given(irregular(), st.integers(0, 2**31 - 1), st.floats(0.0, 1.0))
+def _closed_or_loose(kind: str, rows: int, cols: int) -> QuadMesh:
+    """A cylinder or torus grid, or a grid with a vertex in no face (first or last)."""
+    if kind == "cylinder":
+        return cylinder(rows, cols)
+    if kind == "torus":
+        return torus(rows, cols)
+    g = grid(rows, cols)
+    loose = np.array([[0.5, 0.5, 9.0]])
+    if kind == "loose first":
+        return QuadMesh(np.vstack([loose, g.vertices]), g.faces + 1)
+    return QuadMesh(np.vstack([g.vertices, loose]), g.faces)
+
+
+_ARM_MESHES = st.one_of(meshes(), st.builds(_closed_or_loose, st.sampled_from(["cylinder", "torus", "loose first",
+                                                                               "loose last"]),
+                                            st.integers(3, 7), st.integers(3, 8)))
+
+
+@given(_ARM_MESHES, st.integers(0, 2**31 - 1), st.floats(0.0, 1.0))
 def test_the_arms_of_some_vertices_are_those_rows_of_the_whole_ring(mesh, seed, share):
     t = mesh.topology
-    where = np.random.default_rng(seed).random(mesh.n_vertices) < share
+    rng = np.random.default_rng(seed)
+    where = rng.random(mesh.n_vertices) < share
     whole = ring_arms(t)
     some = ring_arms(t, where)
     assert some.dtype == np.int64
     np.testing.assert_array_equal(some, whole[where[whole[:, 0]]])  # the same rows, in the same order
     np.testing.assert_array_equal(ring_arms(t, np.flatnonzero(where)), some)  # indices as a mask
-    # (line_end_arms and the turning rows take them: their results are what the whole ring gave)
-    every = ~t.window_middle
-    a = whole[every[whole[:, 0]] & ~t.corner_vertices[whole].any(axis=1)]
-    expected = np.unique(np.sort(a, axis=1), axis=0) if len(a) else np.empty((0, 2), np.int64)
-    np.testing.assert_array_equal(line_end_arms(t, every), expected)
+    # line_end_arms on any selection: what the whole ring gave (its arms at no corner, each edge once)
+    for marked in (where, ~t.window_middle):
+        a = whole[marked[whole[:, 0]] & ~t.corner_vertices[whole].any(axis=1)]
+        expected = np.unique(np.sort(a, axis=1), axis=0) if len(a) else np.empty((0, 2), np.int64)
+        np.testing.assert_array_equal(line_end_arms(t, marked), expected)
+    # and the turning rows built from them: the whole ring's rows of the pairs' vertices
+    pairs = line_end_arms(t, where)
+    if len(pairs):
+        used = np.zeros(mesh.n_vertices, bool)
+        used[pairs.reshape(-1)] = True
+        R = line_end_rows(mesh.vertices, t, pairs)
+        T = turning_matrix(mesh.vertices, whole[used[whole[:, 0]]])
+        i, j = pairs[:, 0], pairs[:, 1]
+        expected = 0.5 * RING_SCALE * (T[i] - T[j])
+        np.testing.assert_allclose(R.toarray(), expected.toarray(), rtol=1e-13, atol=1e-13)
 
 
 def test_the_arms_refuse_a_malformed_vertex_selection():
     t = grid(3, 3).topology
-    with pytest.raises(InputError, match="where"):
-        ring_arms(t, np.ones(4, bool))
-    with pytest.raises(InputError, match="where"):
-        ring_arms(t, [9])
+    for bad, what in ((np.ones(4, bool), "shape"), ([9], "range"), (np.ones(9, int), "zeros and ones"),
+                      (np.ones(9), "dtype")):
+        with pytest.raises(InputError, match="where"):
+            ring_arms(t, bad)
+        with pytest.raises(InputError, match="where"):
+            line_end_arms(t, bad)
 
 
 @given(irregular())
