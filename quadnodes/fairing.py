@@ -159,6 +159,15 @@ TWO_GRID_REMAINING = 700
 #: ω = 3·10⁻⁵, where Gauss–Seidel had 1,826 to go, it won 7.99 against 8.36 s (``--size 600``). A step of the
 #: cycle cost about ten Gauss–Seidel steps at 300² and about 16 at 1000², and the factorization grows faster still.
 TWO_GRID_REMAINING_COARSE = 6_000
+#: ... and on the structure lines (a mesh that is no grid, :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) the
+#: square root stops at this many coarse nodes. Their Gauss–Seidel step sweeps compressed rows, dearer next to the
+#: cycle than a grid's fast sweeps, and above 450,000 unknowns they keep every 4th line, not every 3rd. On the
+#: 998,786-vertex cube-sphere (62,426 coarse nodes) at ω = 10⁻⁴, with the grids' price (2,258 steps), "auto" kept
+#: Gauss–Seidel for 2,222 steps and 63.1 s; priced at 700, it switched after 300 and took 375 steps and 40.0 s. The
+#: switch, with its set-up, cost what some 1,300 Gauss–Seidel steps of 25 ms did there, and some 1,100 at 101k
+#: vertices (a coarse space of about 15,000, session 15's ``multigrid.py --solver --mesh cube-sphere --size 130``).
+#: A cap at 20,000 prices both: 1,107 and 1,278.
+TWO_GRID_LINE_REMAINING_COARSE = 20_000
 #: On a mesh that is no grid the two-grid path keeps every this many structure lines (not
 #: :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`, the grids' 4) up to :data:`TWO_GRID_LINE_STRIDE_MAX`
 #: unknowns. Its compressed-row sweeps, residuals and transfers cost more per step than a grid's, so halving
@@ -934,15 +943,18 @@ def _patch_order(windows: np.ndarray, free_index: np.ndarray, side: int = 4) -> 
     return np.argsort(key, kind="stable")
 
 
-def _switch_remaining(coarse: int) -> float:
+def _switch_remaining(coarse: int, lines: bool = False) -> float:
     """How many more Gauss–Seidel steps the two-grid path with ``coarse`` coarse nodes is worth:
-    :data:`TWO_GRID_REMAINING`, times √(``coarse`` / :data:`TWO_GRID_REMAINING_COARSE`) above that size.
+    :data:`TWO_GRID_REMAINING`, times √(``coarse`` / :data:`TWO_GRID_REMAINING_COARSE`) above that size; on the
+    structure lines (``lines``) with ``coarse`` taken at most :data:`TWO_GRID_LINE_REMAINING_COARSE`.
 
     Examples
     --------
-    >>> _switch_remaining(5_776), round(_switch_remaining(63_001))
-    (700.0, 2268)
+    >>> _switch_remaining(5_776), round(_switch_remaining(63_001)), round(_switch_remaining(62_426, lines=True))
+    (700.0, 2268, 1278)
     """
+    if lines:
+        coarse = min(coarse, TWO_GRID_LINE_REMAINING_COARSE)
     return TWO_GRID_REMAINING * max(1.0, float(np.sqrt(coarse / TWO_GRID_REMAINING_COARSE)))
 
 
@@ -1543,7 +1555,8 @@ class FairingSystem:
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
                     rtol = min(rtol, guard)
-            check = None if self._switch_to is None else _SwitchCheck(rtol, _switch_remaining(self._coarse))
+            check = None if self._switch_to is None else _SwitchCheck(
+                rtol, _switch_remaining(self._coarse, lines=sp.issparse(self._switch_to)))
             if check is not None:  # Gauss–Seidel, watched: it stops where the two-grid cycle would be faster
                 y, its, res = gauss_seidel_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS,
                                               sweeps=precond, monitor=check)

@@ -1973,6 +1973,17 @@ def test_switch_remaining_grows_with_the_coarse_space():
     assert _switch_remaining(4 * TWO_GRID_REMAINING_COARSE) == pytest.approx(2 * TWO_GRID_REMAINING)
 
 
+def test_switch_remaining_on_the_lines_stops_growing():
+    """On the structure lines the price grows as on a grid up to TWO_GRID_LINE_REMAINING_COARSE coarse nodes, then
+    stays (their compressed-row Gauss–Seidel steps cost more next to the cycle)."""
+    from quadnodes.fairing import TWO_GRID_LINE_REMAINING_COARSE as cap
+    from quadnodes.fairing import _switch_remaining
+
+    assert _switch_remaining(1_000, lines=True) == _switch_remaining(1_000)
+    assert _switch_remaining(cap, lines=True) == _switch_remaining(cap)
+    assert _switch_remaining(5 * cap, lines=True) == _switch_remaining(cap) < _switch_remaining(5 * cap)
+
+
 def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):
     """At tiny weights a residual within rtol leaves smooth error far beyond it: the error guard (‖r‖₂ ≤ 1e-8 ·
     extent · ω · √k) keeps it (the 120² bench sheet, ω = 1e-6: 2.0e-7 of the extent without, within 1e-8 with it),
