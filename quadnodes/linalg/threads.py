@@ -11,6 +11,7 @@ runs inside :func:`blas_pinned`, which limits BLAS to one thread with
 from __future__ import annotations
 
 import contextlib
+import importlib.machinery
 import os
 import sys
 import threading
@@ -183,41 +184,36 @@ _CONTROLLER: object | None = None
 
 
 def _library_count() -> int:
-    """How many shared objects the process has loaded (a BLAS can only arrive as one): ``dl_iterate_phdr``
-    through ctypes, about 50 µs, where ``threadpoolctl``'s scan of them costs about 20 ms; elsewhere the
-    number of imported modules (a BLAS arrives with an extension module)."""
-    global _PHDR
-    if _PHDR is None:
-        try:
-            import ctypes
+    """How many extension modules the process has imported: a BLAS arrives with one (NumPy's, SciPy's, or a
+    library's own), so a new one is the cue to scan for BLAS libraries again.
 
-            libc = ctypes.CDLL(None)
-            callback = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
-            libc.dl_iterate_phdr.argtypes = [callback, ctypes.c_void_p]
-            count = [0]
-
-            def one(info: object, size: int, data: object) -> int:
-                count[0] += 1
-                return 0
-
-            keep = callback(one)
-
-            lock = threading.Lock()
-
-            def loaded() -> int:
-                with lock:  # (one counter for all threads)
-                    count[0] = 0
-                    libc.dl_iterate_phdr(keep, None)
-                    return count[0]
-
-            loaded()
-            _PHDR = loaded
-        except (OSError, AttributeError):  # pragma: no cover - not a glibc/ELF system
-            _PHDR = lambda: len(sys.modules)  # noqa: E731
-    return _PHDR()
+    Counted from ``sys.modules`` (the modules whose spec's origin is a shared object), again only when its
+    size changed: O(1) between imports, about a millisecond after one. Not by ``dl_iterate_phdr`` through
+    ctypes, as it was: its callback into Python runs under glibc's loader lock and needs the GIL, while a
+    thread that imports an extension module calls ``dlopen`` holding the GIL and waits for that lock — a
+    deadlock (``tests/linalg/test_threads.py``; threadpoolctl #239), which hung ``quadnodes watch`` when the
+    kernel loader's scan met the first fair's imports. A BLAS loaded by hand (``ctypes.CDLL``) is seen at the
+    next extension module's import.
+    """
+    with _COUNT_LOCK:
+        size = len(sys.modules)
+        if size != _COUNTED[0]:
+            _COUNTED[:] = [size, sum(1 for m in list(sys.modules.values()) if _is_extension(m))]
+        return _COUNTED[1]
 
 
-_PHDR: Callable[[], int] | None = None
+def _is_extension(module: object) -> bool:
+    """Whether ``module`` was loaded from a shared object (its spec's origin ends in an extension suffix)."""
+    try:
+        origin = getattr(getattr(module, "__spec__", None), "origin", None)
+    except Exception:  # (a lazy module that imports on attribute access: not a loaded shared object)
+        return False
+    return isinstance(origin, str) and origin.endswith(_EXTENSION_SUFFIXES)
+
+
+_EXTENSION_SUFFIXES = tuple(importlib.machinery.EXTENSION_SUFFIXES)
+_COUNT_LOCK = threading.Lock()
+_COUNTED = [-1, 0]  # (len(sys.modules) at the last count, the count)
 
 
 def prime_blas_controller() -> None:

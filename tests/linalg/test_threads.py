@@ -47,3 +47,41 @@ def test_split_ranges_refuses_bad_arguments():
     for kwargs in ({"count": -1}, {"count": 5, "parts": 0}, {"count": 5, "min_size": 0}, {"count": 5, "align": 0}):
         with pytest.raises(ValueError, match="split_ranges"):
             split_ranges(**kwargs)
+
+
+def test_the_blas_scan_cue_cannot_deadlock_a_thread_loading_shared_objects(tmp_path):
+    """One thread asks for the shared-object count (as the kernel loader's BLAS scan does) while another loads new
+    shared objects with the GIL held (as an extension module's import does; here ``ctypes.CDLL`` of 120 fresh copies
+    of a small one). Counted by ``dl_iterate_phdr`` with a callback into Python, this deadlocked every time (the
+    callback waits for the GIL under glibc's loader lock, ``dlopen`` waits for that lock holding the GIL); ``quadnodes
+    watch`` hung so in CI. In a child process, with a timeout."""
+    import importlib.util
+    import subprocess
+    import sys
+    import textwrap
+
+    small = next((spec.origin for spec in map(importlib.util.find_spec, ("_bisect", "_heapq", "_json", "_csv", "_lsprof"))
+                  if spec is not None and str(spec.origin).endswith(".so")), None)
+    if small is None:
+        pytest.skip("no small extension module in a shared object to copy")
+    code = textwrap.dedent(
+        f"""
+        import ctypes, shutil, threading
+        from quadnodes.linalg import threads
+        paths = [shutil.copy({small!r}, {str(tmp_path)!r} + f"/lib{{i}}.so") for i in range(120)]
+        stop = []
+        def count():
+            while not stop:
+                threads._library_count()
+        t = threading.Thread(target=count, daemon=True)
+        t.start()
+        for p in paths:
+            ctypes.CDLL(p)
+        stop.append(True)
+        t.join(10)
+        print("ok")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
