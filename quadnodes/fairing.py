@@ -159,14 +159,17 @@ TWO_GRID_REMAINING = 700
 #: ω = 3·10⁻⁵, where Gauss–Seidel had 1,826 to go, it won 7.99 against 8.36 s (``--size 600``). A step of the
 #: cycle cost about ten Gauss–Seidel steps at 300² and about 16 at 1000², and the factorization grows faster still.
 TWO_GRID_REMAINING_COARSE = 6_000
-#: ... and on the structure lines (a mesh that is no grid, :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) the
-#: square root stops at this many coarse nodes. Their Gauss–Seidel step sweeps compressed rows, dearer next to the
-#: cycle than a grid's fast sweeps, and above 450,000 unknowns they keep every 4th line, not every 3rd. On the
-#: 998,786-vertex cube-sphere (62,426 coarse nodes) at ω = 10⁻⁴, with the grids' price (2,258 steps), "auto" kept
-#: Gauss–Seidel for 2,222 steps and 63.1 s; priced at 700, it switched after 300 and took 375 steps and 40.0 s. The
-#: switch, with its set-up, cost what some 1,300 Gauss–Seidel steps of 25 ms did there, and some 1,100 at 101k
-#: vertices (a coarse space of about 15,000, session 15's ``multigrid.py --solver --mesh cube-sphere --size 130``).
-#: A cap at 20,000 prices both: 1,107 and 1,278.
+#: ... and on the structure lines (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`: a mesh that is no grid, or a
+#: grid under 60 % free) the square root stops at this many coarse nodes; measured on that cycle only. On the
+#: 998,786-vertex cube-sphere (62,426 coarse nodes, every 4th line) at ω = 10⁻⁴ the grids' price (2,258 steps) kept
+#: Gauss–Seidel for all its 2,222 steps: 50.7 s, against 35.4 s and 375 steps priced at 1,278 (``python
+#: benchmarks/perf/bench_core.py --sizes 1000 --cube-sphere --noise broadband --only fair --weight 0.0001 --repeat 1
+#: --against``, one run each; a throwaway pair gave 63.1 against 40.0 s). From those runs the switch, set-up
+#: included, cost what some 1,050–1,200 Gauss–Seidel steps did. On the 399,386-vertex one (every 3rd line) 21.5
+#: against 12.1 s (``--sizes 632``); on 303,689 random quads (42,739 coarse nodes, tangled lines) at 2·10⁻⁴ the
+#: capped price switched after 300 steps where the grids' (1,868) switched after 600: 42.1 against 46.3 s (a
+#: throwaway pair). Below the cap nothing changes: the 101k cube-sphere's 11,618 coarse nodes are priced 974, as
+#: before (session 15 put its break-even near 1,100, on that session's engine). A fit to these points, not a model.
 TWO_GRID_LINE_REMAINING_COARSE = 20_000
 #: On a mesh that is no grid the two-grid path keeps every this many structure lines (not
 #: :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`, the grids' 4) up to :data:`TWO_GRID_LINE_STRIDE_MAX`

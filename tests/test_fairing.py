@@ -1984,6 +1984,26 @@ def test_switch_remaining_on_the_lines_stops_growing():
     assert _switch_remaining(5 * cap, lines=True) == _switch_remaining(cap) < _switch_remaining(5 * cap)
 
 
+def test_the_switch_is_priced_on_the_lines_as_lines_and_on_a_grid_as_a_grid(monkeypatch):
+    """Where "auto" may switch, Gauss–Seidel's monitor asks _switch_remaining for the price of the coarse space it
+    would switch to: with lines=True for the structure lines' cycle (a holed L-shape), lines=False for a grid's."""
+    import quadnodes.fairing as fairing_module
+
+    asked = []
+    priced = fairing_module._switch_remaining
+    monkeypatch.setattr(fairing_module, "_switch_remaining",
+                        lambda coarse, lines=False: asked.append((coarse, lines)) or priced(coarse, lines))
+    rng = np.random.default_rng(3)
+    for m, kw in ((l_shape_with_hole(50), "_lines"), (grid(48, 41, spacing=0.5), "_topology")):
+        m = m.with_vertices(m.vertices + rng.normal(scale=0.2 * m.mean_edge_length, size=m.vertices.shape))
+        free = m.topology.window_middle & ~m.topology.boundary_vertices
+        extra = {"_lines": m.topology.structure_lines} if kw == "_lines" else {"_topology": m.topology}
+        s = FairingSystem(m.vertices, m.topology.windows, free, 1e-6 / m.mean_edge_length**2, solver="cg", **extra)
+        s.solve(m.vertices[free])
+        assert asked and asked[-1] == (s._coarse, kw == "_lines"), asked
+        asked.clear()
+
+
 def test_gauss_seidel_at_tiny_weights_keeps_to_the_direct_solve(monkeypatch):
     """At tiny weights a residual within rtol leaves smooth error far beyond it: the error guard (‖r‖₂ ≤ 1e-8 ·
     extent · ω · √k) keeps it (the 120² bench sheet, ω = 1e-6: 2.0e-7 of the extent without, within 1e-8 with it),
