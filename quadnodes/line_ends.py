@@ -105,7 +105,6 @@ def ring_arms(topology: object, where: np.ndarray | None = None) -> np.ndarray:
     return arm[np.lexsort((arm[:, 1], arm[:, 0]))]
 
 
-
 def _arms_of(topology: object, pairs: np.ndarray) -> np.ndarray:
     """The arms of the vertices of ``pairs`` only: the rows of ``T`` that the line-end rows use."""
     used = np.zeros(topology.n_vertices, dtype=bool)  # type: ignore[attr-defined]
