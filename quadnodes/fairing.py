@@ -31,7 +31,8 @@ from ._arrays import unique_rows
 from .errors import InputError
 from .linalg import factorize
 from .linalg.cg import (HAS_DIAGONAL_KERNEL, BlockJacobi, DiagonalBlocks, LinePreconditioner,
-                        PathLinePreconditioner, SymmetricDiagonalBlocks, block_cg, permuted)
+                        PathLinePreconditioner, SymmetricDiagonalBlocks, block_cg, permuted,
+                        strongest_lines)
 from .linalg import compiled as kernels
 from .linalg import spectral
 from .linalg.gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, gauss_seidel_cg
@@ -194,6 +195,13 @@ TWO_GRID_LINE_STRIDE_MAX = 450_000
 #: (``python benchmarks/studies/multigrid.py --solver --mesh cylinder --size 200 --aspect 2 --weights 0.00001
 #: --strides 4``, and ``--aspect 6``, ``--aspect 1.5``; on 300² cylinders and tori, ``docs/fairing.md``).
 TWO_GRID_ANISOTROPY = 2.5
+#: The structure lines' two-grid cycle adds a damped line step (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`'s
+#: ``lines``, :meth:`FairingSystem._line_smoothing`) where more than LINE_SMOOTHING_SHARE of the unknowns are tied
+#: over LINE_SMOOTHING_RATIO times more strongly along one line than along the other
+#: (:func:`~quadnodes.linalg.cg.strongest_lines`): long, thin faces, where the point sweeps leave error that
+#: is smooth along the strong line and rough across it.
+LINE_SMOOTHING_RATIO = 10.0
+LINE_SMOOTHING_SHARE = 0.01
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "spectral", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -1454,7 +1462,7 @@ class FairingSystem:
         structure lines' (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`)."""
         try:
             if sp.issparse(target):
-                self._cg = (blocks, LineTwoGrid(blocks, target), None)
+                self._cg = (blocks, LineTwoGrid(blocks, target, lines=self._line_smoothing(blocks.M)), None)
             else:
                 shape, wrap, strides = target
                 self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], stride=strides, wrap=wrap), None)
@@ -1466,6 +1474,27 @@ class FairingSystem:
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         self._switch_to = None
         return self._cg
+
+    def _line_smoothing(self, M: sp.csr_matrix) -> PathLinePreconditioner | None:
+        """The structure lines' cycle's line solves, where faces are long and thin: each unknown's most strongly
+        tied line (:func:`~quadnodes.linalg.cg.strongest_lines`), in stretches of consecutive unknowns, solved
+        along (:class:`~quadnodes.linalg.cg.PathLinePreconditioner`). None where at most
+        :data:`LINE_SMOOTHING_SHARE` of the unknowns are tied :data:`LINE_SMOOTHING_RATIO` times more strongly one way
+        than the other (the point sweeps do there), or where a band is not positive definite."""
+        path, starts, _ = _line_paths(self._lines, self.free_index, self._n_vertices)
+        if path.size == 0:
+            return None
+        ratio, strongest = strongest_lines(M, path, starts)
+        if np.count_nonzero(ratio > LINE_SMOOTHING_RATIO) <= LINE_SMOOTHING_SHARE * ratio.size:
+            return None
+        kept = np.flatnonzero(strongest)
+        stretch = starts[kept]
+        stretch[1:] |= kept[1:] != kept[:-1] + 1
+        stretch[0] = True
+        try:  # (the stretches open: a closed line kept whole leaves its seam's couplings to the sweeps)
+            return PathLinePreconditioner(M, path[kept], stretch)
+        except np.linalg.LinAlgError:  # pragma: no cover - a band of a definite M with its whole diagonal
+            return None
 
     def _line_prolongation(self) -> sp.csr_matrix:
         """The unknowns' rows of :func:`~quadnodes.linalg.multigrid.line_interpolation` on the structure lines

@@ -1,4 +1,4 @@
-"""Small test meshes beyond grids: extraordinary vertices, an L-shape with a hole."""
+"""Small test meshes beyond grids: extraordinary vertices, an L-shape with a hole, random quads with thin faces."""
 
 from __future__ import annotations
 
@@ -45,6 +45,19 @@ def extraordinary_mesh(levels: int = 2) -> QuadMesh:
         v, polys = subdivide(v, polys)
     v[:, 2] = 0.1 * np.sin(v[:, 0]) * np.cos(v[:, 1])
     return QuadMesh(v, np.array(polys))
+
+
+def random_quads(points: int, levels: int = 2, seed: int = 0) -> QuadMesh:
+    """The Delaunay triangulation of ``points`` seeded random points of the unit square (z a gentle wave), split
+    ``levels`` times: extraordinary vertices everywhere, and long thin faces where the triangles are slivers."""
+    from scipy.spatial import Delaunay
+
+    xy = np.random.default_rng(seed).random((points, 2))
+    v = np.column_stack([xy, 0.05 * np.sin(6 * xy[:, 0]) * np.cos(4 * xy[:, 1])])
+    polys = Delaunay(xy).simplices.tolist()
+    for _ in range(levels):
+        v, polys = subdivide(v, polys)
+    return QuadMesh(np.asarray(v), np.array(polys))
 
 
 def l_shape_with_hole(n: int = 9) -> QuadMesh:

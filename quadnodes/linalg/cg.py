@@ -21,7 +21,7 @@ except ImportError:  # pragma: no cover - then callers use CSR
     _dia_matvec = None
 
 __all__ = ["HAS_DIAGONAL_KERNEL", "DiagonalBlocks", "SymmetricDiagonalBlocks", "BlockJacobi", "LinePreconditioner",
-           "PathLinePreconditioner", "block_cg", "permuted"]
+           "PathLinePreconditioner", "strongest_lines", "block_cg", "permuted"]
 
 #: Whether SciPy's diagonal-storage kernel is available (else use :class:`RowBlocks`).
 HAS_DIAGONAL_KERNEL = _dia_matvec is not None
@@ -601,6 +601,77 @@ class PathLinePreconditioner:
             Zr[self._lone] = Rr[self._lone] * self._lone_inv[:, None]
         if columns:
             Z[:, :k] = Zr.T
+
+
+def strongest_lines(M: sp.spmatrix, path: np.ndarray, starts: np.ndarray, kd: int = 3
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Which of its paths ties each unknown most strongly, and how much more strongly than its weakest.
+
+    An entry's tie to its path is the mean of ``|M|`` between it and the entries up to ``kd`` steps along it. On a quad
+    mesh's structure lines an unknown lies on two paths, one each way; where faces are long and thin the line
+    along their short edges ties it far more strongly, and a point smoother is slow there.
+
+    Parameters
+    ----------
+    M : (k, k) sparse
+        Symmetric.
+    path : (S,) int64
+        The paths' unknowns, one path after another (as :class:`PathLinePreconditioner` takes them).
+    starts : (S,) bool
+        True where a new path begins.
+    kd : int
+        Steps along a path counted in an entry's tie (≥ 1).
+
+    Returns
+    -------
+    ratio : (k,) float64
+        Each unknown's strongest tie over its weakest, where it lies on two paths or more, at least ``kd`` steps from
+        each one's ends (near an end it is tied by fewer terms of the energy, whatever the faces' shape); 1
+        elsewhere, and where it is tied to none.
+    strongest : (S,) bool
+        One entry per unknown on a path: its first of the most strongly tied.
+
+    Examples
+    --------
+    >>> M = sp.lil_matrix((5, 5))
+    >>> M.setdiag(4.0)
+    >>> M[0, 1] = M[1, 0] = M[0, 2] = M[2, 0] = -1.0  # unknown 0 tied 1.0 along 1, 0, 2
+    >>> M[0, 3] = M[3, 0] = M[0, 4] = M[4, 0] = -0.1  # and 0.1 along 3, 0, 4
+    >>> ratio, strongest = strongest_lines(M, np.array([1, 0, 2, 3, 0, 4]), np.arange(6) % 3 == 0, kd=1)
+    >>> ratio.round(6).tolist(), strongest.tolist()
+    ([10.0, 1.0, 1.0, 1.0, 1.0], [True, True, True, True, False, True])
+    """
+    M = sp.csr_matrix(M)
+    M.sort_indices()
+    k = M.shape[0]
+    path = np.asarray(path, dtype=np.int64)
+    S = path.size
+    keys = np.repeat(np.arange(k, dtype=np.int64), np.diff(M.indptr)) * k + M.indices
+    seg = np.cumsum(np.asarray(starts, dtype=bool)) - 1
+    tie = np.zeros(S)
+    near = np.zeros(S)  # (the entries counted: fewer near a path's ends)
+    for d in range(1, max(1, kd) + 1):
+        same = seg[:-d] == seg[d:]
+        v = np.abs(np.where(same, PathLinePreconditioner._lookup(M, keys, path[:-d], path[d:]), 0.0))
+        tie[d:] += v
+        tie[:-d] += v
+        near[d:] += same
+        near[:-d] += same
+    tie /= np.maximum(near, 1.0)
+    inner = near == 2 * max(1, kd)  # (an entry with a whole neighbourhood on its path)
+    high = np.zeros(k)
+    low = np.full(k, np.inf)
+    np.maximum.at(high, path, tie)
+    np.minimum.at(low, path, tie)
+    ratio = np.ones(k)
+    two = ((np.bincount(path, minlength=k) >= 2) & (low > 0)
+           & (np.bincount(path, weights=~inner, minlength=k) == 0))
+    ratio[two] = high[two] / low[two]
+    top = np.flatnonzero(tie == high[path])
+    first = np.unique(path[top], return_index=True)[1]  # (the first of equals: one entry per unknown)
+    strongest = np.zeros(S, dtype=bool)
+    strongest[top[first]] = True
+    return ratio, strongest
 
 
 #: The line solves run on the pool's threads from this many nodes on (below, handing the lines

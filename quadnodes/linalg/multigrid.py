@@ -44,12 +44,13 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .cg import PathLinePreconditioner
 from .direct import Factorization, factorize
 from .gauss_seidel import CsrGaussSeidel, SymmetricGaussSeidel, backward_solve, forward_solve, sweep_scratch
 from .threads import RowBlocks
 
 __all__ = ["TWO_GRID_STRIDE", "coarse_matrix", "coarse_nodes", "cubic_interpolation", "grid_interpolation",
-           "line_interpolation", "TwoGrid", "LineTwoGrid"]
+           "line_interpolation", "line_spectral_radius", "LINE_DAMPING", "TwoGrid", "LineTwoGrid"]
 
 #: Coarse grid spacing, in grid rows and columns. On the 300² sheet from ω = 10⁻³ down: 2 takes 18–23 steps but
 #: factorizes a quarter of the unknowns (4.2–6.5 s in all); 4 takes 77–107 steps (1.7–2.4 s); 8 takes 289–650
@@ -462,6 +463,58 @@ def coarse_matrix(M: sp.spmatrix, P: sp.spmatrix) -> sp.csr_matrix:
     return (C + sp.diags(np.where(diagonal > 0, 1e-10 * diagonal, 1.0))).tocsr()
 
 
+#: The line step's damping times the largest eigenvalue of ``L⁻¹M`` (a contraction below 2). On a 111,873-vertex
+#: random quad mesh at ω = 10⁻⁶ (``python benchmarks/studies/multigrid.py --solver --mesh random --size 300``):
+#: 1.0 took 44 steps, 1.5 39, 1.9 38.
+LINE_DAMPING = 1.5
+#: Power steps estimating that eigenvalue (the M-inner product's Rayleigh quotient: it converges from below, and
+#: LINE_DAMPING leaves a margin of a third for it).
+LINE_DAMPING_STEPS = 12
+
+
+def line_spectral_radius(blocks: object, lines: PathLinePreconditioner, steps: int = LINE_DAMPING_STEPS,
+                         seed: int = 0) -> float:
+    """The largest eigenvalue of ``L⁻¹M`` (``L⁻¹``: ``lines``' solves), estimated by power steps.
+
+    ``L⁻¹M`` is self-adjoint in the ``M``-inner product, so its Rayleigh quotient ``(Mx)·(L⁻¹Mx) / (Mx)·x``
+    approaches the largest eigenvalue from below, quadratically faster than the iterates' norms.
+
+    Parameters
+    ----------
+    blocks : RowBlocks
+        ``M`` (symmetric positive definite; its ``M``).
+    lines : PathLinePreconditioner
+        Line solves on ``M``.
+    steps : int
+        Power steps (≥ 1).
+    seed : int
+        Seed of the random start.
+
+    Returns
+    -------
+    float
+        The estimate (positive).
+
+    Examples
+    --------
+    >>> from quadnodes.linalg.cg import PathLinePreconditioner
+    >>> M = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(6, 6), format="csr")
+    >>> lines = PathLinePreconditioner(M, np.arange(6), np.eye(1, 6, dtype=bool)[0], kd=1)  # one path: L = M
+    >>> round(line_spectral_radius(RowBlocks(M, threads=1), lines), 6)
+    1.0
+    """
+    M, n = blocks.M, lines.k  # type: ignore[attr-defined]
+    x = np.random.default_rng(seed).normal(size=(n, 1))
+    z = np.empty_like(x)
+    estimate = 1.0
+    for _ in range(max(1, steps)):
+        Mx = M @ x
+        lines.apply(Mx, z, 0, n, False)
+        estimate = float(Mx[:, 0] @ z[:, 0]) / float(Mx[:, 0] @ x[:, 0])
+        x = z / np.linalg.norm(z)
+    return estimate
+
+
 class _Cycle:
     """The symmetric two-grid cycle around Gauss–Seidel sweeps (see the module); subclasses give ``P``'s transfers."""
 
@@ -469,6 +522,10 @@ class _Cycle:
     sweeps: SymmetricGaussSeidel | CsrGaussSeidel
     coarse: Factorization
     _n: int
+    #: the damped line step beside the sweeps (:class:`LineTwoGrid` with ``lines``): None, or the line
+    #: preconditioner and its damping
+    line_solves: PathLinePreconditioner | None = None
+    damping = 0.0
 
     def _factorize(self, M: sp.csr_matrix, P: sp.csr_matrix) -> None:
         """``coarse``: :func:`coarse_matrix` factorized; the cycle's vectors made on first use."""
@@ -533,12 +590,21 @@ class _Cycle:
             sw.product(X, Y)
             np.subtract(R, Y, out=Y)
 
+        def line_step() -> None:  # x += θ L⁻¹ (r − M x), then Y = r − M x again (compressed rows' (n, c) only)
+            self.line_solves.apply(Y, V, 0, n, False)  # type: ignore[union-attr]
+            X[:n] += self.damping * V[:n]
+            residual()
+
         np.multiply(R, s, out=V)  # x = (D + L)⁻¹ r = D^{-1/2} (I + L̃)⁻¹ D^{-1/2} r
         forward_solve(sw, V, nothing, T, scratch)
         np.multiply(T, s, out=X)
         residual()
+        if self.line_solves is not None:
+            line_step()
         self.prolong(self.coarse.solve(self.restrict(fine(Y))), fine(X))
         residual()
+        if self.line_solves is not None:
+            line_step()
         np.multiply(Y, s, out=V)  # x += (D + U)⁻¹ (r − M x)
         backward_solve(sw, V, Y, T, scratch)  # (Y, spent, takes a copy of V)
         np.multiply(T, s, out=Z)
@@ -693,12 +759,22 @@ class LineTwoGrid(_Cycle):
     matrix's own numbering, on the blocks' threads. Passed to :func:`~quadnodes.linalg.cg.block_cg` as
     ``precond`` (applied to all rows at once).
 
+    With ``lines`` (banded solves along the structure lines, :class:`~quadnodes.linalg.cg.PathLinePreconditioner`)
+    a damped line step ``x += θ L⁻¹ (r − M x)`` follows the forward sweep and precedes the backward one, so the
+    cycle stays symmetric. Where faces are long and thin a vertex is tied far more strongly along one line than
+    along the other; Gauss–Seidel's point sweeps leave error that is smooth along the strong line and rough
+    across it, which no coarse node between the lines can carry, and the line solves clear it. ``θ`` is
+    :data:`LINE_DAMPING` over ``L⁻¹M``'s largest eigenvalue (estimated by :data:`LINE_DAMPING_STEPS` power steps),
+    below 2 over it, so the step is a contraction in the ``M``-norm and the cycle positive definite.
+
     Parameters
     ----------
     blocks : RowBlocks
         ``M`` (symmetric positive definite, compressed rows) and its row ranges.
     P : (n, m) sparse
         The prolongation: ``P[i]`` gives unknown ``i``'s correction from the ``m`` coarse values.
+    lines : PathLinePreconditioner, optional
+        Line solves on ``M`` for the line step (default: none, the point sweeps alone).
 
     Attributes
     ----------
@@ -708,6 +784,10 @@ class LineTwoGrid(_Cycle):
         ``PᵀMP`` (plus 1e-10 of its diagonal) factorized.
     sweeps : CsrGaussSeidel
         The smoother.
+    line_solves : PathLinePreconditioner or None
+        The line step's solves (``lines``).
+    damping : float
+        The line step's ``θ`` (0 without ``lines``).
 
     Raises
     ------
@@ -736,11 +816,13 @@ class LineTwoGrid(_Cycle):
     (True, True)
     """
 
-    def __init__(self, blocks: object, P: sp.spmatrix) -> None:
+    def __init__(self, blocks: object, P: sp.spmatrix, lines: PathLinePreconditioner | None = None) -> None:
         M = blocks.M.tocsr()  # type: ignore[attr-defined]
         n = M.shape[0]
         if P.shape[0] != n:
             raise ValueError(f"P: {P.shape[0]} rows for the matrix's {n} unknowns")
+        if lines is not None and lines.k != n:
+            raise ValueError(f"lines: {lines.k} unknowns for the matrix's {n}")
         self.P = sp.csr_matrix(P)
         self.P_t = self.P.T.tocsr()
         # the transfers on the blocks' threads: rows of P (fine) and of Pᵀ (coarse) in ranges of equal nonzeros
@@ -750,6 +832,8 @@ class LineTwoGrid(_Cycle):
         # PARALLEL_MIN_ROWS coarse nodes: there the restriction is a small part of the cycle)
         self.sweeps = CsrGaussSeidel(blocks)
         self._n = n
+        if lines is not None:
+            self.line_solves, self.damping = lines, LINE_DAMPING / line_spectral_radius(blocks, lines)
         self._factorize(M, self.P)
 
     def restrict(self, Y: np.ndarray) -> np.ndarray:

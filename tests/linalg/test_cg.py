@@ -355,6 +355,44 @@ def test_path_line_preconditioner_is_the_sum_of_the_band_inverses(seed, closed):
         np.testing.assert_allclose(x, np.linalg.solve(D, R.T), atol=1e-9)
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000), st.integers(1, 3))
+def test_strongest_lines_against_a_plain_count(seed, kd):
+    """Each entry's tie (the mean ``|M|`` to the entries up to ``kd`` steps along its path, none across paths), each
+    unknown's strongest over its weakest (1 on fewer than two paths, within ``kd`` of a path's end, or tied to
+    none), and one strongest entry per
+    unknown on a path (the first of equals), against loops over the paths."""
+    from quadnodes.linalg.cg import strongest_lines
+
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(8, 30))
+    paths = [rng.permutation(k)[: int(rng.integers(1, 16))] for _ in range(int(rng.integers(1, 6)))]
+    M = _path_matrix(rng, paths, 3, k, [False] * len(paths))
+    if rng.random() < 0.3:  # (equal ties: the first entry wins)
+        M.data[:] = np.sign(M.data)
+    path = np.concatenate(paths)
+    starts = np.concatenate([np.r_[True, np.zeros(len(p) - 1, bool)] for p in paths])
+    ratio, strongest = strongest_lines(M, path, starts, kd=kd)
+    D = np.abs(M.toarray())
+    ties, nears, entry = [], [], 0
+    best: dict[int, tuple[float, int]] = {}
+    for p in paths:
+        for i, v in enumerate(p):
+            near = [j for j in range(max(0, i - kd), min(len(p), i + kd + 1)) if j != i]
+            tie = sum(D[v, p[j]] for j in near) / max(len(near), 1)
+            ties.append(tie)
+            nears.append(near)
+            if v not in best or tie > best[v][0]:
+                best[v] = (tie, entry)
+            entry += 1
+    for v in range(k):
+        mine = [t for t, u in zip(ties, path) if u == v]
+        whole = all(len(near) == 2 * kd for near, u in zip(nears, path) if u == v)
+        want = max(mine) / min(mine) if len(mine) >= 2 and min(mine) > 0 and whole else 1.0
+        assert ratio[v] == pytest.approx(want, rel=1e-12)
+    assert np.array_equal(np.flatnonzero(strongest), np.sort([e for _, e in best.values()]))
+
+
 def test_path_line_preconditioner_refuses_a_band_that_is_not_positive_definite():
     from quadnodes.linalg import compiled
     from quadnodes.linalg.cg import PathLinePreconditioner
