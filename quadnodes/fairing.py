@@ -142,6 +142,13 @@ TWO_GRID_RTOL = 0.1
 #: the two-grid path takes 0.71 and 0.55 s; all free it needs 14,083 (9.08 s against 0.81 s; "auto" 0.84 s)
 #: (``python benchmarks/studies/multigrid.py --solver --size 200 --weights 0.0001 0.000001 --fixed 0 0.1 0.3``).
 TWO_GRID_AFTER = 300
+#: ... except on a mesh that is no grid, where the Gershgorin bound exceeds this many ω and at most
+#: TWO_GRID_AT_ONCE_HELD of the vertices are held: there the lines' cycle starts at once. From this contrast on,
+#: Gauss–Seidel took 2,192 steps or more in every case of a throwaway calibration (150² sheet, 120² cylinder and
+#: torus, 15k cube-sphere, 44k random quads; 0 or 2 % held; ω from 10⁻² to 10⁻⁵), so its first TWO_GRID_AFTER
+#: steps are spent before a switch that comes anyway.
+TWO_GRID_AT_ONCE_CONTRAST = 5e6
+TWO_GRID_AT_ONCE_HELD = 0.02
 #: ... and then only where Gauss–Seidel's own rate says it needs more than this many steps still (the
 #: residual's decay over its last 100 steps, extrapolated to the target; checked every :data:`TWO_GRID_AFTER`
 #: steps). What the switch costs — the coarse factorization and 50–150 steps of the cycle, each about ten
@@ -1253,7 +1260,10 @@ class FairingSystem:
         :data:`TWO_GRID_COARSE_MAX` · :data:`~quadnodes.linalg.multigrid.TWO_GRID_STRIDE`² unknowns — Gauss–Seidel
         is marked to switch to the two-grid cycle (:class:`~quadnodes.linalg.multigrid.TwoGrid`, or on the lines
         :class:`~quadnodes.linalg.multigrid.LineTwoGrid`) in :meth:`solve` where its rate after
-        :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more; there the
+        :data:`TWO_GRID_AFTER` steps says it needs more than :func:`_switch_remaining` more (on a mesh that is no
+        grid the cycle starts at once above :data:`TWO_GRID_AT_ONCE_CONTRAST` ω with at most
+        :data:`TWO_GRID_AT_ONCE_HELD` of the vertices held; its line step where faces are long and thin,
+        :meth:`_line_smoothing`); there the
         kernels are loaded at any size — except where the spectral preconditioner takes the grid (see
         ``preconditioner`` in the class: a torus, or a grid above :data:`SPECTRAL_CONTRAST` ω). Otherwise, on a
         mostly free vertex grid whose windows are scaled third differences, the spectral preconditioner
@@ -1389,6 +1399,10 @@ class FairingSystem:
                             self._coarse = self._switch_to.shape[1]
                         except InputError:
                             pass
+                        else:
+                            if (contrast > TWO_GRID_AT_ONCE_CONTRAST
+                                    and k >= (1.0 - TWO_GRID_AT_ONCE_HELD) * self._n_vertices):
+                                return self._two_grid(rows, self._switch_to)
                     return self._gauss_seidel(rows, CsrGaussSeidel)
                 offsets, data = grid_storage()
                 if self.preconditioner == "two-grid":

@@ -1904,6 +1904,37 @@ def test_the_line_cycle_solves_along_the_lines_where_faces_are_long_and_thin(mon
     assert isinstance(s._cg[1], LineTwoGrid) and s._cg[1].line_solves is None
 
 
+def test_auto_starts_the_line_cycle_at_once_where_the_contrast_is_huge_and_few_vertices_are_held(monkeypatch):
+    """On a mesh that is no grid with its Gershgorin bound above TWO_GRID_AT_ONCE_CONTRAST ω and at most
+    TWO_GRID_AT_ONCE_HELD of its vertices held, "auto" takes the lines' two-grid cycle from the first step (equal to
+    the direct solve, in fewer than TWO_GRID_AFTER steps); below that contrast, or with 5 % of the vertices held,
+    it starts on Gauss–Seidel, ready to switch."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
+    from quadnodes.linalg.multigrid import LineTwoGrid
+
+    base = random_quads(20, 3, seed=3)
+    rng = np.random.default_rng(5)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
+    t = m.topology
+    w = 1e-7 / m.mean_edge_length**2
+    extent = np.ptp(m.vertices, axis=0).max()
+    few_held = t.window_middle | ~t.boundary_vertices  # (0.5 % held)
+    some_held = few_held & (rng.random(m.n_vertices) >= 0.05)
+    for free, at_once_from, starts_on in ((few_held, fairing_module.TWO_GRID_AT_ONCE_CONTRAST, LineTwoGrid),
+                                          (few_held, np.inf, CsrGaussSeidel),
+                                          (some_held, fairing_module.TWO_GRID_AT_ONCE_CONTRAST, CsrGaussSeidel)):
+        monkeypatch.setattr(fairing_module, "TWO_GRID_AT_ONCE_CONTRAST", at_once_from)
+        auto = FairingSystem(m.vertices, t.windows, free, w, solver="cg", _lines=t.structure_lines)
+        assert auto._contrast == 0.0 and isinstance(auto._cg_setup()[1], starts_on)
+        assert auto._contrast > 5e6
+        assert (auto._switch_to is not None) == (starts_on is CsrGaussSeidel)
+        x = auto.solve(m.vertices[free])
+        assert (auto.iterations < fairing_module.TWO_GRID_AFTER) == (starts_on is LineTwoGrid)
+        d = FairingSystem(m.vertices, t.windows, free, w, solver="direct").solve(m.vertices[free])
+        assert np.abs(x - d).max() <= 1e-8 * extent
+
+
 def test_auto_keeps_gauss_seidel_where_the_line_coarse_space_is_too_large(monkeypatch):
     """"auto" makes the line coarse space before Gauss–Seidel starts: above TWO_GRID_COARSE_MAX coarse nodes it
     does not switch (no restart), and still equals the direct solve; "two-grid" asked for refuses by name."""
