@@ -60,7 +60,11 @@ SuperLU in minimum degree order (the solver's) and in nested dissection order (`
 unknowns on), and by CHOLMOD in its AMD order where scikit-sparse is installed (the ``bench`` extra; the solver's
 choice then): factor entries, set-up seconds (with the ordering) and a solve of three coordinates.
 ``--mesh random`` (``--size`` seeded random points triangulated and split four times: extraordinary vertices
-every 8 edges, the same noise) is no grid either, with its lines far more tangled than the cube-sphere's.
+every 8 edges, the same noise) is no grid either, with its lines far more tangled than the cube-sphere's and
+long, thin faces where the triangles were slivers. ``--stretch S`` scales the mesh's z by ``S`` (a cube-sphere's
+faces long and thin on four sides); ``--line-step on``/``off`` forces the structure lines' cycle's line step
+(``LineTwoGrid(lines=)``) or leaves it out, where ``auto`` lets the solver choose (``fairing.LINE_SMOOTHING_SHARE``);
+on a mesh that is no grid the table's head gives the share of unknowns that choice counts.
 ``--columns`` picks the columns (``gauss-seidel``, ``two-grid``, ``lines``, ``auto``), e.g. none of Gauss–Seidel where
 it would run to its cap. ``--aspect A`` sets the cylinder's radius so that its edges around are ``A`` times those along. The column
 "two-grid, its strides" is the solver's own choice (``TWO_GRID_ANISOTROPY``: a stride of 2 along an axis with
@@ -75,6 +79,8 @@ Run:  python benchmarks/studies/multigrid.py [--size 100] [--noise broadband] [-
       python benchmarks/studies/multigrid.py --solver --size 1000 --weights 0.000001 --columns two-grid auto
       python benchmarks/studies/multigrid.py --coarse-factor --size 1000 --weights 0.000001
       python benchmarks/studies/multigrid.py --solver --mesh random --size 300 --weights 0.00001 0.000001 --strides 2 4
+      python benchmarks/studies/multigrid.py --solver --free fair --mesh cube-sphere --size 120 --stretch 4 \
+          --weights 0.0001 0.000001 --columns lines --line-step off
 """
 
 from __future__ import annotations
@@ -285,6 +291,12 @@ def main() -> None:
                     help="--solver: the unknowns: every window middle (detect at 0) or as fair() frees them (line_gaps)")
     ap.add_argument("--fixed", type=float, nargs="+", default=[0.0],
                     help="--solver: shares of the vertices fixed at random (seeded), one table block each")
+    ap.add_argument("--stretch", type=float, default=1.0,
+                    help="--solver: the mesh's z scaled by this much after the noise (a cube-sphere's faces long "
+                         "and thin on four sides)")
+    ap.add_argument("--line-step", choices=["auto", "on", "off"], default="auto",
+                    help="--solver: the structure lines' cycle's line step where faces are long and thin: the "
+                         "solver's choice (fairing.LINE_SMOOTHING_SHARE), always, or never")
     ap.add_argument("--coarse-factor", action="store_true",
                     help="the two-grid coarse matrix's factorization in minimum degree and nested dissection order")
     args = ap.parse_args()
@@ -334,6 +346,9 @@ def solver_table(args: argparse.Namespace) -> None:
     m = {"sheet": lambda: _common.noisy_grid(n, args.noise), "cylinder": lambda: _common.noisy_cylinder(n, n, aspect=args.aspect),
          "torus": lambda: _common.noisy_torus(n, n), "cube-sphere": lambda: _common.noisy_cube_sphere(n),
          "random": lambda: noisy_random_quads(n)}[args.mesh]()
+    if args.stretch != 1.0:
+        m = m.with_vertices(m.vertices * np.array([1.0, 1.0, args.stretch]))
+    fairing.LINE_SMOOTHING_SHARE = {"auto": fairing.LINE_SMOOTHING_SHARE, "on": -1.0, "off": 1.0}[args.line_step]
     t = m.topology
     inverse = even_lengths(_window_geometry(m.vertices, t.windows, t.window_walk)[1])
     extent = float(np.ptp(m.vertices, axis=0).max())  # (the solver's and the tests' extent: the widest axis)
@@ -358,8 +373,11 @@ def solver_table(args: argparse.Namespace) -> None:
             else f"random quad mesh ({n} points split four times, {m.n_vertices} vertices), broadband noise" if not grid
             else f"{n}×{n} {args.mesh}, broadband noise")
     direct = m.n_vertices <= 450**2
+    if args.stretch != 1.0:
+        what += f", z × {args.stretch:g}"
     print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
-          f"from the {'direct solve' if direct else 'two-grid solve to rtol 1e-12'} / extent\n")
+          f"from the {'direct solve' if direct else 'two-grid solve to rtol 1e-12'} / extent; line step "
+          f"{args.line_step}\n")
     print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
     print("|---:|---:|" + "---:|" * len(kinds))
     for share, w in ((share, w) for share in args.fixed for w in args.weights):
@@ -372,6 +390,15 @@ def solver_table(args: argparse.Namespace) -> None:
 
         # (above 450²: the two-grid cycle to rtol 1e-12, whose steps do not grow as ω falls; Gauss–Seidel's would
         # reach its cap at 10⁻⁶ and fall back to a direct solve of the whole mesh)
+        if not grid and share == args.fixed[0] and w == args.weights[0]:  # (how long and thin the faces are)
+            from quadnodes.fairing import _line_paths
+            from quadnodes.linalg.cg import strongest_lines
+
+            probe = system(lines=True)
+            ratio = strongest_lines(probe.matrix, *_line_paths(t.structure_lines, probe.free_index,
+                                                                m.n_vertices)[:2])[0]
+            print(f"(unknowns tied over {fairing.LINE_SMOOTHING_RATIO:g}× more strongly along one line than along "
+                  f"the other: {np.mean(ratio > fairing.LINE_SMOOTHING_RATIO):.2%})\n")
         exact = system(solver="direct") if direct else system(solver="cg", preconditioner="two-grid", rtol=1e-12,
                                                               lines=not grid)
         anchor = m.vertices[exact.free_index]

@@ -574,10 +574,11 @@ class PathLinePreconditioner:
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
         """``Z = P⁻¹ R`` for ``(c, n)`` (``columns``) or ``(n, c)`` arrays (all rows; ``whole``)."""
-        from ._kernels import path_band_solve
+        from ._kernels import path_band_solve, path_band_solve_xyz
 
         k = self.k
         Rr = np.ascontiguousarray(R[:, :k].T) if columns else R  # (n, c): one cache line per unknown
+        solve = path_band_solve_xyz if self.factor.shape[0] == 4 and Rr.shape[1] == 3 else path_band_solve
         Zr = np.zeros((k, Rr.shape[1])) if columns else Z
         if not columns:
             Zr[:k] = 0.0
@@ -590,13 +591,13 @@ class PathLinePreconditioner:
             if second is None or second.shape != Zr.shape:
                 second = self._second = np.empty(Zr.shape)
             second.fill(0.0)
-            job = _threads.pool().submit(path_band_solve, self.factor, self._dinv, self.path, Rr, second, work,
+            job = _threads.pool().submit(solve, self.factor, self._dinv, self.path, Rr, second, work,
                                          cut, S)
-            path_band_solve(self.factor, self._dinv, self.path, Rr, Zr, work, 0, cut)
+            solve(self.factor, self._dinv, self.path, Rr, Zr, work, 0, cut)
             job.result()
             Zr += second
         else:
-            path_band_solve(self.factor, self._dinv, self.path, Rr, Zr, work, 0, S)
+            solve(self.factor, self._dinv, self.path, Rr, Zr, work, 0, S)
         if self._lone.size:
             Zr[self._lone] = Rr[self._lone] * self._lone_inv[:, None]
         if columns:

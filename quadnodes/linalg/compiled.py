@@ -47,8 +47,9 @@ def _load() -> None:
         k.cg_update(Z, Y, X, Y.copy(), out, 0, 8, out.copy())
         k.cg_direction(Z, X, out, 0, 8)
         band = np.ones((4, 8))
-        k.path_band_solve(band, band[3].copy(), np.arange(8, dtype=np.int64), X.T.copy(), np.zeros((8, 3)),
-                          np.empty((8, 3)), 0, 8)
+        for solve in (k.path_band_solve, k.path_band_solve_xyz):
+            solve(band, band[3].copy(), np.arange(8, dtype=np.int64), X.T.copy(), np.zeros((8, 3)),
+                  np.empty((8, 3)), 0, 8)
         k.grid_family(np.ones((2, 4)), np.zeros(2, dtype=np.int64), np.ones(8), 2, 4, 0, False, 13, 1.0,
                       np.zeros((13, 8)), 0, 2)
         # the Gauss–Seidel sweeps and their CG step, on a small open grid (both sweeps' fast and row paths)

@@ -393,6 +393,43 @@ def test_strongest_lines_against_a_plain_count(seed, kd):
     assert np.array_equal(np.flatnonzero(strongest), np.sort([e for _, e in best.values()]))
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000), st.integers(1, 4))
+def test_the_unrolled_band_solve_equals_the_general_one_to_the_bit(seed, stretches):
+    """``path_band_solve_xyz`` (half-bandwidth 3, three columns) against ``path_band_solve`` on the same factor:
+    paths of 1 to 12 unknowns end to end (shorter than the band too), repeats, a solve of a middle stretch only,
+    adding into what ``Z`` holds; equal to the last bit."""
+    from scipy.linalg import cholesky_banded
+
+    from quadnodes.linalg import compiled
+    from quadnodes.linalg._kernels import path_band_solve, path_band_solve_xyz
+
+    assert compiled.wait()
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(10, 40))
+    paths = [rng.integers(0, k, size=int(rng.integers(1, 13))) for _ in range(stretches)]
+    S = sum(len(p) for p in paths)
+    band = np.zeros((4, S))
+    band[3] = 4.0 + rng.random(S)
+    first = np.cumsum([0] + [len(p) for p in paths])[:-1]
+    for d in (1, 2, 3):
+        band[3 - d, d:] = rng.uniform(-0.5, 0.5, size=max(S - d, 0))
+        for f in first:  # (no coupling across paths)
+            band[3 - d, f : f + d] = 0.0
+    F = cholesky_banded(band, lower=False, check_finite=False)
+    path = np.concatenate(paths).astype(np.int64)
+    R = rng.normal(size=(k, 3))
+    a = int(first[int(rng.integers(0, stretches))])
+    for lo, hi in ((0, S), (a, S)):
+        Z0 = rng.normal(size=(k, 3))
+        outs = []
+        for solve in (path_band_solve, path_band_solve_xyz):
+            Z = Z0.copy()
+            solve(F, 1.0 / F[3], path, R, Z, np.empty((S, 3)), lo, hi)
+            outs.append(Z)
+        assert np.array_equal(outs[0], outs[1])
+
+
 def test_path_line_preconditioner_refuses_a_band_that_is_not_positive_definite():
     from quadnodes.linalg import compiled
     from quadnodes.linalg.cg import PathLinePreconditioner
