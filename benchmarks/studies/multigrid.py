@@ -398,7 +398,8 @@ def solver_table(args: argparse.Namespace) -> None:
             ratio = strongest_lines(probe.matrix, *_line_paths(t.structure_lines, probe.free_index,
                                                                 m.n_vertices)[:2])[0]
             print(f"(unknowns tied over {fairing.LINE_SMOOTHING_RATIO:g}× more strongly along one line than along "
-                  f"the other: {np.mean(ratio > fairing.LINE_SMOOTHING_RATIO):.2%})\n")
+                  f"the other: {np.mean(ratio > fairing.LINE_SMOOTHING_RATIO):.2%}; Gershgorin bound over ω at ω = "
+                  f"{w:g}: {fairing._csr_gershgorin(probe.matrix) / probe.weight:.3g})\n")
         exact = system(solver="direct") if direct else system(solver="cg", preconditioner="two-grid", rtol=1e-12,
                                                               lines=not grid)
         anchor = m.vertices[exact.free_index]
