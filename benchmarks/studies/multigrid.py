@@ -378,6 +378,20 @@ def solver_table(args: argparse.Namespace) -> None:
     print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
           f"from the {'direct solve' if direct else 'two-grid solve to rtol 1e-12'} / extent; line step "
           f"{args.line_step}\n")
+    if not grid:  # how long and thin the faces are, and the bound over ω at the first weight
+        from quadnodes.fairing import _line_paths
+        from quadnodes.linalg.cg import strongest_lines
+
+        found = detect(m, 0.0)
+        free = line_gaps(found.free, t.windows, found.fixed) if args.free == "fair" else found.free
+        w = args.weights[0]
+        probe = FairingSystem(m.vertices, t.windows, free & (np.random.default_rng(0).random(m.n_vertices)
+                                                             >= args.fixed[0]),
+                              w / m.mean_edge_length**2, _inverse_lengths=inverse, _lines=t.structure_lines)
+        ratio = strongest_lines(probe.matrix, *_line_paths(t.structure_lines, probe.free_index, m.n_vertices)[:2])[0]
+        print(f"(unknowns tied over {fairing.LINE_SMOOTHING_RATIO:g}× more strongly along one line than along "
+              f"the other: {np.mean(ratio > fairing.LINE_SMOOTHING_RATIO):.2%}; Gershgorin bound over ω at ω = "
+              f"{w:g}: {fairing._csr_gershgorin(probe.matrix) / probe.weight:.3g})\n")
     print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
     print("|---:|---:|" + "---:|" * len(kinds))
     for share, w in ((share, w) for share in args.fixed for w in args.weights):
@@ -390,16 +404,6 @@ def solver_table(args: argparse.Namespace) -> None:
 
         # (above 450²: the two-grid cycle to rtol 1e-12, whose steps do not grow as ω falls; Gauss–Seidel's would
         # reach its cap at 10⁻⁶ and fall back to a direct solve of the whole mesh)
-        if not grid and share == args.fixed[0] and w == args.weights[0]:  # (how long and thin the faces are)
-            from quadnodes.fairing import _line_paths
-            from quadnodes.linalg.cg import strongest_lines
-
-            probe = system(lines=True)
-            ratio = strongest_lines(probe.matrix, *_line_paths(t.structure_lines, probe.free_index,
-                                                                m.n_vertices)[:2])[0]
-            print(f"(unknowns tied over {fairing.LINE_SMOOTHING_RATIO:g}× more strongly along one line than along "
-                  f"the other: {np.mean(ratio > fairing.LINE_SMOOTHING_RATIO):.2%}; Gershgorin bound over ω at ω = "
-                  f"{w:g}: {fairing._csr_gershgorin(probe.matrix) / probe.weight:.3g})\n")
         exact = system(solver="direct") if direct else system(solver="cg", preconditioner="two-grid", rtol=1e-12,
                                                               lines=not grid)
         anchor = m.vertices[exact.free_index]

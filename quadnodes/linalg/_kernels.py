@@ -321,7 +321,10 @@ def path_band_solve_xyz(F: np.ndarray, dinv: np.ndarray, path: np.ndarray, R: np
 
     The last three solutions ride in registers, so each step waits on one multiply-add chain instead of
     reloading them: 2–4× faster than the general loop on 111,000 unknowns, as the path's jumps through memory
-    allow. The same arithmetic in the same order, so the same results to the last bit.
+    allow. The same arithmetic in the same order (no fused multiply-adds: ``fastmath`` off), so the same results
+    to the last bit — given that ``F``'s entries that would reach before ``a`` (``F[3 - t, a + s]``, ``s < t``) are
+    zero, as :func:`scipy.linalg.cholesky_banded` leaves them for a band with no coupling across stretches: the
+    general loop skips them, this one multiplies them by zero.
     """
     y = work
     y1x = y1y = y1z = y2x = y2y = y2z = y3x = y3y = y3z = 0.0

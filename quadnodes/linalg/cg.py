@@ -626,9 +626,9 @@ def strongest_lines(M: sp.spmatrix, path: np.ndarray, starts: np.ndarray, kd: in
     Returns
     -------
     ratio : (k,) float64
-        Each unknown's strongest tie over its weakest, where it lies on two paths or more, at least ``kd`` steps from
-        each one's ends (near an end it is tied by fewer terms of the energy, whatever the faces' shape); 1
-        elsewhere, and where it is tied to none.
+        Each unknown's strongest tie over its weakest, where it has two path entries or more, each at least ``kd``
+        steps from its path's ends (near an end it is tied by fewer terms of the energy, whatever the faces'
+        shape); ∞ there where one entry's tie is 0; 1 elsewhere, and where no entry ties it at all.
     strongest : (S,) bool
         One entry per unknown on a path: its first of the most strongly tied.
 
@@ -665,9 +665,9 @@ def strongest_lines(M: sp.spmatrix, path: np.ndarray, starts: np.ndarray, kd: in
     np.maximum.at(high, path, tie)
     np.minimum.at(low, path, tie)
     ratio = np.ones(k)
-    two = ((np.bincount(path, minlength=k) >= 2) & (low > 0)
-           & (np.bincount(path, weights=~inner, minlength=k) == 0))
-    ratio[two] = high[two] / low[two]
+    two = (np.bincount(path, minlength=k) >= 2) & (np.bincount(path, weights=~inner, minlength=k) == 0) & (high > 0)
+    with np.errstate(divide="ignore"):
+        ratio[two] = high[two] / low[two]  # (∞ where one path does not tie it at all)
     top = np.flatnonzero(tie == high[path])
     first = np.unique(path[top], return_index=True)[1]  # (the first of equals: one entry per unknown)
     strongest = np.zeros(S, dtype=bool)

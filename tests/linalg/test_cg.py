@@ -370,6 +370,9 @@ def test_strongest_lines_against_a_plain_count(seed, kd):
     M = _path_matrix(rng, paths, 3, k, [False] * len(paths))
     if rng.random() < 0.3:  # (equal ties: the first entry wins)
         M.data[:] = np.sign(M.data)
+    if rng.random() < 0.3:  # (ties of 0: a path that does not tie its unknowns at all)
+        keep = np.triu(rng.random(M.shape) < 0.5, 1)
+        M = sp.csr_matrix(M.multiply(keep | keep.T) + sp.diags(M.diagonal()))  # (symmetric, as M must be)
     path = np.concatenate(paths)
     starts = np.concatenate([np.r_[True, np.zeros(len(p) - 1, bool)] for p in paths])
     ratio, strongest = strongest_lines(M, path, starts, kd=kd)
@@ -388,7 +391,10 @@ def test_strongest_lines_against_a_plain_count(seed, kd):
     for v in range(k):
         mine = [t for t, u in zip(ties, path) if u == v]
         whole = all(len(near) == 2 * kd for near, u in zip(nears, path) if u == v)
-        want = max(mine) / min(mine) if len(mine) >= 2 and min(mine) > 0 and whole else 1.0
+        if len(mine) >= 2 and whole and max(mine) > 0:
+            want = max(mine) / min(mine) if min(mine) > 0 else np.inf
+        else:
+            want = 1.0
         assert ratio[v] == pytest.approx(want, rel=1e-12)
     assert np.array_equal(np.flatnonzero(strongest), np.sort([e for _, e in best.values()]))
 
