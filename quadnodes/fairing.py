@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import warnings
 import weakref
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Literal
 
@@ -209,6 +209,12 @@ TWO_GRID_ANISOTROPY = 2.5
 #: is smooth along the strong line and rough across it.
 LINE_SMOOTHING_RATIO = 10.0
 LINE_SMOOTHING_SHARE = 0.01
+#: Where the lines' cycle takes that line step, the switch is worth this share of :func:`_switch_remaining`: the
+#: cycle needs about a quarter of the steps (38 against 140 on the 111,873 random quads at ω = 10⁻⁴) at about 1.5
+#: times the price a step, so the switch costs some 0.55 of what it did. On those quads at ω = 10⁻³ "auto" kept
+#: Gauss–Seidel for all its 1,100 steps (7.5–8.5 s) under the whole price and switched after 300 under half of it
+#: (4.9–5.2 s); at 3·10⁻³ (751 steps) and 3·10⁻⁴ it decided alike (a throwaway script, two runs each).
+LINE_STEP_PRICE = 0.5
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "spectral", "none")
 #: The grid path uses the compiled kernels (:mod:`quadnodes.linalg._kernels`: symmetric storage,
@@ -981,12 +987,15 @@ class _SwitchCheck:
 
     Every :data:`TWO_GRID_AFTER` steps it extrapolates the residual's decay over the last 100 steps (means of
     its logarithm over 10 steps at each end) to the target ``rtol``; it stops the solve (``switch`` True)
-    where that needs more than ``remaining`` steps more, or the residual no longer falls.
+    where that needs more than ``remaining`` steps more, or the residual no longer falls. With ``cheaper`` (asked
+    only where the steps still needed lie between :data:`LINE_STEP_PRICE` ``· remaining`` and ``remaining``): where
+    it returns True the cycle is that much cheaper, and the check switches from the lower price on.
     """
 
-    def __init__(self, rtol: float, remaining: float) -> None:
+    def __init__(self, rtol: float, remaining: float, cheaper: Callable[[], bool] | None = None) -> None:
         self.target = float(np.log(rtol))
         self.remaining = remaining
+        self.cheaper = cheaper
         self.logs: list[float] = []
         self.switch = False
 
@@ -996,7 +1005,13 @@ class _SwitchCheck:
             return False
         now, before = np.mean(self.logs[-10:]), np.mean(self.logs[-110:-100])
         rate = (now - before) / 100.0  # (log of the residual per step: negative while it falls)
-        self.switch = bool(rate >= 0.0 or (self.target - now) / rate > self.remaining)
+        if rate >= 0.0:
+            self.switch = True
+            return True
+        needed = (self.target - now) / rate
+        self.switch = bool(needed > self.remaining
+                           or (needed > LINE_STEP_PRICE * self.remaining and self.cheaper is not None
+                               and self.cheaper()))
         return self.switch
 
 
@@ -1479,7 +1494,7 @@ class FairingSystem:
         structure lines' (:class:`~quadnodes.linalg.multigrid.LineTwoGrid`)."""
         try:
             if sp.issparse(target):
-                self._cg = (blocks, LineTwoGrid(blocks, target, lines=self._line_smoothing(blocks.M)), None)
+                self._cg = (blocks, LineTwoGrid(blocks, target, lines=self._line_step(blocks.M)), None)
             else:
                 shape, wrap, strides = target
                 self._cg = (blocks, TwoGrid(blocks, shape, self._grid[2], stride=strides, wrap=wrap), None)
@@ -1491,6 +1506,16 @@ class FairingSystem:
             raise InputError(f"preconditioner='two-grid': {exc}") from exc
         self._switch_to = None
         return self._cg
+
+    def _line_step(self, M: sp.csr_matrix) -> PathLinePreconditioner | None:
+        """:meth:`_line_smoothing` of ``M``, made once (the switch's monitor may ask before the cycle is made)."""
+        if not self._line_step_made:
+            self._line_step_solves = self._line_smoothing(M)
+            self._line_step_made = True
+        return self._line_step_solves
+
+    _line_step_made = False
+    _line_step_solves: PathLinePreconditioner | None = None
 
     def _line_smoothing(self, M: sp.csr_matrix) -> PathLinePreconditioner | None:
         """The structure lines' cycle's line solves, where faces are long and thin: each unknown's most strongly
@@ -1604,8 +1629,10 @@ class FairingSystem:
                 if worst > 0 and extent > 0:
                     guard = ERROR_RMS * extent * self.weight * np.sqrt(len(a)) / worst
                     rtol = min(rtol, guard)
+            on_lines = sp.issparse(self._switch_to)
             check = None if self._switch_to is None else _SwitchCheck(
-                rtol, _switch_remaining(self._coarse, lines=sp.issparse(self._switch_to)))
+                rtol, _switch_remaining(self._coarse, lines=on_lines),
+                cheaper=(lambda: self._line_step(blocks.M) is not None) if on_lines else None)
             if check is not None:  # Gauss–Seidel, watched: it stops where the two-grid cycle would be faster
                 y, its, res = gauss_seidel_cg(blocks, shifted, x0, rtol=rtol, maxiter=MAX_CG_ITERATIONS,
                                               sweeps=precond, monitor=check)

@@ -1935,6 +1935,35 @@ def test_auto_starts_the_line_cycle_at_once_where_the_contrast_is_huge_and_few_v
         assert np.abs(x - d).max() <= 1e-8 * extent
 
 
+def test_the_switch_and_the_cycle_share_one_line_step(monkeypatch):
+    """Where "auto" starts on Gauss–Seidel (5 % held) and switches to the lines' cycle, the line step is chosen
+    once: the monitor's question (is the cycle cheaper?) and the cycle take the same line solves; the price is
+    lowered only where there are some."""
+    import quadnodes.fairing as fairing_module
+    from quadnodes.linalg.multigrid import LineTwoGrid
+
+    base = random_quads(20, 3, seed=3)
+    rng = np.random.default_rng(5)
+    m = base.with_vertices(base.vertices + rng.normal(scale=0.2 * base.mean_edge_length, size=base.vertices.shape))
+    t = m.topology
+    free = (t.window_middle | ~t.boundary_vertices) & (rng.random(m.n_vertices) >= 0.05)
+    made = []
+    original = FairingSystem._line_smoothing
+    monkeypatch.setattr(FairingSystem, "_line_smoothing", lambda self, M: made.append(original(self, M)) or made[-1])
+    asked = []
+    check = fairing_module._SwitchCheck
+    monkeypatch.setattr(fairing_module, "_SwitchCheck",
+                        lambda rtol, remaining, cheaper=None: asked.append(cheaper) or check(rtol, remaining, cheaper))
+    w = 1e-7 / m.mean_edge_length**2
+    auto = FairingSystem(m.vertices, t.windows, free, w, solver="cg", _lines=t.structure_lines)
+    x = auto.solve(m.vertices[free])
+    assert isinstance(auto._cg[1], LineTwoGrid) and auto.iterations > fairing_module.TWO_GRID_AFTER
+    assert len(made) == 1 and made[0] is not None and auto._cg[1].line_solves is made[0]
+    assert len(asked) == 1 and asked[0] is not None and asked[0]() is True and len(made) == 1
+    d = FairingSystem(m.vertices, t.windows, free, w, solver="direct").solve(m.vertices[free])
+    assert np.abs(x - d).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
 def test_auto_keeps_gauss_seidel_where_the_line_coarse_space_is_too_large(monkeypatch):
     """"auto" makes the line coarse space before Gauss–Seidel starts: above TWO_GRID_COARSE_MAX coarse nodes it
     does not switch (no restart), and still equals the direct solve; "two-grid" asked for refuses by name."""
@@ -2005,6 +2034,28 @@ def test_switch_check_extrapolates_the_residuals_decay():
     assert run(0.0) == (True, TWO_GRID_AFTER)  # stagnating
     assert run(-0.001) == (True, TWO_GRID_AFTER)  # growing
     assert run(slow, remaining=4 * TWO_GRID_REMAINING) == (False, 4 * TWO_GRID_AFTER)  # (a dearer coarse space)
+
+
+def test_switch_check_asks_whether_the_cycle_is_cheaper_only_between_the_prices():
+    """With ``cheaper`` (where the lines' cycle takes its line step): Gauss–Seidel that needs between
+    LINE_STEP_PRICE · remaining and remaining more steps switches where ``cheaper()`` says so, and ``cheaper`` is
+    not asked where the full price decides alone (many more steps, or fewer than the lower price)."""
+    from quadnodes.fairing import LINE_STEP_PRICE, TWO_GRID_AFTER, TWO_GRID_REMAINING, _SwitchCheck
+
+    def run(still: float, answer: bool) -> tuple[bool, int, int]:
+        asked = []
+        check = _SwitchCheck(1e-10, TWO_GRID_REMAINING, cheaper=lambda: asked.append(1) or answer)
+        rate = 23.0 / (TWO_GRID_AFTER + still)  # (about `still` steps to go at the first check)
+        for step in range(1, 4 * TWO_GRID_AFTER + 1):
+            if check(step, np.exp(-rate * step)):
+                break
+        return check.switch, step, len(asked)
+
+    between = 0.5 * (1.0 + LINE_STEP_PRICE) * TWO_GRID_REMAINING
+    assert run(between, True) == (True, TWO_GRID_AFTER, 1)
+    assert run(between, False)[::2] == (False, 1)  # (asked at the first check; by the next, nearly done)
+    assert run(2 * TWO_GRID_REMAINING, True) == (True, TWO_GRID_AFTER, 0)  # (the full price decides)
+    assert run(0.5 * LINE_STEP_PRICE * TWO_GRID_REMAINING, True)[::2] == (False, 0)  # (nearly done: not asked)
 
 
 def test_line_prolongation_keeps_every_third_line_up_to_its_size(monkeypatch):
