@@ -475,6 +475,30 @@ class SymmetricDiagonalBlocks(DiagonalBlocks):
             return super().matvec(X, Y, lo, hi)
 
 
+class _PathEntries:
+    """``M``'s entries looked up by pairs of unknowns: ``M`` in compressed rows, sorted, and its entries' keys."""
+
+    def __init__(self, M: sp.spmatrix) -> None:
+        M = sp.csr_matrix(M)
+        M.sort_indices()
+        self.M = M
+        k = M.shape[0]
+        self.keys = np.repeat(np.arange(k, dtype=np.int64), np.diff(M.indptr)) * k + M.indices
+
+    def __call__(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``M[a, b]`` entry by entry (0 where not stored)."""
+        keys, k = self.keys, self.M.shape[0]
+        key = a * k + b
+        pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
+        return np.where(keys[pos] == key, self.M.data[pos], 0.0)
+
+    def along(self, path: np.ndarray, segment: np.ndarray, d: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(same, M[path[j], path[j + d]])`` for every ``j`` below ``len(path) − d``: whether both lie on one path
+        (``segment``, each entry's path), and the entry there (0 across paths)."""
+        same = segment[:-d] == segment[d:]
+        return same, np.where(same, self(path[:-d], path[d:]), 0.0)
+
+
 class PathLinePreconditioner:
     """Additive line-block preconditioner for any mesh: exact banded solves along paths of unknowns.
 
@@ -517,12 +541,11 @@ class PathLinePreconditioner:
                  kd: int = 3) -> None:
         from scipy.linalg import cholesky_banded
 
-        M = sp.csr_matrix(M)
-        M.sort_indices()
+        entries = _PathEntries(M)
+        M = entries.M
         k = M.shape[0]
         path = np.asarray(path, dtype=np.int64)
         S = path.size
-        keys = np.repeat(np.arange(k, dtype=np.int64), np.diff(M.indptr)) * k + M.indices
         diag = M.diagonal()
         band = np.zeros((kd + 1, S))
         band[kd] = diag[path]
@@ -536,8 +559,7 @@ class PathLinePreconditioner:
         else:
             first = last = first[:0]
         for d in range(1, kd + 1):
-            same = seg[:-d] == seg[d:]
-            band[kd - d, d:] = np.where(same, self._lookup(M, keys, path[:-d], path[d:]), 0.0)
+            band[kd - d, d:] = entries.along(path, seg, d)[1]
             # a closed path: its last unknowns coupled to its first ones across the seam, d steps
             # around (last - a with first + b, a + b = d - 1), moved onto both diagonals
             for b in range(d):
@@ -545,7 +567,7 @@ class PathLinePreconditioner:
                 j = first + b
                 ok = i - j > kd  # (nearer pairs are inside the band already)
                 if ok.any():
-                    v = np.abs(self._lookup(M, keys, path[i[ok]], path[j[ok]]))
+                    v = np.abs(entries(path[i[ok]], path[j[ok]]))
                     np.add.at(band[kd], i[ok], v)
                     np.add.at(band[kd], j[ok], v)
         self.factor = cholesky_banded(band, lower=False, check_finite=False)
@@ -563,14 +585,6 @@ class PathLinePreconditioner:
         inner = np.flatnonzero(starts)[1:]  # the starts of all paths but the first: where a stretch may end
         half = int(inner[np.argmin(np.abs(2 * inner - S))]) if inner.size else S
         self._cut = half if (k >= LINES_PARALLEL_MIN_ROWS and _threads.thread_count() > 1) else S
-
-    @staticmethod
-    def _lookup(M: sp.csr_matrix, keys: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """``M[a, b]`` entry by entry (0 where not stored)."""
-        k = M.shape[0]
-        key = a * k + b
-        pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
-        return np.where(keys[pos] == key, M.data[pos], 0.0)
 
     def apply(self, R: np.ndarray, Z: np.ndarray, lo: int, hi: int, columns: bool) -> None:
         """``Z = P⁻¹ R`` for ``(c, n)`` (``columns``) or ``(n, c)`` arrays (all rows; ``whole``)."""
@@ -642,18 +656,16 @@ def strongest_lines(M: sp.spmatrix, path: np.ndarray, starts: np.ndarray, kd: in
     >>> ratio.round(6).tolist(), strongest.tolist()
     ([10.0, 1.0, 1.0, 1.0, 1.0], [True, True, True, True, False, True])
     """
-    M = sp.csr_matrix(M)
-    M.sort_indices()
-    k = M.shape[0]
+    entries = _PathEntries(M)
+    k = entries.M.shape[0]
     path = np.asarray(path, dtype=np.int64)
     S = path.size
-    keys = np.repeat(np.arange(k, dtype=np.int64), np.diff(M.indptr)) * k + M.indices
     seg = np.cumsum(np.asarray(starts, dtype=bool)) - 1
     tie = np.zeros(S)
     near = np.zeros(S)  # (the entries counted: fewer near a path's ends)
     for d in range(1, max(1, kd) + 1):
-        same = seg[:-d] == seg[d:]
-        v = np.abs(np.where(same, PathLinePreconditioner._lookup(M, keys, path[:-d], path[d:]), 0.0))
+        same, v = entries.along(path, seg, d)
+        v = np.abs(v)
         tie[d:] += v
         tie[:-d] += v
         near[d:] += same
