@@ -212,8 +212,9 @@ LINE_SMOOTHING_SHARE = 0.01
 #: Where the lines' cycle takes that line step, the switch is worth this share of :func:`_switch_remaining`: the
 #: cycle needs about a quarter of the steps (38 against 140 on the 111,873 random quads at ω = 10⁻⁴) at about 1.5
 #: times the price a step, so the switch costs some 0.55 of what it did. On those quads at ω = 10⁻³ "auto" kept
-#: Gauss–Seidel for all its 1,100 steps (7.5–8.5 s) under the whole price and switched after 300 under half of it
-#: (4.9–5.2 s); at 3·10⁻³ (751 steps) and 3·10⁻⁴ it decided alike (a throwaway script, two runs each).
+#: Gauss–Seidel for all its 1,100 steps (7.70–7.93 s) under the whole price and switches after 300 under half of it
+#: (4.67–5.59 s); at 3·10⁻³ both keep Gauss–Seidel (751 steps) (``python benchmarks/studies/multigrid.py --solver
+#: --free fair --weights 0.003 0.001 --columns auto --mesh random --size 300``, two rounds; ``docs/fairing.md``).
 LINE_STEP_PRICE = 0.5
 #: ``FairingSystem(preconditioner=...)``'s choices.
 PRECONDITIONERS = ("auto", "gauss-seidel", "two-grid", "lines", "spectral", "none")

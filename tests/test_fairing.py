@@ -1861,11 +1861,11 @@ def test_two_grid_on_meshes_that_are_no_grid(monkeypatch, kind):
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_the_line_cycle_solves_along_the_lines_where_faces_are_long_and_thin(monkeypatch, threads):
-    """Random quads (slivers of a Delaunay triangulation split three times: more than LINE_SMOOTHING_SHARE of the unknowns
-    tied over LINE_SMOOTHING_RATIO times more strongly one way): the lines' two-grid cycle takes the line solves,
-    along each unknown's strongest line, every unknown once; within 1e-8 of the mesh's size of the direct solve at
-    1e-3 and 1e-7, in fewer steps than without them; "auto" at 1e-7 switches to that cycle. On the extraordinary
-    mesh (square faces) the cycle keeps the point sweeps alone."""
+    """Random quads (slivers of a Delaunay triangulation split three times: more than LINE_SMOOTHING_SHARE of the
+    unknowns tied over LINE_SMOOTHING_RATIO times more strongly one way): the lines' two-grid cycle takes the line
+    solves, along each unknown's strongest line, every unknown once; within 1e-8 of the mesh's size of the direct
+    solve at 1e-3 and 1e-7, in fewer steps than without them; "auto" at 1e-7 takes that cycle too. On the
+    extraordinary mesh (square faces) the cycle keeps the point sweeps alone."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.multigrid import LineTwoGrid
 

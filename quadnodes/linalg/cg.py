@@ -622,8 +622,8 @@ def strongest_lines(M: sp.spmatrix, path: np.ndarray, starts: np.ndarray, kd: in
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Which of its paths ties each unknown most strongly, and how much more strongly than its weakest.
 
-    An entry's tie to its path is the mean of ``|M|`` between it and the entries up to ``kd`` steps along it. On a quad
-    mesh's structure lines an unknown lies on two paths, one each way; where faces are long and thin the line
+    An entry's tie to its path is the mean of ``|M|`` between it and the entries up to ``kd`` steps along it. On a
+    quad mesh's structure lines an unknown lies on two paths, one each way; where faces are long and thin the line
     along their short edges ties it far more strongly, and a point smoother is slow there.
 
     Parameters

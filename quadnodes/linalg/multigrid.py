@@ -483,8 +483,9 @@ def line_spectral_radius(blocks: object, lines: PathLinePreconditioner, steps: i
     ``L⁻¹M`` is self-adjoint in the ``M``-inner product, so Lanczos in that product (one product with ``M`` and one
     line solve a step, as power steps would take) gives a tridiagonal matrix whose largest eigenvalue approaches
     the largest of ``L⁻¹M`` from below. Unlike the power steps' Rayleigh quotient it finds an isolated top
-    eigenvalue that the random start barely holds: on a reviewer's throwaway 640,020-unknown matrix built so, 12 power steps
-    estimated 3.54 for a top of 5.0 (a damping of 1.5 over that makes the cycle indefinite); Lanczos found 5.0.
+    eigenvalue that the random start barely holds: on a reviewer's throwaway 640,020-unknown matrix built so,
+    12 power steps estimated 3.54 for a top of 5.0 (a damping of 1.5 over that makes the cycle indefinite);
+    Lanczos found 5.0.
 
     Parameters
     ----------
