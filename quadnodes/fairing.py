@@ -1420,7 +1420,7 @@ class FairingSystem:
                                     and k >= (1.0 - TWO_GRID_AT_ONCE_HELD) * self._n_vertices):
                                 try:
                                     return self._two_grid(rows, self._switch_to)
-                                except InputError:  # pragma: no cover - (the coarse matrix is made definite)
+                                except InputError:  # (the coarse matrix is made definite: not expected)
                                     pass  # Gauss–Seidel, ready to switch, as below
                     return self._gauss_seidel(rows, CsrGaussSeidel)
                 offsets, data = grid_storage()
@@ -1509,13 +1509,14 @@ class FairingSystem:
         return self._cg
 
     def _line_step(self, M: sp.csr_matrix) -> PathLinePreconditioner | None:
-        """:meth:`_line_smoothing` of ``M``, made once (the switch's monitor may ask before the cycle is made)."""
-        if not self._line_step_made:
+        """:meth:`_line_smoothing` of ``M``, made once for it (the switch's monitor may ask before the cycle is
+        made; both pass the same matrix)."""
+        if self._line_step_of is not M:
             self._line_step_solves = self._line_smoothing(M)
-            self._line_step_made = True
+            self._line_step_of = M
         return self._line_step_solves
 
-    _line_step_made = False
+    _line_step_of: sp.csr_matrix | None = None
     _line_step_solves: PathLinePreconditioner | None = None
 
     def _line_smoothing(self, M: sp.csr_matrix) -> PathLinePreconditioner | None:

@@ -1908,7 +1908,7 @@ def test_auto_starts_the_line_cycle_at_once_where_the_contrast_is_huge_and_few_v
     """On a mesh that is no grid with its Gershgorin bound above TWO_GRID_AT_ONCE_CONTRAST ω and at most
     TWO_GRID_AT_ONCE_HELD of its vertices held, "auto" takes the lines' two-grid cycle from the first step (equal to
     the direct solve, in fewer than TWO_GRID_AFTER steps); below that contrast, or with 5 % of the vertices held,
-    it starts on Gauss–Seidel, ready to switch."""
+    it starts on Gauss–Seidel, ready to switch; where the cycle cannot be made, on Gauss–Seidel too."""
     import quadnodes.fairing as fairing_module
     from quadnodes.linalg.gauss_seidel import CsrGaussSeidel
     from quadnodes.linalg.multigrid import LineTwoGrid
@@ -1933,6 +1933,19 @@ def test_auto_starts_the_line_cycle_at_once_where_the_contrast_is_huge_and_few_v
         assert (auto.iterations < fairing_module.TWO_GRID_AFTER) == (starts_on is LineTwoGrid)
         d = FairingSystem(m.vertices, t.windows, free, w, solver="direct").solve(m.vertices[free])
         assert np.abs(x - d).max() <= 1e-8 * extent
+    # where the cycle cannot be made (a coarse matrix that does not factorize: not expected), "auto" starts on
+    # Gauss–Seidel instead and still reaches the direct solve
+    monkeypatch.setattr(fairing_module, "TWO_GRID_AT_ONCE_CONTRAST", 5e6)
+
+    def refused(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise InputError("two-grid coarse matrix: refused (a test's stand-in)")
+
+    monkeypatch.setattr(fairing_module, "LineTwoGrid", refused)
+    auto = FairingSystem(m.vertices, t.windows, few_held, w, solver="cg", _lines=t.structure_lines)
+    assert isinstance(auto._cg_setup()[1], CsrGaussSeidel)
+    x = auto.solve(m.vertices[few_held])
+    d = FairingSystem(m.vertices, t.windows, few_held, w, solver="direct").solve(m.vertices[few_held])
+    assert np.abs(x - d).max() <= 1e-8 * extent
 
 
 def test_the_switch_and_the_cycle_share_one_line_step(monkeypatch):

@@ -455,6 +455,34 @@ def test_the_line_cycle_with_line_solves_equals_its_dense_formula():
     assert np.linalg.eigvalsh(0.5 * (B + B.T)).min() > 0
 
 
+@pytest.mark.parametrize("mesh_levels", [1, 2])
+def test_line_spectral_radius_stays_at_or_below_the_top_where_the_krylov_space_closes(mesh_levels):
+    """Where the lines hold nearly all of M (a few eigenvalue clusters, fewer than the steps), the Lanczos estimate
+    stays at or below ``L⁻¹M``'s largest eigenvalue and close to it, for any start and number of steps (a reviewer's
+    case: with ``M q`` carried by the recurrence it reached 4,872 × the top)."""
+    from quadnodes.linalg.multigrid import line_spectral_radius
+
+    mesh = extraordinary_mesh(mesh_levels)
+    M = thin_line_matrix(mesh, 1e-3)
+    n = mesh.n_vertices
+    solves = line_solves_of(mesh, M)
+    Linv = np.zeros((n, n))
+    for j in range(n):
+        e = np.zeros((n, 1))
+        e[j] = 1.0
+        z = np.zeros((n, 1))
+        solves.apply(e, z, 0, n, False)
+        Linv[:, j] = z[:, 0]
+    top = np.linalg.eigvals(Linv @ M).real.max()
+    blocks = RowBlocks(sp.csr_matrix(M), threads=1)
+    for steps in (1, 2, 5, 12, 3 * n):
+        for seed in range(8):
+            estimate = line_spectral_radius(blocks, solves, steps=steps, seed=seed)
+            assert estimate <= top * (1 + 1e-7), (steps, seed, estimate / top)
+            if steps >= 12:
+                assert estimate >= 0.9 * top, (steps, seed, estimate / top)
+
+
 @pytest.mark.parametrize("threads", [1, 2])
 def test_line_solves_take_what_the_point_sweeps_leave_on_thin_faces(monkeypatch, threads):
     """Where each line is tied 10⁻² to 10² times as strongly as the next, CG with the line cycle reaches the dense
