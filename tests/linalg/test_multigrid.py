@@ -401,6 +401,18 @@ def line_solves_of(mesh: QuadMesh, M: np.ndarray):  # type: ignore[no-untyped-de
     return PathLinePreconditioner(sp.csr_matrix(M), lines.indices[kept], stretch)
 
 
+def dense_inverse(solves, n: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The line solves' ``L⁻¹`` as a dense matrix, column by column."""
+    Linv = np.zeros((n, n))
+    for j in range(n):
+        e = np.zeros((n, 1))
+        e[j] = 1.0
+        z = np.zeros((n, 1))
+        solves.apply(e, z, 0, n, False)
+        Linv[:, j] = z[:, 0]
+    return Linv
+
+
 def test_the_line_cycle_with_line_solves_equals_its_dense_formula():
     """With ``lines``: ``x = (D+L)⁻¹r``, ``x += θ L⁻¹(r − Mx)``, ``x += P C⁻¹ Pᵀ(r − Mx)``, ``x += θ L⁻¹(r − Mx)``,
     ``x += (D+U)⁻¹(r − Mx)`` with dense matrices (``L⁻¹`` the line solves' own, column by column); the cycle is
@@ -416,13 +428,7 @@ def test_the_line_cycle_with_line_solves_equals_its_dense_formula():
     solves = line_solves_of(mesh, M)
     cycle = LineTwoGrid(blocks, P, lines=solves)
     assert cycle.line_solves is solves
-    Linv = np.zeros((n, n))
-    for j in range(n):
-        e = np.zeros((n, 1))
-        e[j] = 1.0
-        z = np.zeros((n, 1))
-        solves.apply(e, z, 0, n, False)
-        Linv[:, j] = z[:, 0]
+    Linv = dense_inverse(solves, n)
     top = np.linalg.eigvals(Linv @ M).real.max()
     estimate = line_spectral_radius(blocks, solves)
     assert 0.98 * top < estimate <= top * (1 + 1e-9)  # (Lanczos: from below, and close)
@@ -466,13 +472,7 @@ def test_line_spectral_radius_stays_at_or_below_the_top_where_the_krylov_space_c
     M = thin_line_matrix(mesh, 1e-3)
     n = mesh.n_vertices
     solves = line_solves_of(mesh, M)
-    Linv = np.zeros((n, n))
-    for j in range(n):
-        e = np.zeros((n, 1))
-        e[j] = 1.0
-        z = np.zeros((n, 1))
-        solves.apply(e, z, 0, n, False)
-        Linv[:, j] = z[:, 0]
+    Linv = dense_inverse(solves, n)
     top = np.linalg.eigvals(Linv @ M).real.max()
     blocks = RowBlocks(sp.csr_matrix(M), threads=1)
     for steps in (1, 2, 5, 12, 3 * n):
