@@ -1415,13 +1415,12 @@ class FairingSystem:
                             self._coarse = self._switch_to.shape[1]
                         except InputError:
                             pass
-                        else:
-                            if (contrast > TWO_GRID_AT_ONCE_CONTRAST
-                                    and k >= (1.0 - TWO_GRID_AT_ONCE_HELD) * self._n_vertices):
-                                try:
-                                    return self._two_grid(rows, self._switch_to)
-                                except InputError:  # (the coarse matrix is made definite: not expected)
-                                    pass  # Gauss–Seidel, ready to switch, as below
+                    if (self._switch_to is not None and contrast > TWO_GRID_AT_ONCE_CONTRAST
+                            and k >= (1.0 - TWO_GRID_AT_ONCE_HELD) * self._n_vertices):
+                        try:
+                            return self._two_grid(rows, self._switch_to)
+                        except InputError:  # (the coarse matrix is made definite: not expected)
+                            pass  # Gauss–Seidel, ready to switch, as below
                     return self._gauss_seidel(rows, CsrGaussSeidel)
                 offsets, data = grid_storage()
                 if self.preconditioner == "two-grid":

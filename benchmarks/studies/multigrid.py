@@ -378,16 +378,19 @@ def solver_table(args: argparse.Namespace) -> None:
     print(f"{what}, fair()'s first-iteration system; steps · seconds · max difference "
           f"from the {'direct solve' if direct else 'two-grid solve to rtol 1e-12'} / extent; line step "
           f"{args.line_step}\n")
+    found = detect(m, 0.0)
+    window_free = line_gaps(found.free, t.windows, found.fixed) if args.free == "fair" else found.free
+
+    def unknowns(share: float) -> np.ndarray:  # (the free vertices, less ``share`` of them held at random, seeded)
+        return window_free & (np.random.default_rng(0).random(m.n_vertices) >= share)
+
     if not grid:  # how long and thin the faces are, and the bound over ω at the first weight
         from quadnodes.fairing import _line_paths
         from quadnodes.linalg.cg import strongest_lines
 
-        found = detect(m, 0.0)
-        free = line_gaps(found.free, t.windows, found.fixed) if args.free == "fair" else found.free
         w = args.weights[0]
-        probe = FairingSystem(m.vertices, t.windows, free & (np.random.default_rng(0).random(m.n_vertices)
-                                                             >= args.fixed[0]),
-                              w / m.mean_edge_length**2, _inverse_lengths=inverse, _lines=t.structure_lines)
+        probe = FairingSystem(m.vertices, t.windows, unknowns(args.fixed[0]), w / m.mean_edge_length**2,
+                              _inverse_lengths=inverse, _lines=t.structure_lines)
         ratio = strongest_lines(probe.matrix, *_line_paths(t.structure_lines, probe.free_index, m.n_vertices)[:2])[0]
         print(f"(unknowns tied over {fairing.LINE_SMOOTHING_RATIO:g}× more strongly along one line than along "
               f"the other: {np.mean(ratio > fairing.LINE_SMOOTHING_RATIO):.2%}; Gershgorin bound over ω at ω = "
@@ -395,9 +398,7 @@ def solver_table(args: argparse.Namespace) -> None:
     print("| fixed | ω | " + " | ".join(k for k, _, _ in kinds) + " |")
     print("|---:|---:|" + "---:|" * len(kinds))
     for share, w in ((share, w) for share in args.fixed for w in args.weights):
-        found = detect(m, 0.0)
-        free = line_gaps(found.free, t.windows, found.fixed) if args.free == "fair" else found.free
-        free = free & (np.random.default_rng(0).random(m.n_vertices) >= share)
+        free = unknowns(share)
         def system(lines: bool = False, **kw):  # type: ignore[no-untyped-def]  # (lines: no grid path, as fair() off a grid)
             return FairingSystem(m.vertices, t.windows, free, w / m.mean_edge_length**2, _inverse_lengths=inverse,
                                  _topology=None if lines else t, _lines=t.structure_lines, **kw)
