@@ -244,20 +244,30 @@ GRID_MIN_FREE = 0.6
 #: ``benchmarks/perf/bench_core.py --sizes 300 --only fair --noise broadband --against``).
 SPECTRAL_MIN_WORK = 6e5
 #: "auto" takes the spectral preconditioner (its exact lines) on a grid that it fits (below) in place of Gauss–Seidel
-#: and the two-grid switch where the Gershgorin bound exceeds this many times ω (a weight below about 5·10⁻³ on the
-#: bench sheet with broadband noise, 3.8·10⁻³ with zigzag noise): its steps do not grow as the weight falls,
-#: Gauss–Seidel's do as 1/√ω. Fair's first-iteration system on the 300² sheet at ω = 0.01 (a bound of 5,000 ω): 18
-#: steps 0.24 s against Gauss–Seidel's 163, 0.22–0.30 s; at 0.003: 18 · 0.17 s against 265 · 0.33–0.38 s (``python
-#: benchmarks/studies/multigrid.py --solver --size 300 --free fair --columns gauss-seidel two-grid spectral auto``);
-#: on 1000² at 0.003 20 · 3.41 s against 268 · 5.10 s (``--size 1000``), at 0.01 19 · 4.1 s against 153 · 3.0 s (a
-#: throwaway script).
+#: and the two-grid switch where the Gershgorin bound exceeds this many times ω on a grid whose longest open side has
+#: :data:`SPECTRAL_CONTRAST_SIDE` nodes (a weight below about 5·10⁻³ on the bench sheet with broadband noise; the
+#: rule at other sides: :func:`_spectral_contrast`): its steps do not grow as the weight falls, Gauss–Seidel's do as
+#: 1/√ω. Fair's first-iteration system on the 1000² sheet, kernels loaded: at 0.003 20 · 3.41 s against 268 · 5.10 s
+#: (``python benchmarks/studies/multigrid.py --solver --free fair --size 1000 --columns gauss-seidel spectral auto``,
+#: session 18), at 0.01 19 · 2.40 s against 153 · 2.11 s (``--weights 0.03 0.01 0.003 --columns spectral auto``,
+#: session 28).
 SPECTRAL_CONTRAST = 1e4
-#: ... times (longest open side / this)² above this side: an exact line costs ``O(side)`` a node a step, so the
-#: Gauss–Seidel steps it must save grow with the side (the 300² and 1000² sheets crossed over at the same bound; on
-#: 1500², whose rule says 2.25·10⁴ ω, the two tied at ω = 0.003, a bound of 1.7·10⁴ ω: first-iteration system 19
-#: steps 10.9 s against 261 steps 11.2 s, and at 0.001 7.7 s against 15.2 s, set-up and solve, a throwaway
-#: script), and only up to :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE` nodes an open side.
+#: ... times (longest open side / this)²: an exact line costs ``O(side)`` a node a step, so the Gauss–Seidel steps it
+#: must save grow with the side (on 1500², whose rule says 2.25·10⁴ ω, the two tied at ω = 0.003, a bound of
+#: 1.7·10⁴ ω: first-iteration system 19 steps 10.9 s against 261 steps 11.2 s, and at 0.001 7.7 s against 15.2 s,
+#: set-up and solve, a throwaway script), and only up to :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE` nodes an
+#: open side.
 SPECTRAL_CONTRAST_SIDE = 1000
+#: ... but never below this many times ω (a weight of about 0.025 on the bench sheet): under about 450 nodes a side the
+#: exact lines' steps cost less than that square says, and the two tie at a bound of about 1.7·10³ ω (ω = 0.03)
+#: on the 100², 200², 300² and 450² sheets alike. Fair's first-iteration system with broadband noise, kernels
+#: loaded, spectral against "auto"'s Gauss–Seidel, set-up and solve (``python benchmarks/studies/multigrid.py
+#: --solver --free fair --size 300 --weights 0.1 0.03 0.01 0.005 --columns gauss-seidel spectral auto``,
+#: ``--size 100``, ``200``, ``450``, ``700``, ``1000``; session 28): on 300² 0.12 against 0.08 s at ω = 0.1,
+#: 0.12 against 0.14 s at 0.03, **0.11 against 0.19 s** at 0.01 (18 steps against 163); on 700² a tie at 0.01
+#: (0.96 against 1.02 s, a bound of about 5·10³ ω, which the square gives: 4.9·10³); on 1000² at 0.01 Gauss–Seidel
+#: still wins (2.11 against 2.40 s), at 0.003 the two take the same path.
+SPECTRAL_CONTRAST_MIN = 2e3
 #: The spectral preconditioner takes its exact lines where the Gershgorin bound exceeds this many times ω, and cosine
 #: lines (``open_lines="cosine"``) below where SciPy's transforms are imported already (or an axis closes around):
 #: their steps cost less, and where few are needed the exact lines' fewer steps do not repay that and their
@@ -710,6 +720,20 @@ def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
             half if along[1] * TWO_GRID_ANISOTROPY < along[0] else TWO_GRID_STRIDE)
 
 
+def _spectral_contrast(open_side: int) -> float:
+    """The Gershgorin bound over ω above which "auto" takes the spectral preconditioner on a grid that it fits, in
+    place of Gauss–Seidel and the two-grid switch: :data:`SPECTRAL_CONTRAST` at a longest open side of
+    :data:`SPECTRAL_CONTRAST_SIDE` nodes, growing with the square of that side (an exact line costs ``O(side)`` a
+    node a step) and never below :data:`SPECTRAL_CONTRAST_MIN`.
+
+    Examples
+    --------
+    >>> _spectral_contrast(300), _spectral_contrast(1000), _spectral_contrast(1500)
+    (2000.0, 10000.0, 22500.0)
+    """
+    return max(SPECTRAL_CONTRAST_MIN, SPECTRAL_CONTRAST * (open_side / SPECTRAL_CONTRAST_SIDE) ** 2)
+
+
 def _spectral_pays(unknowns: int, contrast: float) -> bool:
     """Whether the spectral preconditioner pays for a grid's CG (the other conditions in ``_cg_setup``): where the
     Gershgorin bound exceeds :data:`GAUSS_SEIDEL_CONTRAST` ω and plain CG's work, ``unknowns · √contrast`` (its
@@ -1069,7 +1093,8 @@ class FairingSystem:
         (:func:`~quadnodes.linalg.spectral.inverts_exactly`) and no stiff spot exceeds
         :data:`SPECTRAL_MAX_STIFFNESS`. Its steps do not grow as the weight falls (15–25 from the default
         weight to 10⁻⁶), so on such a grid it also takes a torus at every weight and any grid where the bound
-        exceeds :data:`SPECTRAL_CONTRAST` ω (a weight below about 5·10⁻³), with or without the kernels, in
+        exceeds :func:`_spectral_contrast` ω (a weight below about 0.025 up to some 450 nodes a side, 5·10⁻³ at
+        1000: :data:`SPECTRAL_CONTRAST`, growing with the side's square), with or without the kernels, in
         place of Gauss–Seidel and the two-grid switch; cosine lines where the bound is at most
         :data:`SPECTRAL_EXACT_CONTRAST` ω and SciPy's transforms are imported (or an axis closes around).
         On a grid (open or closed around) with stiff spots — some unknown's fairing diagonal at least
@@ -1281,7 +1306,7 @@ class FairingSystem:
         :data:`TWO_GRID_AT_ONCE_HELD` of the vertices held; its line step where faces are long and thin,
         :meth:`_line_smoothing`); there the
         kernels are loaded at any size — except where the spectral preconditioner takes the grid (see
-        ``preconditioner`` in the class: a torus, or a grid above :data:`SPECTRAL_CONTRAST` ω). Otherwise, on a
+        ``preconditioner`` in the class: a torus, or a grid above :func:`_spectral_contrast` ω). Otherwise, on a
         mostly free vertex grid whose windows are scaled third differences, the spectral preconditioner
         (:class:`~quadnodes.linalg.spectral.SpectralPreconditioner`; with the coefficients' profile where they vary
         along an open axis, :func:`_coefficient_profile`) where :func:`_spectral_pays`, every fixed vertex inside
@@ -1328,7 +1353,7 @@ class FairingSystem:
             # on a grid whose windows are scaled third differences (fair's even spacing), with no stiff spot and
             # every fixed vertex inside the unknowns' box inverted around exactly: the line operator with constant
             # coefficients by the lines' eigenvectors and transforms. Its steps do not grow as the weight falls, so
-            # it takes a torus at every weight and any grid at tiny weights (above SPECTRAL_CONTRAST) in place of
+            # it takes a torus at every weight and any grid at small weights (above _spectral_contrast) in place of
             # everything else; at larger weights, where the compiled sweeps are not used (not loaded, or Numba
             # missing) and it pays (_spectral_pays), in place of plain CG and of block Jacobi
             fits: list[bool] = []  # (the checks once)
@@ -1375,7 +1400,7 @@ class FairingSystem:
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            tiny = contrast > SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2 and exact_lines
+            tiny = contrast > _spectral_contrast(open_side) and exact_lines
             spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
             # a grid with stiff spots (a stretch of a line nearly collapsed, under eq. 32's own lengths): the lines'
             # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be

@@ -939,8 +939,8 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
 
 @pytest.mark.parametrize("fix", ["corners", "boundary"])
 def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch, fix):
-    """With the compiled kernels at hand, below a weight of about 5·10⁻³ (a Gershgorin bound above
-    SPECTRAL_CONTRAST ω) an open grid takes the exact lines' transforms in place of Gauss–Seidel and the two-grid
+    """With the compiled kernels at hand, below a weight of about 0.025 on a small grid (a Gershgorin bound above
+    _spectral_contrast ω) an open grid takes the exact lines' transforms in place of Gauss–Seidel and the two-grid
     switch: steps that barely grow as the weight falls, within 1e-8 of the mesh's size of the direct solve, the
     fixed vertices (corners, or the whole boundary: the box shrinks to the interior) unmoved."""
     import warnings
@@ -975,9 +975,12 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
         held = m.topology.boundary_vertices if fix == "boundary" else m.topology.corner_vertices
         assert np.array_equal(out.vertices[held], m.vertices[held])
     assert steps[-1] < 2 * steps[0], steps
-    picked.clear()
-    fair(m, threshold=0.0, weight=0.3, solver="cg", fix=fix)  # the default weight: Gauss–Seidel
-    assert isinstance(picked[0], SymmetricGaussSeidel)
+    for weight, kind in ((0.3, SymmetricGaussSeidel), (0.1, SymmetricGaussSeidel), (0.01, SpectralPreconditioner)):
+        picked.clear()  # (the default weight and 0.1: Gauss–Seidel; a small grid's floor, SPECTRAL_CONTRAST_MIN, at 0.01)
+        out, _ = fair(m, threshold=0.0, weight=weight, solver="cg", fix=fix)
+        assert type(picked[0]) is kind, (weight, picked)
+        ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix=fix)
+        assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
     # many fixed vertices scattered inside (far above the 64 that stored columns take): the exact lines correct
     # them in their own coordinates, in single precision, down to the smallest weights CG handles
     fixed = np.zeros(m.n_vertices, bool)
