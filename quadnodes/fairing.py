@@ -258,7 +258,8 @@ SPECTRAL_CONTRAST = 1e4
 #: set-up and solve, a throwaway script), and only up to :data:`~quadnodes.linalg.spectral.EXACT_MAX_SIDE` nodes an
 #: open side.
 SPECTRAL_CONTRAST_SIDE = 1000
-#: ... but never below this many times ω (a weight of about 0.025 on the bench sheet): under about 450 nodes a side the
+#: ... but on an open grid never below this many times ω (a weight of about 0.025 on the bench sheet; a cylinder keeps
+#: :data:`SPECTRAL_CONTRAST` up to that side, :func:`_spectral_contrast`): under about 450 nodes a side the
 #: exact lines' steps cost less than that square says, and the two tie at a bound of about 1.7·10³ ω (ω = 0.03)
 #: on the 100², 200², 300² and 450² sheets alike. Fair's first-iteration system with broadband noise, kernels
 #: loaded, spectral against "auto"'s Gauss–Seidel, set-up and solve (``python benchmarks/studies/multigrid.py
@@ -720,17 +721,37 @@ def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
             half if along[1] * TWO_GRID_ANISOTROPY < along[0] else TWO_GRID_STRIDE)
 
 
-def _spectral_contrast(open_side: int) -> float:
+def _spectral_contrast(open_side: int, closed_axis: bool = False) -> float:
     """The Gershgorin bound over ω above which "auto" takes the spectral preconditioner on a grid that it fits, in
-    place of Gauss–Seidel and the two-grid switch: :data:`SPECTRAL_CONTRAST` at a longest open side of
-    :data:`SPECTRAL_CONTRAST_SIDE` nodes, growing with the square of that side (an exact line costs ``O(side)`` a
-    node a step) and never below :data:`SPECTRAL_CONTRAST_MIN`.
+    place of Gauss–Seidel and the two-grid switch.
+
+    Parameters
+    ----------
+    open_side : int
+        Nodes along the grid's longest open side (0 where both axes close around).
+    closed_axis : bool
+        Whether an axis closes around (a cylinder).
+
+    Returns
+    -------
+    float
+        On an open grid :data:`SPECTRAL_CONTRAST` at a longest open side of :data:`SPECTRAL_CONTRAST_SIDE` nodes,
+        growing with the square of that side (an exact line costs ``O(side)`` a node a step) and never below
+        :data:`SPECTRAL_CONTRAST_MIN`. With an axis closed around, :data:`SPECTRAL_CONTRAST` up to that side and
+        its square's growth above: a cylinder's bound is some 3–5 times a sheet's at the same ω and its spectral
+        steps twice as many, so there Gauss–Seidel still wins at bounds the floor would give away (the 300²
+        cylinder at ω = 0.03, about 8·10³ ω: 153 steps 0.26 s against 35 steps 0.28 s, docs/fairing.md
+        "Session 28: the floor under small grids").
 
     Examples
     --------
-    >>> _spectral_contrast(300), _spectral_contrast(1000), _spectral_contrast(1500)
-    (2000.0, 10000.0, 22500.0)
+    >>> _spectral_contrast(300), _spectral_contrast(1000), _spectral_contrast(1500), _spectral_contrast(0)
+    (2000.0, 10000.0, 22500.0, 2000.0)
+    >>> _spectral_contrast(300, closed_axis=True), _spectral_contrast(1500, closed_axis=True)
+    (10000.0, 22500.0)
     """
+    if closed_axis:
+        return SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2
     return max(SPECTRAL_CONTRAST_MIN, SPECTRAL_CONTRAST * (open_side / SPECTRAL_CONTRAST_SIDE) ** 2)
 
 
@@ -1093,8 +1114,8 @@ class FairingSystem:
         (:func:`~quadnodes.linalg.spectral.inverts_exactly`) and no stiff spot exceeds
         :data:`SPECTRAL_MAX_STIFFNESS`. Its steps do not grow as the weight falls (15–25 from the default
         weight to 10⁻⁶), so on such a grid it also takes a torus at every weight and any grid where the bound
-        exceeds :func:`_spectral_contrast` ω (a weight below about 0.025 up to some 450 nodes a side, 5·10⁻³ at
-        1000: :data:`SPECTRAL_CONTRAST`, growing with the side's square), with or without the kernels, in
+        exceeds :func:`_spectral_contrast` ω (on an open grid a weight below about 0.025 up to some 450 nodes a
+        side, 5·10⁻³ at 1000, growing with the side's square), with or without the kernels, in
         place of Gauss–Seidel and the two-grid switch; cosine lines where the bound is at most
         :data:`SPECTRAL_EXACT_CONTRAST` ω and SciPy's transforms are imported (or an axis closes around).
         On a grid (open or closed around) with stiff spots — some unknown's fairing diagonal at least
@@ -1400,7 +1421,7 @@ class FairingSystem:
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            tiny = contrast > _spectral_contrast(open_side) and exact_lines
+            tiny = contrast > _spectral_contrast(open_side, wrap is not None and any(wrap)) and exact_lines
             spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
             # a grid with stiff spots (a stretch of a line nearly collapsed, under eq. 32's own lengths): the lines'
             # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be

@@ -939,8 +939,8 @@ def test_a_torus_takes_the_spectral_preconditioner_at_every_weight(monkeypatch, 
 
 @pytest.mark.parametrize("fix", ["corners", "boundary"])
 def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch, fix):
-    """With the compiled kernels at hand, below a weight of about 0.025 on a small grid (a Gershgorin bound above
-    _spectral_contrast ω) an open grid takes the exact lines' transforms in place of Gauss–Seidel and the two-grid
+    """With the compiled kernels at hand, below a weight of about 0.025 on a small open grid (a Gershgorin bound
+    above _spectral_contrast ω) it takes the exact lines' transforms in place of Gauss–Seidel and the two-grid
     switch: steps that barely grow as the weight falls, within 1e-8 of the mesh's size of the direct solve, the
     fixed vertices (corners, or the whole boundary: the box shrinks to the interior) unmoved."""
     import warnings
@@ -975,12 +975,20 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
         held = m.topology.boundary_vertices if fix == "boundary" else m.topology.corner_vertices
         assert np.array_equal(out.vertices[held], m.vertices[held])
     assert steps[-1] < 2 * steps[0], steps
-    for weight, kind in ((0.3, SymmetricGaussSeidel), (0.1, SymmetricGaussSeidel), (0.01, SpectralPreconditioner)):
-        picked.clear()  # (the default weight and 0.1: Gauss–Seidel; a small grid's floor, SPECTRAL_CONTRAST_MIN, at 0.01)
-        out, _ = fair(m, threshold=0.0, weight=weight, solver="cg", fix=fix)
+    # the default weight down to 0.03 (a bound of about 1.5·10³ ω here): Gauss–Seidel; from 0.02 (2.2·10³ ω, above a
+    # small grid's floor SPECTRAL_CONTRAST_MIN) the exact lines, in fewer steps
+    steps_at = {}
+    for weight, kind in ((0.3, SymmetricGaussSeidel), (0.1, SymmetricGaussSeidel), (0.03, SymmetricGaussSeidel),
+                         (0.02, SpectralPreconditioner), (0.01, SpectralPreconditioner)):
+        picked.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            out, rep = fair(m, threshold=0.0, weight=weight, solver="cg", fix=fix)
         assert type(picked[0]) is kind, (weight, picked)
+        steps_at[weight] = rep.iterations[0].cg_iterations
         ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix=fix)
         assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
+    assert steps_at[0.02] < steps_at[0.03] / 2, steps_at
     # many fixed vertices scattered inside (far above the 64 that stored columns take): the exact lines correct
     # them in their own coordinates, in single precision, down to the smallest weights CG handles
     fixed = np.zeros(m.n_vertices, bool)
@@ -1062,6 +1070,33 @@ def test_a_profile_beside_fixed_lines_keeps_its_steps_at_small_weights(monkeypat
     assert rep.iterations[0].cg_iterations <= constant.iterations[0].cg_iterations
     ref, _ = fair(m, solver="direct", **kw)
     assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * np.ptp(m.vertices, axis=0).max()
+
+
+def test_cylinders_keep_the_spectral_bound_without_the_open_grids_floor(monkeypatch):
+    """A cylinder's Gershgorin bound is some 3–5 times a sheet's at the same weight and its spectral steps about
+    twice as many, so the floor under small open grids (SPECTRAL_CONTRAST_MIN) is not its own: it keeps
+    Gauss–Seidel down to a bound of SPECTRAL_CONTRAST ω (on this 48 × 60 cylinder ω = 0.02) and takes the spectral
+    lines below, each within 1e-8 of the mesh's size of the direct solve."""
+    import warnings
+
+    from quadnodes.linalg import compiled, spectral
+    from quadnodes.linalg.gauss_seidel import SymmetricGaussSeidel
+    from quadnodes.linalg.spectral import SpectralPreconditioner
+
+    assert compiled.wait()
+    m = _noisy(cylinder(48, 60, radius=500.0, height=900.0))
+    monkeypatch.setattr(compiled, "ready", lambda: True)
+    monkeypatch.setattr(spectral, "loaded", lambda: True)
+    picked = _record_setups(monkeypatch, lambda system, out: out[1])
+    size = np.ptp(m.vertices, axis=0).max()
+    for weight, kind in ((0.05, SymmetricGaussSeidel), (0.02, SymmetricGaussSeidel), (0.01, SpectralPreconditioner)):
+        picked.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            out, _ = fair(m, threshold=0.0, weight=weight, solver="cg", fix="corners")
+        assert type(picked[0]) is kind, (weight, picked)
+        ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix="corners")
+        assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
 
 
 def test_auto_takes_the_spectral_preconditioner_where_it_pays(monkeypatch):
