@@ -269,6 +269,14 @@ SPECTRAL_CONTRAST_SIDE = 1000
 #: (0.96 against 1.02 s, a bound of about 5·10³ ω, which the square gives: 4.9·10³); on 1000² at 0.01 Gauss–Seidel
 #: still wins (2.11 against 2.40 s), at 0.003 the two take the same path.
 SPECTRAL_CONTRAST_MIN = 2e3
+#: ... and only where at most this many fixed vertices lie inside the unknowns' box (the exact lines invert around each,
+#: at a set-up that grows with their square; a zigzag detection leaves fixed vertices scattered): on the 300² sheet at
+#: ω = 0.01–0.02, with the kernels loaded, the spectral lines took 0.16–0.18 s with about 27 of them, 0.20–0.23 s
+#: with 54, 0.22–0.26 s with 90 and 0.25–0.33 s with 144, where Gauss–Seidel takes 0.20–0.28 s, fewer steps as more
+#: are held (``python benchmarks/studies/multigrid.py --solver --free fair --size 300 --fixed 0.0003 0.0006 0.001
+#: 0.0016 --weights 0.02 0.01 --columns gauss-seidel spectral auto``, session 28; its Gauss–Seidel column, run first,
+#: pays some 0.04 s of warm-up). Above it the floor does not apply (the bound of :data:`SPECTRAL_CONTRAST` does).
+SPECTRAL_FLOOR_MAX_INSIDE = 50
 #: The spectral preconditioner takes its exact lines where the Gershgorin bound exceeds this many times ω, and cosine
 #: lines (``open_lines="cosine"``) below where SciPy's transforms are imported already (or an axis closes around):
 #: their steps cost less, and where few are needed the exact lines' fewer steps do not repay that and their
@@ -721,7 +729,7 @@ def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
             half if along[1] * TWO_GRID_ANISOTROPY < along[0] else TWO_GRID_STRIDE)
 
 
-def _spectral_contrast(open_side: int, closed_axis: bool = False) -> float:
+def _spectral_contrast(open_side: int, floor: bool = True) -> float:
     """The Gershgorin bound over ω above which "auto" takes the spectral preconditioner on a grid that it fits, in
     place of Gauss–Seidel and the two-grid switch.
 
@@ -729,28 +737,28 @@ def _spectral_contrast(open_side: int, closed_axis: bool = False) -> float:
     ----------
     open_side : int
         Nodes along the grid's longest open side (0 where both axes close around).
-    closed_axis : bool
-        Whether an axis closes around (a cylinder).
+    floor : bool
+        Whether the floor under small grids applies: an open grid (no axis closed around) with at most
+        :data:`SPECTRAL_FLOOR_MAX_INSIDE` fixed vertices inside the unknowns' box.
 
     Returns
     -------
     float
-        On an open grid :data:`SPECTRAL_CONTRAST` at a longest open side of :data:`SPECTRAL_CONTRAST_SIDE` nodes,
-        growing with the square of that side (an exact line costs ``O(side)`` a node a step) and never below
-        :data:`SPECTRAL_CONTRAST_MIN`. With an axis closed around, :data:`SPECTRAL_CONTRAST` up to that side and
-        its square's growth above: a cylinder's bound is some 3–5 times a sheet's at the same ω and its spectral
-        steps twice as many, so there Gauss–Seidel still wins at bounds the floor would give away (the 300²
-        cylinder at ω = 0.03, about 8·10³ ω: 153 steps 0.26 s against 35 steps 0.28 s, docs/fairing.md
-        "Session 28: the floor under small grids").
+        :data:`SPECTRAL_CONTRAST` at a longest open side of :data:`SPECTRAL_CONTRAST_SIDE` nodes, growing with the
+        square of that side (an exact line costs ``O(side)`` a node a step); with ``floor`` never below
+        :data:`SPECTRAL_CONTRAST_MIN`, else never below :data:`SPECTRAL_CONTRAST`. A cylinder's bound is some 3–5
+        times a sheet's at the same ω and its spectral steps twice as many, so there Gauss–Seidel still wins at
+        bounds the floor would give away (the 300² cylinder at ω = 0.03, about 8·10³ ω: 153 steps 0.26 s against
+        35 steps 0.28 s, docs/fairing.md "Session 28: the floor under small grids").
 
     Examples
     --------
     >>> _spectral_contrast(300), _spectral_contrast(1000), _spectral_contrast(1500), _spectral_contrast(0)
     (2000.0, 10000.0, 22500.0, 2000.0)
-    >>> _spectral_contrast(300, closed_axis=True), _spectral_contrast(1500, closed_axis=True)
+    >>> _spectral_contrast(300, floor=False), _spectral_contrast(1500, floor=False)
     (10000.0, 22500.0)
     """
-    if closed_axis:
+    if not floor:
         return SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2
     return max(SPECTRAL_CONTRAST_MIN, SPECTRAL_CONTRAST * (open_side / SPECTRAL_CONTRAST_SIDE) ** 2)
 
@@ -1421,7 +1429,10 @@ class FairingSystem:
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            tiny = contrast > _spectral_contrast(open_side, wrap is not None and any(wrap)) and exact_lines
+            # (the floor under small grids: an open grid's, with few fixed vertices inside the box to invert around)
+            floor = (grid and not any(wrap) and SPECTRAL_CONTRAST_MIN < contrast
+                     and spectral.fixed_inside(self._grid[2].reshape(shape), wrap) <= SPECTRAL_FLOOR_MAX_INSIDE)
+            tiny = contrast > _spectral_contrast(open_side, floor) and exact_lines
             spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
             # a grid with stiff spots (a stretch of a line nearly collapsed, under eq. 32's own lengths): the lines'
             # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be

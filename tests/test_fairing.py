@@ -989,6 +989,18 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
         ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix=fix)
         assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
     assert steps_at[0.02] < steps_at[0.03] / 2, steps_at
+    # ... but not with more than SPECTRAL_FLOOR_MAX_INSIDE fixed vertices inside the box, whose correction's set-up
+    # then costs more than Gauss–Seidel's solve: there the bound stays SPECTRAL_CONTRAST ω (a weight of about 0.005)
+    scattered = np.zeros(m.n_vertices, bool)
+    scattered[np.random.default_rng(3).choice(m.n_vertices, 150, replace=False)] = True
+    for weight, kind in ((0.01, SymmetricGaussSeidel), (0.002, SpectralPreconditioner)):
+        picked.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            out, _ = fair(m, threshold=0.0, weight=weight, solver="cg", fix=fix, fixed=scattered)
+        assert type(picked[0]) is kind, (weight, picked)
+        ref, _ = fair(m, threshold=0.0, weight=weight, solver="direct", fix=fix, fixed=scattered)
+        assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
     # many fixed vertices scattered inside (far above the 64 that stored columns take): the exact lines correct
     # them in their own coordinates, in single precision, down to the smallest weights CG handles
     fixed = np.zeros(m.n_vertices, bool)
