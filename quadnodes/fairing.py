@@ -271,11 +271,12 @@ SPECTRAL_CONTRAST_SIDE = 1000
 SPECTRAL_CONTRAST_MIN = 2e3
 #: ... and only where at most this many fixed vertices lie inside the unknowns' box (the exact lines invert around each,
 #: at a set-up that grows with their square; a zigzag detection leaves fixed vertices scattered): on the 300² sheet at
-#: ω = 0.01–0.02, with the kernels loaded, the spectral lines took 0.16–0.18 s with about 27 of them, 0.20–0.23 s
-#: with 54, 0.22–0.26 s with 90 and 0.25–0.33 s with 144, where Gauss–Seidel takes 0.20–0.28 s, fewer steps as more
-#: are held (``python benchmarks/studies/multigrid.py --solver --free fair --size 300 --fixed 0.0003 0.0006 0.001
-#: 0.0016 --weights 0.02 0.01 --columns gauss-seidel spectral auto``, session 28; its Gauss–Seidel column, run first,
-#: pays some 0.04 s of warm-up). Above it the floor does not apply (the bound of :data:`SPECTRAL_CONTRAST` does).
+#: ω = 0.01–0.02, with the kernels loaded, the spectral lines took 0.16–0.18 s with about 27 of them (its spectral
+#: and "auto" columns), 0.20–0.23 s with 54, 0.22–0.26 s with 90 and 0.25–0.33 s with 144, where Gauss–Seidel takes
+#: 0.20–0.28 s, fewer steps as more are held (``python benchmarks/studies/multigrid.py --solver --free fair --size
+#: 300 --fixed 0.0003 0.0006 0.001 0.0016 --weights 0.02 0.01 --columns gauss-seidel spectral auto``, session 28;
+#: its Gauss–Seidel column, run first, pays some 0.04 s of warm-up, which makes 54 a tie). Above it the floor does
+#: not apply (the bound is ``SPECTRAL_CONTRAST · max(1, side / SPECTRAL_CONTRAST_SIDE)²``).
 SPECTRAL_FLOOR_MAX_INSIDE = 50
 #: The spectral preconditioner takes its exact lines where the Gershgorin bound exceeds this many times ω, and cosine
 #: lines (``open_lines="cosine"``) below where SciPy's transforms are imported already (or an axis closes around):
@@ -729,7 +730,7 @@ def _two_grid_strides(data: np.ndarray, free: np.ndarray) -> tuple[int, int]:
             half if along[1] * TWO_GRID_ANISOTROPY < along[0] else TWO_GRID_STRIDE)
 
 
-def _spectral_contrast(open_side: int, floor: bool = True) -> float:
+def _spectral_contrast(open_side: int, *, floored: bool) -> float:
     """The Gershgorin bound over ω above which "auto" takes the spectral preconditioner on a grid that it fits, in
     place of Gauss–Seidel and the two-grid switch.
 
@@ -737,7 +738,7 @@ def _spectral_contrast(open_side: int, floor: bool = True) -> float:
     ----------
     open_side : int
         Nodes along the grid's longest open side (0 where both axes close around).
-    floor : bool
+    floored : bool
         Whether the floor under small grids applies: an open grid (no axis closed around) with at most
         :data:`SPECTRAL_FLOOR_MAX_INSIDE` fixed vertices inside the unknowns' box.
 
@@ -745,20 +746,21 @@ def _spectral_contrast(open_side: int, floor: bool = True) -> float:
     -------
     float
         :data:`SPECTRAL_CONTRAST` at a longest open side of :data:`SPECTRAL_CONTRAST_SIDE` nodes, growing with the
-        square of that side (an exact line costs ``O(side)`` a node a step); with ``floor`` never below
+        square of that side (an exact line costs ``O(side)`` a node a step); ``floored`` never below
         :data:`SPECTRAL_CONTRAST_MIN`, else never below :data:`SPECTRAL_CONTRAST`. A cylinder's bound is some 3–5
         times a sheet's at the same ω and its spectral steps twice as many, so there Gauss–Seidel still wins at
         bounds the floor would give away (the 300² cylinder at ω = 0.03, about 8·10³ ω: 153 steps 0.26 s against
-        35 steps 0.28 s, docs/fairing.md "Session 28: the floor under small grids").
+        35 steps 0.28 s); and with many fixed vertices inside the box the exact lines' correction costs more than
+        Gauss–Seidel's solve (docs/fairing.md, "Session 28: the floor under small grids").
 
     Examples
     --------
-    >>> _spectral_contrast(300), _spectral_contrast(1000), _spectral_contrast(1500), _spectral_contrast(0)
-    (2000.0, 10000.0, 22500.0, 2000.0)
-    >>> _spectral_contrast(300, floor=False), _spectral_contrast(1500, floor=False)
-    (10000.0, 22500.0)
+    >>> [_spectral_contrast(side, floored=True) for side in (300, 1000, 1500)]
+    [2000.0, 10000.0, 22500.0]
+    >>> [_spectral_contrast(side, floored=False) for side in (0, 300, 1500)]  # (0: a torus)
+    [10000.0, 10000.0, 22500.0]
     """
-    if not floor:
+    if not floored:
         return SPECTRAL_CONTRAST * max(1.0, open_side / SPECTRAL_CONTRAST_SIDE) ** 2
     return max(SPECTRAL_CONTRAST_MIN, SPECTRAL_CONTRAST * (open_side / SPECTRAL_CONTRAST_SIDE) ** 2)
 
@@ -1122,8 +1124,9 @@ class FairingSystem:
         (:func:`~quadnodes.linalg.spectral.inverts_exactly`) and no stiff spot exceeds
         :data:`SPECTRAL_MAX_STIFFNESS`. Its steps do not grow as the weight falls (15–25 from the default
         weight to 10⁻⁶), so on such a grid it also takes a torus at every weight and any grid where the bound
-        exceeds :func:`_spectral_contrast` ω (on an open grid a weight below about 0.025 up to some 450 nodes a
-        side, 5·10⁻³ at 1000, growing with the side's square), with or without the kernels, in
+        exceeds :func:`_spectral_contrast` ω (on the bench sheet a weight below about 0.025 up to some 450 nodes a
+        side with at most :data:`SPECTRAL_FLOOR_MAX_INSIDE` fixed vertices inside, else 5·10⁻³ up to 1000, and
+        on cylinders, growing with the side's square), with or without the kernels, in
         place of Gauss–Seidel and the two-grid switch; cosine lines where the bound is at most
         :data:`SPECTRAL_EXACT_CONTRAST` ω and SciPy's transforms are imported (or an axis closes around).
         On a grid (open or closed around) with stiff spots — some unknown's fairing diagonal at least
@@ -1429,10 +1432,13 @@ class FairingSystem:
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            # (the floor under small grids: an open grid's, with few fixed vertices inside the box to invert around)
-            floor = (grid and not any(wrap) and SPECTRAL_CONTRAST_MIN < contrast
-                     and spectral.fixed_inside(self._grid[2].reshape(shape), wrap) <= SPECTRAL_FLOOR_MAX_INSIDE)
-            tiny = contrast > _spectral_contrast(open_side, floor) and exact_lines
+            # (the floor under small grids: an open grid's, with few fixed vertices inside the box to invert around;
+            # counted only where it decides)
+            floored = (grid and not any(wrap) and self.preconditioner == "auto" and exact_lines
+                       and _spectral_contrast(open_side, floored=True) < contrast
+                       <= _spectral_contrast(open_side, floored=False)
+                       and spectral.fixed_inside(self._grid[2].reshape(shape), wrap) <= SPECTRAL_FLOOR_MAX_INSIDE)
+            tiny = contrast > _spectral_contrast(open_side, floored=floored) and exact_lines
             spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
             # a grid with stiff spots (a stretch of a line nearly collapsed, under eq. 32's own lengths): the lines'
             # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be

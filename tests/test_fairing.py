@@ -990,7 +990,7 @@ def test_tiny_weights_take_the_spectral_preconditioner_on_open_grids(monkeypatch
         assert np.abs(out.vertices - ref.vertices).max() <= 1e-8 * size, weight
     assert steps_at[0.02] < steps_at[0.03] / 2, steps_at
     # ... but not with more than SPECTRAL_FLOOR_MAX_INSIDE fixed vertices inside the box, whose correction's set-up
-    # then costs more than Gauss–Seidel's solve: there the bound stays SPECTRAL_CONTRAST ω (a weight of about 0.005)
+    # then costs more than Gauss–Seidel's solve: there the bound stays SPECTRAL_CONTRAST ω (here ω ≈ 0.0044)
     scattered = np.zeros(m.n_vertices, bool)
     scattered[np.random.default_rng(3).choice(m.n_vertices, 150, replace=False)] = True
     for weight, kind in ((0.01, SymmetricGaussSeidel), (0.002, SpectralPreconditioner)):
