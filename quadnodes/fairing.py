@@ -1411,10 +1411,17 @@ class FairingSystem:
                     profile.append(_coefficient_profile(*grid_storage(), shape, wrap))
                 return profile[0]
 
+            inside: list[int] = []  # (the fixed vertices inside the unknowns' box: counted once)
+
+            def fixed_inside() -> int:
+                if not inside:
+                    inside.append(spectral.fixed_inside(self._grid[2].reshape(shape), wrap))
+                return inside[0]
+
             def correction_pays() -> bool:  # (the exact lines' correction's set-up against plain CG's steps)
                 if not exact_lines or any(wrap):
                     return True
-                p = spectral.fixed_inside(self._grid[2].reshape(shape), wrap)
+                p = fixed_inside()
                 return p * p <= CORRECTION_PAYS * np.sqrt(contrast)
 
             def spectral_fits() -> bool:
@@ -1432,13 +1439,12 @@ class FairingSystem:
 
             # (each fixed vertex left out of the correction costs many steps at tiny weights: a 150² torus with 16 of
             # them, only zeroed, took 1,341 at ω = 10⁻⁸ against the two-grid cycle's 381, a reviewer's script)
-            # (the floor under small grids: an open grid's, with few fixed vertices inside the box to invert around;
-            # counted only where it decides)
-            floored = (grid and not any(wrap) and self.preconditioner == "auto" and exact_lines
-                       and _spectral_contrast(open_side, floored=True) < contrast
-                       <= _spectral_contrast(open_side, floored=False)
-                       and spectral.fixed_inside(self._grid[2].reshape(shape), wrap) <= SPECTRAL_FLOOR_MAX_INSIDE)
-            tiny = contrast > _spectral_contrast(open_side, floored=floored) and exact_lines
+            # (above the floor under small grids only on an open grid with few fixed vertices inside the box to
+            # invert around: counted only there)
+            tiny = exact_lines and (
+                contrast > _spectral_contrast(open_side, floored=False)
+                or (contrast > _spectral_contrast(open_side, floored=True) and grid and not any(wrap)
+                    and self.preconditioner == "auto" and fixed_inside() <= SPECTRAL_FLOOR_MAX_INSIDE))
             spectral_only = grid and (wrap == (True, True) or tiny) and _spectral_pays(k, contrast) and spectral_fits()
             # a grid with stiff spots (a stretch of a line nearly collapsed, under eq. 32's own lengths): the lines'
             # banded solves take what the point sweeps cannot — not at a weight where the two-grid switch may be
